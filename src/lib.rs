@@ -1,0 +1,38 @@
+//! # softspine
+//!
+//! Statics of soft continuum robots and elastic rods: the backbone is a chain of
+//! unit quaternions at `n + 1` nodes (finite differences), equilibrium comes from
+//! the discrete total potential, and the equations are solved by Newton's method
+//! on a block-tridiagonal system (O(n) per iteration) or by Levenberg-Marquardt.
+//! See `MODEL.md` of the project for the equations and conventions.
+//!
+//! ```
+//! use softspine::{solve, Scene, Settings};
+//! use nalgebra::Vector3;
+//!
+//! // A cantilever (EI = 1, L = 1) under a tip force P = 3 perpendicular to its axis.
+//! let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0);
+//! scene.tip_force = Vector3::new(3.0, 0.0, 0.0);
+//! let sol = solve(&scene, Settings::default(), None).unwrap();
+//! assert!(sol.converged() && sol.stable);
+//! // Bisshopp-Drucker: tip deflection 0.6033 L.
+//! assert!((sol.tip_position().x - 0.60325344).abs() < 1e-3);
+//! ```
+
+pub mod blocktri;
+pub mod error;
+pub mod model;
+pub mod quat;
+pub mod scene;
+pub mod solver;
+pub mod value;
+
+#[cfg(feature = "python")]
+mod python;
+
+pub use error::{Error, Result};
+pub use model::RodModel;
+pub use quat::Quat;
+pub use scene::{Gravity, Scene, Stiffness, TipCondition};
+pub use solver::{solve, Method, Settings, Solution, Solver, Status};
+pub use value::Value;

@@ -1,0 +1,179 @@
+//! Unit quaternions, scalar first `(w, x, y, z)`, rotating material to world.
+//!
+//! A small explicit type rather than nalgebra's `Quaternion`, whose storage order
+//! is `(x, y, z, w)`: the formulas of MODEL.md read one-to-one here.
+
+use nalgebra::{Matrix3, Vector3};
+use std::ops::Mul;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quat {
+    pub w: f64,
+    pub v: Vector3<f64>,
+}
+
+impl Quat {
+    pub const IDENTITY: Quat = Quat {
+        w: 1.0,
+        v: Vector3::new(0.0, 0.0, 0.0),
+    };
+
+    pub fn new(w: f64, x: f64, y: f64, z: f64) -> Self {
+        Quat {
+            w,
+            v: Vector3::new(x, y, z),
+        }
+    }
+
+    pub fn from_array(a: [f64; 4]) -> Self {
+        Quat::new(a[0], a[1], a[2], a[3])
+    }
+
+    pub fn to_array(self) -> [f64; 4] {
+        [self.w, self.v.x, self.v.y, self.v.z]
+    }
+
+    pub fn pure(v: Vector3<f64>) -> Self {
+        Quat { w: 0.0, v }
+    }
+
+    pub fn conj(self) -> Self {
+        Quat { w: self.w, v: -self.v }
+    }
+
+    pub fn norm(self) -> f64 {
+        (self.w * self.w + self.v.norm_squared()).sqrt()
+    }
+
+    pub fn normalized(self) -> Self {
+        let n = self.norm();
+        Quat {
+            w: self.w / n,
+            v: self.v / n,
+        }
+    }
+
+    pub fn dot(self, o: Quat) -> f64 {
+        self.w * o.w + self.v.dot(&o.v)
+    }
+
+    /// `exp(theta / 2)`: the unit quaternion of the rotation vector `theta`.
+    pub fn from_rotation_vector(theta: Vector3<f64>) -> Self {
+        let angle = theta.norm();
+        let half = 0.5 * angle;
+        // sin(half)/angle, with its series near zero (no division by zero).
+        let s = if angle < 1e-4 {
+            0.5 - angle * angle / 48.0
+        } else {
+            half.sin() / angle
+        };
+        Quat {
+            w: half.cos(),
+            v: theta * s,
+        }
+    }
+
+    /// Body-frame update `q * exp(theta / 2)`, renormalised against round-off.
+    pub fn perturbed(self, theta: Vector3<f64>) -> Self {
+        (self * Quat::from_rotation_vector(theta)).normalized()
+    }
+
+    /// Rotation matrix `R(q)` (exact for unit `q`).
+    pub fn rotation(self) -> Matrix3<f64> {
+        let (w, x, y, z) = (self.w, self.v.x, self.v.y, self.v.z);
+        Matrix3::new(
+            w * w + x * x - y * y - z * z,
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z),
+            w * w - x * x + y * y - z * z,
+            2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            w * w - x * x - y * y + z * z,
+        )
+    }
+
+    /// `R(q) v` for unit `q`.
+    pub fn rotate(self, v: Vector3<f64>) -> Vector3<f64> {
+        let t = 2.0 * self.v.cross(&v);
+        v + self.w * t + self.v.cross(&t)
+    }
+
+    /// `R(q)^T v` for unit `q`.
+    pub fn inverse_rotate(self, v: Vector3<f64>) -> Vector3<f64> {
+        self.conj().rotate(v)
+    }
+
+    /// Tangent `T(q)`: the third column of `R(q)`, a quadratic form in `q` (seed Eq. 29).
+    pub fn tangent(self) -> Vector3<f64> {
+        tangent_bilinear(self, self)
+    }
+}
+
+/// Symmetric bilinear form `T(a, b)` of the tangent, `T(q, q) = T(q)` (seed Eq. 30).
+pub fn tangent_bilinear(a: Quat, b: Quat) -> Vector3<f64> {
+    let (aw, ax, ay, az) = (a.w, a.v.x, a.v.y, a.v.z);
+    let (bw, bx, by, bz) = (b.w, b.v.x, b.v.y, b.v.z);
+    Vector3::new(
+        aw * by + ay * bw + ax * bz + az * bx,
+        ay * bz + az * by - aw * bx - ax * bw,
+        aw * bw + az * bz - ax * bx - ay * by,
+    )
+}
+
+/// `S_F q`, with `S_F` the symmetric 4x4 matrix of `F . T(a, b) = a^T S_F b`.
+pub fn tangent_form_apply(f: &Vector3<f64>, q: Quat) -> Quat {
+    let (w, x, y, z) = (q.w, q.v.x, q.v.y, q.v.z);
+    Quat::new(
+        f.z * w - f.y * x + f.x * y,
+        -f.y * w - f.z * x + f.x * z,
+        f.x * w - f.z * y + f.y * z,
+        f.x * x + f.y * y + f.z * z,
+    )
+}
+
+/// Cross-product matrix `[v]x`, `[v]x u = v x u`.
+pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+impl Mul for Quat {
+    type Output = Quat;
+    fn mul(self, o: Quat) -> Quat {
+        Quat {
+            w: self.w * o.w - self.v.dot(&o.v),
+            v: self.w * o.v + o.w * self.v + self.v.cross(&o.v),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotation_matches_rotate_and_tangent() {
+        let q = Quat::new(0.3, -0.5, 0.7, 0.2).normalized();
+        let v = Vector3::new(0.1, -2.0, 0.4);
+        assert!((q.rotation() * v - q.rotate(v)).norm() < 1e-14);
+        assert!((q.rotation().column(2) - q.tangent()).norm() < 1e-14);
+        assert!((q.inverse_rotate(q.rotate(v)) - v).norm() < 1e-14);
+    }
+
+    #[test]
+    fn tangent_form_matches_bilinear() {
+        let a = Quat::new(0.3, -0.5, 0.7, 0.2);
+        let b = Quat::new(-0.1, 0.4, 0.9, -0.3);
+        let f = Vector3::new(1.5, -0.7, 0.25);
+        assert!((a.dot(tangent_form_apply(&f, b)) - f.dot(&tangent_bilinear(a, b))).abs() < 1e-14);
+    }
+
+    #[test]
+    fn exp_map_rotates_by_angle() {
+        let theta = Vector3::new(0.0, 0.0, 1.0);
+        let q = Quat::from_rotation_vector(theta);
+        let x = q.rotate(Vector3::x());
+        assert!((x - Vector3::new(1.0f64.cos(), 1.0f64.sin(), 0.0)).norm() < 1e-14);
+    }
+}

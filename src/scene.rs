@@ -1,0 +1,476 @@
+//! The scene: what is being solved, in SI units and the conventions of MODEL.md.
+//!
+//! A scene is read from a [`Value`] tree (JSON, TOML or a Python dict) by one
+//! validator, which refuses unknown keys, wrong shapes, non-finite numbers and
+//! non-positive lengths or stiffnesses with an error that names the key.
+//!
+//! ```text
+//! length            m
+//! stiffness         {kx, ky, kz} N m^2  |  {E, G, diameter} of a round rod
+//! rest_curvature    [[kappa_x, kappa_y], ...] 1/m, one per equal section
+//! distributed_force [fx, fy, fz] N/m, world frame
+//! gravity           {linear_density kg/m, vector [gx, gy, gz] m/s^2}
+//! tip_force         [Px, Py, Pz] N, world frame
+//! tip_moment        [Mx, My, Mz] N m, world frame
+//! base_quaternion   [w, x, y, z], default identity (tangent +z)
+//! tip               {type: "free"}
+//! name              free text
+//! ```
+
+use crate::error::{Error, Result};
+use crate::quat::Quat;
+use crate::value::Value;
+use nalgebra::Vector3;
+use std::f64::consts::PI;
+
+/// How the stiffness was given.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Stiffness {
+    /// Bending about local x, y and torsion about z [N m^2].
+    Diagonal { kx: f64, ky: f64, kz: f64 },
+    /// A round rod: Young's and shear moduli [Pa], diameter [m] (seed Eq. 8).
+    RoundRod { e: f64, g: f64, diameter: f64 },
+}
+
+impl Stiffness {
+    pub fn diagonal(&self) -> Vector3<f64> {
+        match *self {
+            Stiffness::Diagonal { kx, ky, kz } => Vector3::new(kx, ky, kz),
+            Stiffness::RoundRod { e, g, diameter } => {
+                let i = PI * diameter.powi(4) / 64.0;
+                Vector3::new(e * i, e * i, 2.0 * g * i)
+            }
+        }
+    }
+}
+
+/// Gravity acting on the rod's own mass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gravity {
+    /// Mass per length [kg/m].
+    pub linear_density: f64,
+    /// Gravitational acceleration, world frame [m/s^2].
+    pub vector: Vector3<f64>,
+}
+
+/// The tip's boundary condition. Pinned and clamped tips (unknown reactions)
+/// extend this enum; the free tip carries the given `tip_force` and `tip_moment`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TipCondition {
+    Free,
+}
+
+/// A rod or robot backbone with its loads and boundary conditions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub name: Option<String>,
+    /// Length `L` [m].
+    pub length: f64,
+    pub stiffness_spec: Stiffness,
+    /// Rest curvature `[kappa_x, kappa_y]` per equal section [1/m]; empty: straight.
+    pub rest_curvature: Vec<[f64; 2]>,
+    /// Distributed dead force [N/m], world frame, in addition to gravity.
+    pub distributed_force: Vector3<f64>,
+    pub gravity: Option<Gravity>,
+    pub tip_force: Vector3<f64>,
+    pub tip_moment: Vector3<f64>,
+    /// Base orientation `Q0`, unit.
+    pub base_quaternion: Quat,
+    pub tip: TipCondition,
+}
+
+impl Scene {
+    /// A straight, unloaded rod with diagonal stiffness.
+    pub fn new(length: f64, kx: f64, ky: f64, kz: f64) -> Self {
+        Scene {
+            name: None,
+            length,
+            stiffness_spec: Stiffness::Diagonal { kx, ky, kz },
+            rest_curvature: Vec::new(),
+            distributed_force: Vector3::zeros(),
+            gravity: None,
+            tip_force: Vector3::zeros(),
+            tip_moment: Vector3::zeros(),
+            base_quaternion: Quat::IDENTITY,
+            tip: TipCondition::Free,
+        }
+    }
+
+    /// `(kx, ky, kz)` [N m^2].
+    pub fn stiffness(&self) -> Vector3<f64> {
+        self.stiffness_spec.diagonal()
+    }
+
+    /// Total distributed force, gravity included [N/m].
+    pub fn distributed_force(&self) -> Vector3<f64> {
+        let g = self
+            .gravity
+            .as_ref()
+            .map_or(Vector3::zeros(), |g| g.linear_density * g.vector);
+        self.distributed_force + g
+    }
+
+    /// Number of equal sections (1 for a rod without rest curvature).
+    pub fn sections(&self) -> usize {
+        self.rest_curvature.len().max(1)
+    }
+
+    pub fn from_json_str(text: &str) -> Result<Self> {
+        let v: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| Error::Parse(format!("invalid JSON: {e}")))?;
+        Scene::from_value(&Value::from(&v))
+    }
+
+    pub fn from_toml_str(text: &str) -> Result<Self> {
+        let v: toml::Value =
+            toml::from_str(text).map_err(|e| Error::Parse(format!("invalid TOML: {e}")))?;
+        Scene::from_value(&Value::from(&v))
+    }
+
+    /// Read a `.json` or `.toml` file.
+    pub fn from_file(path: &std::path::Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::Parse(format!("{}: {e}", path.display())))?;
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("json") => Scene::from_json_str(&text),
+            Some("toml") => Scene::from_toml_str(&text),
+            _ => Err(Error::Parse(format!(
+                "{}: expected a .json or .toml file",
+                path.display()
+            ))),
+        }
+    }
+
+    /// Validate and build a scene from a value tree.
+    pub fn from_value(v: &Value) -> Result<Self> {
+        let top = Table::new(v, "scene")?;
+        top.only(&[
+            "name",
+            "length",
+            "stiffness",
+            "rest_curvature",
+            "distributed_force",
+            "gravity",
+            "tip_force",
+            "tip_moment",
+            "base_quaternion",
+            "tip",
+        ])?;
+        let name = match top.get("name") {
+            None => None,
+            Some(Value::String(s)) => Some(s.clone()),
+            Some(other) => return Err(Error::scene("name", format!("expected a string, got {}", other.kind()))),
+        };
+        let length = positive(top.require("length")?, "length")?;
+        let stiffness_spec = stiffness(top.require("stiffness")?)?;
+        let rest_curvature = match top.get("rest_curvature") {
+            None => Vec::new(),
+            Some(v) => rest_curvature(v)?,
+        };
+        let vec3_or_zero = |key: &str| top.get(key).map_or(Ok(Vector3::zeros()), |v| vec3(v, key));
+        let gravity = match top.get("gravity") {
+            None => None,
+            Some(v) => Some(gravity(v)?),
+        };
+        let base_quaternion = match top.get("base_quaternion") {
+            None => Quat::IDENTITY,
+            Some(v) => unit_quaternion(v, "base_quaternion")?,
+        };
+        let tip = match top.get("tip") {
+            None => TipCondition::Free,
+            Some(v) => tip(v)?,
+        };
+        Ok(Scene {
+            name,
+            length,
+            stiffness_spec,
+            rest_curvature,
+            distributed_force: vec3_or_zero("distributed_force")?,
+            gravity,
+            tip_force: vec3_or_zero("tip_force")?,
+            tip_moment: vec3_or_zero("tip_moment")?,
+            base_quaternion,
+            tip,
+        })
+    }
+
+    /// The scene as a value tree (the inverse of [`Scene::from_value`]).
+    pub fn to_value(&self) -> Value {
+        let num = Value::Number;
+        let v3 = |v: &Vector3<f64>| Value::List(v.iter().map(|x| Value::Number(*x)).collect());
+        let mut m: Vec<(String, Value)> = Vec::new();
+        if let Some(n) = &self.name {
+            m.push(("name".into(), Value::String(n.clone())));
+        }
+        m.push(("length".into(), num(self.length)));
+        let stiff = match self.stiffness_spec {
+            Stiffness::Diagonal { kx, ky, kz } => vec![("kx", kx), ("ky", ky), ("kz", kz)],
+            Stiffness::RoundRod { e, g, diameter } => vec![("E", e), ("G", g), ("diameter", diameter)],
+        };
+        m.push((
+            "stiffness".into(),
+            Value::Map(stiff.into_iter().map(|(k, x)| (k.to_string(), num(x))).collect()),
+        ));
+        if !self.rest_curvature.is_empty() {
+            let rc = self
+                .rest_curvature
+                .iter()
+                .map(|k| Value::List(vec![num(k[0]), num(k[1])]))
+                .collect();
+            m.push(("rest_curvature".into(), Value::List(rc)));
+        }
+        m.push(("distributed_force".into(), v3(&self.distributed_force)));
+        if let Some(g) = &self.gravity {
+            m.push((
+                "gravity".into(),
+                Value::Map(vec![
+                    ("linear_density".into(), num(g.linear_density)),
+                    ("vector".into(), v3(&g.vector)),
+                ]),
+            ));
+        }
+        m.push(("tip_force".into(), v3(&self.tip_force)));
+        m.push(("tip_moment".into(), v3(&self.tip_moment)));
+        let q = self.base_quaternion.to_array();
+        m.push(("base_quaternion".into(), Value::List(q.iter().map(|x| num(*x)).collect())));
+        let tip = match self.tip {
+            TipCondition::Free => vec![("type".to_string(), Value::String("free".into()))],
+        };
+        m.push(("tip".into(), Value::Map(tip)));
+        Value::Map(m)
+    }
+
+    /// Check a discretisation: `n` a positive multiple of the number of sections.
+    pub fn check_elements(&self, n: usize) -> Result<()> {
+        let m = self.sections();
+        if n == 0 || n % m != 0 {
+            return Err(Error::argument(
+                "n_elements",
+                format!("must be a positive multiple of the number of sections ({m}), got {n}"),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A map with the path of its key, for error messages.
+struct Table<'a> {
+    entries: &'a [(String, Value)],
+    path: String,
+}
+
+impl<'a> Table<'a> {
+    fn new(v: &'a Value, path: &str) -> Result<Self> {
+        match v {
+            Value::Map(entries) => Ok(Table {
+                entries,
+                path: path.to_string(),
+            }),
+            other => Err(Error::scene(path, format!("expected a table, got {}", other.kind()))),
+        }
+    }
+
+    fn key(&self, k: &str) -> String {
+        if self.path == "scene" {
+            k.to_string()
+        } else {
+            format!("{}.{k}", self.path)
+        }
+    }
+
+    fn get(&self, k: &str) -> Option<&'a Value> {
+        self.entries.iter().find(|(key, _)| key == k).map(|(_, v)| v)
+    }
+
+    fn require(&self, k: &str) -> Result<&'a Value> {
+        self.get(k).ok_or_else(|| Error::scene(self.key(k), "missing"))
+    }
+
+    fn only(&self, allowed: &[&str]) -> Result<()> {
+        for (k, _) in self.entries {
+            if !allowed.contains(&k.as_str()) {
+                return Err(Error::scene(
+                    self.key(k),
+                    format!("unknown key (expected one of: {})", allowed.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn finite(v: &Value, key: &str) -> Result<f64> {
+    match v {
+        Value::Number(x) if x.is_finite() => Ok(*x),
+        Value::Number(x) => Err(Error::scene(key, format!("must be finite, got {x}"))),
+        other => Err(Error::scene(key, format!("expected a number, got {}", other.kind()))),
+    }
+}
+
+fn positive(v: &Value, key: &str) -> Result<f64> {
+    let x = finite(v, key)?;
+    if x <= 0.0 {
+        return Err(Error::scene(key, format!("must be positive, got {x}")));
+    }
+    Ok(x)
+}
+
+fn numbers<const N: usize>(v: &Value, key: &str) -> Result<[f64; N]> {
+    let items = match v {
+        Value::List(items) => items,
+        other => {
+            return Err(Error::scene(
+                key,
+                format!("expected a list of {N} numbers, got {}", other.kind()),
+            ))
+        }
+    };
+    if items.len() != N {
+        return Err(Error::scene(
+            key,
+            format!("expected a list of {N} numbers, got {} entries", items.len()),
+        ));
+    }
+    let mut out = [0.0; N];
+    for (i, item) in items.iter().enumerate() {
+        out[i] = finite(item, &format!("{key}[{i}]"))?;
+    }
+    Ok(out)
+}
+
+fn vec3(v: &Value, key: &str) -> Result<Vector3<f64>> {
+    Ok(Vector3::from(numbers::<3>(v, key)?))
+}
+
+fn unit_quaternion(v: &Value, key: &str) -> Result<Quat> {
+    let q = Quat::from_array(numbers::<4>(v, key)?);
+    let norm = q.norm();
+    if (norm - 1.0).abs() > 1e-6 {
+        return Err(Error::scene(
+            key,
+            format!("must be a unit quaternion [w, x, y, z], its norm is {norm}"),
+        ));
+    }
+    Ok(q.normalized())
+}
+
+fn stiffness(v: &Value) -> Result<Stiffness> {
+    let t = Table::new(v, "stiffness")?;
+    t.only(&["kx", "ky", "kz", "E", "G", "diameter"])?;
+    let p = |k: &str| -> Result<f64> { positive(t.require(k)?, &t.key(k)) };
+    let diagonal = ["kx", "ky", "kz"].iter().any(|k| t.get(k).is_some());
+    let round = ["E", "G", "diameter"].iter().any(|k| t.get(k).is_some());
+    match (diagonal, round) {
+        (true, false) => Ok(Stiffness::Diagonal {
+            kx: p("kx")?,
+            ky: p("ky")?,
+            kz: p("kz")?,
+        }),
+        (false, true) => Ok(Stiffness::RoundRod {
+            e: p("E")?,
+            g: p("G")?,
+            diameter: p("diameter")?,
+        }),
+        (true, true) => Err(Error::scene(
+            "stiffness",
+            "give either {kx, ky, kz} or {E, G, diameter}, not both",
+        )),
+        (false, false) => Err(Error::scene("stiffness", "expected {kx, ky, kz} or {E, G, diameter}")),
+    }
+}
+
+fn rest_curvature(v: &Value) -> Result<Vec<[f64; 2]>> {
+    let key = "rest_curvature";
+    let items = match v {
+        Value::List(items) => items,
+        other => {
+            return Err(Error::scene(
+                key,
+                format!("expected a list of [kappa_x, kappa_y] per section, got {}", other.kind()),
+            ))
+        }
+    };
+    if items.is_empty() {
+        return Err(Error::scene(key, "must name at least one section (omit the key for a straight rod)"));
+    }
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| numbers::<2>(item, &format!("{key}[{i}]")))
+        .collect()
+}
+
+fn gravity(v: &Value) -> Result<Gravity> {
+    let t = Table::new(v, "gravity")?;
+    t.only(&["linear_density", "vector"])?;
+    let linear_density = finite(t.require("linear_density")?, &t.key("linear_density"))?;
+    if linear_density < 0.0 {
+        return Err(Error::scene(
+            t.key("linear_density"),
+            format!("must not be negative, got {linear_density}"),
+        ));
+    }
+    Ok(Gravity {
+        linear_density,
+        vector: vec3(t.require("vector")?, &t.key("vector"))?,
+    })
+}
+
+fn tip(v: &Value) -> Result<TipCondition> {
+    let t = Table::new(v, "tip")?;
+    let kind = match t.require("type")? {
+        Value::String(s) => s.as_str(),
+        other => return Err(Error::scene("tip.type", format!("expected a string, got {}", other.kind()))),
+    };
+    match kind {
+        "free" => {
+            t.only(&["type"])?;
+            Ok(TipCondition::Free)
+        }
+        "pinned" | "clamped" => Err(Error::scene(
+            "tip.type",
+            format!("'{kind}' tips are not supported yet (only 'free')"),
+        )),
+        other => Err(Error::scene(
+            "tip.type",
+            format!("unknown tip type '{other}' (expected 'free', 'pinned' or 'clamped')"),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err_key(json: &str) -> String {
+        match Scene::from_json_str(json) {
+            Err(Error::InvalidScene { key, .. }) => key,
+            other => panic!("expected an invalid scene, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn parses_and_round_trips() {
+        let s = Scene::from_json_str(
+            r#"{"length": 1, "stiffness": {"E": 2e9, "G": 8e8, "diameter": 0.01},
+                "rest_curvature": [[1, 0], [0, 2]], "gravity": {"linear_density": 0.1, "vector": [0, 0, -9.81]},
+                "tip_force": [0, 1, 0]}"#,
+        )
+        .unwrap();
+        assert_eq!(s.sections(), 2);
+        let back = Scene::from_value(&s.to_value()).unwrap();
+        assert_eq!(s, back);
+        let toml = "length = 0.5\n[stiffness]\nkx = 1\nky = 2\nkz = 3\n";
+        assert_eq!(Scene::from_toml_str(toml).unwrap().stiffness(), Vector3::new(1.0, 2.0, 3.0));
+    }
+
+    #[test]
+    fn refusals_name_the_key() {
+        let base = r#""stiffness": {"kx": 1, "ky": 1, "kz": 1}"#;
+        assert_eq!(err_key(&format!(r#"{{"length": -1, {base}}}"#)), "length");
+        assert_eq!(err_key(r#"{"length": 1, "stiffness": {"kx": 1, "ky": 0, "kz": 1}}"#), "stiffness.ky");
+        assert_eq!(err_key(&format!(r#"{{"length": 1, {base}, "tip_force": [1, 2]}}"#)), "tip_force");
+        assert_eq!(err_key(&format!(r#"{{"length": 1, {base}, "colour": 3}}"#)), "colour");
+        assert_eq!(err_key(r#"{"stiffness": {"kx": 1, "ky": 1, "kz": 1}}"#), "length");
+    }
+}

@@ -1,0 +1,384 @@
+//! Solvers of the discrete equilibrium: settings, the result type, and the
+//! driver shared by every local method (a direct attempt from the initial
+//! guess, then load continuation from the straight rod when that fails).
+
+mod lm;
+mod newton;
+
+use crate::blocktri::{symmetric_part_is_positive_definite, BlockLu, BlockTridiagonal};
+use crate::error::{Error, Result};
+use crate::model::RodModel;
+use crate::quat::Quat;
+use crate::scene::Scene;
+use nalgebra::Vector3;
+
+/// The numerical method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Damped Newton on the minimal (3 per node) update with the block-tridiagonal
+    /// Jacobian: O(n) per iteration, quadratic convergence.
+    Newton,
+    /// Levenberg-Marquardt on the same residual, dense normal equations with faer.
+    LevenbergMarquardt,
+}
+
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "newton" => Ok(Method::Newton),
+            "lm" => Ok(Method::LevenbergMarquardt),
+            other => Err(Error::argument(
+                "method",
+                format!("unknown method '{other}' (expected 'newton' or 'lm')"),
+            )),
+        }
+    }
+}
+
+/// Solver settings; every field has a documented default.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// Number of elements `n` (default 20); a multiple of the number of sections.
+    pub n_elements: usize,
+    pub method: Method,
+    /// Convergence tolerance on the relative residual: the largest torque
+    /// imbalance over `max(k) / L` (default 1e-10).
+    pub tol: f64,
+    /// Iteration limit of one local solve (default 60; LM: 4 times that).
+    pub max_iterations: usize,
+    /// Smallest load-continuation step before giving up (default 1e-6).
+    pub min_continuation_step: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            n_elements: 20,
+            method: Method::Newton,
+            tol: 1e-10,
+            max_iterations: 60,
+            min_continuation_step: 1e-6,
+        }
+    }
+}
+
+impl Settings {
+    pub fn validate(&self) -> Result<()> {
+        if self.n_elements == 0 {
+            return Err(Error::argument("n_elements", "must be positive"));
+        }
+        if !(self.tol.is_finite() && self.tol > 0.0) {
+            return Err(Error::argument("tol", format!("must be positive and finite, got {}", self.tol)));
+        }
+        if self.max_iterations == 0 {
+            return Err(Error::argument("max_iterations", "must be positive"));
+        }
+        Ok(())
+    }
+}
+
+/// How a solve ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// The relative residual is below `tol`.
+    Converged,
+    /// The iteration or continuation budget ran out first.
+    NotConverged,
+}
+
+/// An equilibrium (or the best state reached) with its status.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    pub n_elements: usize,
+    /// Node quaternions `q_0..q_n`, `q_0` the base.
+    pub quaternions: Vec<Quat>,
+    /// Node positions `r_0..r_n` [m], `r_0 = 0`.
+    pub positions: Vec<Vector3<f64>>,
+    /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
+    pub forces: Vec<Vector3<f64>>,
+    pub status: Status,
+    /// Newton or LM iterations, all continuation steps included.
+    pub iterations: usize,
+    /// Load-continuation steps taken (0: solved directly).
+    pub continuation_steps: usize,
+    /// Relative residual (see [`Settings::tol`]).
+    pub residual_norm: f64,
+    /// Total potential: elastic energy minus the work of the dead forces [J].
+    pub energy: f64,
+    /// Whether the equilibrium is stable: the symmetric part of the reduced
+    /// Hessian is positive definite. Always false when not converged.
+    pub stable: bool,
+    /// A short human-readable account of how the solve ended.
+    pub message: String,
+}
+
+impl Solution {
+    pub fn converged(&self) -> bool {
+        self.status == Status::Converged
+    }
+
+    pub fn tip_position(&self) -> Vector3<f64> {
+        self.positions[self.positions.len() - 1]
+    }
+
+    pub fn tip_quaternion(&self) -> Quat {
+        self.quaternions[self.quaternions.len() - 1]
+    }
+
+    /// The solution if it converged, otherwise [`Error::NotConverged`].
+    pub fn check(self) -> Result<Self> {
+        if self.converged() {
+            Ok(self)
+        } else {
+            Err(Error::NotConverged {
+                iterations: self.iterations,
+                residual: self.residual_norm,
+                reason: self.message,
+            })
+        }
+    }
+}
+
+/// Buffers of one solve, allocated once and reused by warm-started solves.
+#[derive(Debug, Clone)]
+pub(crate) struct Workspace {
+    pub q: Vec<Quat>,
+    pub trial: Vec<Quat>,
+    pub saved: Vec<Quat>,
+    pub g: Vec<Vector3<f64>>,
+    pub g_trial: Vec<Vector3<f64>>,
+    pub step: Vec<Vector3<f64>>,
+    pub scratch: Vec<Vector3<f64>>,
+    pub jac: BlockTridiagonal,
+    pub lu: BlockLu,
+}
+
+impl Workspace {
+    fn new(model: &RodModel) -> Self {
+        let n = model.n;
+        Workspace {
+            q: model.straight(),
+            trial: model.straight(),
+            saved: model.straight(),
+            g: vec![Vector3::zeros(); n],
+            g_trial: vec![Vector3::zeros(); n],
+            step: vec![Vector3::zeros(); n],
+            scratch: vec![Vector3::zeros(); n],
+            jac: BlockTridiagonal::zeros(n),
+            lu: BlockLu::new(n),
+        }
+    }
+}
+
+/// Result of one local solve at a fixed load scale.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LocalOutcome {
+    pub converged: bool,
+    pub iterations: usize,
+}
+
+/// A local method: drive `w.q` to an equilibrium at load scale `lambda`.
+/// On return `w.g` and `w.jac` hold the residual and Jacobian at `w.q`.
+pub(crate) trait LocalSolver {
+    fn run(&mut self, model: &RodModel, w: &mut Workspace, lambda: f64, max_iter: usize, tol: f64) -> LocalOutcome;
+}
+
+/// A reusable solver of one scene at one discretisation: build it once, call
+/// [`Solver::solve`] many times (warm starts cost no allocation in the core).
+pub struct Solver {
+    model: RodModel,
+    settings: Settings,
+    work: Workspace,
+    local: Box<dyn LocalSolver + Send>,
+}
+
+impl Solver {
+    pub fn new(scene: &Scene, settings: Settings) -> Result<Self> {
+        settings.validate()?;
+        scene.check_elements(settings.n_elements)?;
+        let model = RodModel::new(scene, settings.n_elements);
+        let work = Workspace::new(&model);
+        let local: Box<dyn LocalSolver + Send> = match settings.method {
+            Method::Newton => Box::new(newton::Newton),
+            Method::LevenbergMarquardt => Box::new(lm::LevenbergMarquardt::new(model.n)),
+        };
+        Ok(Solver {
+            model,
+            settings,
+            work,
+            local,
+        })
+    }
+
+    pub fn model(&self) -> &RodModel {
+        &self.model
+    }
+
+    /// Solve from `initial` (node quaternions `q_0..q_n`; `q_0` is replaced by the
+    /// base) or from the straight rod. Never fails: the status says how it ended.
+    pub fn solve(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
+        let n = self.model.n;
+        if let Some(q) = initial {
+            if q.len() != n + 1 {
+                return Err(Error::argument(
+                    "initial",
+                    format!("has {} nodes, the discretisation has {}", q.len(), n + 1),
+                ));
+            }
+            if q.iter().any(|x| !x.to_array().iter().all(|v| v.is_finite()) || x.norm() < 1e-6) {
+                return Err(Error::argument("initial", "quaternions must be finite and non-zero"));
+            }
+        }
+        let tol = self.settings.tol;
+        let (model, w) = (&self.model, &mut self.work);
+        if initial.is_none() && model.is_trivial() {
+            // Nothing bends the rod: the straight rod is exact, no iteration needed.
+            w.q.copy_from_slice(&model.straight());
+            model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+            return Ok(self.finish(true, 0, 0, "straight rod: exact without iteration".into()));
+        }
+        match initial {
+            Some(q) => {
+                w.q[0] = model.base;
+                for j in 1..=n {
+                    w.q[j] = q[j].normalized();
+                }
+            }
+            None => w.q.copy_from_slice(&model.straight()),
+        }
+        let max_iter = self.settings.max_iterations;
+        let direct = self.local.run(model, w, 1.0, max_iter, tol);
+        let mut iterations = direct.iterations;
+        if direct.converged && symmetric_part_is_positive_definite(&w.jac) {
+            return Ok(self.finish(true, iterations, 0, "converged".into()));
+        }
+        // The direct attempt failed or found an unstable equilibrium: follow the
+        // load path from the straight rod, which stays on the stable branch.
+        let direct_state = direct.converged.then(|| w.q.clone());
+        let (cont, steps) = continuation(self.local.as_mut(), model, w, tol, max_iter, self.settings.min_continuation_step);
+        iterations += cont.iterations;
+        let w = &mut self.work;
+        if cont.converged {
+            return Ok(self.finish(true, iterations, steps, "converged by load continuation".into()));
+        }
+        if let Some(q) = direct_state {
+            w.q.copy_from_slice(&q);
+            self.model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+            return Ok(self.finish(true, iterations, steps, "converged (unstable equilibrium)".into()));
+        }
+        let msg = format!(
+            "no convergence: the direct solve and load continuation (stalled at {steps} steps) both failed"
+        );
+        Ok(self.finish(false, iterations, steps, msg))
+    }
+
+    /// Build the Solution from the workspace (residual and Jacobian at `w.q` are current).
+    fn finish(&self, converged: bool, iterations: usize, continuation_steps: usize, message: String) -> Solution {
+        let (model, w) = (&self.model, &self.work);
+        let residual_norm = model.residual_norm(&w.g);
+        let converged = converged && residual_norm <= self.settings.tol;
+        let mut positions = vec![Vector3::zeros(); model.n + 1];
+        model.positions(&w.q, &mut positions);
+        let stable = converged && symmetric_part_is_positive_definite(&w.jac);
+        let message = if converged && !stable && !message.contains("unstable") {
+            format!("{message} (unstable equilibrium)")
+        } else {
+            message
+        };
+        Solution {
+            n_elements: model.n,
+            quaternions: w.q.clone(),
+            positions,
+            forces: model.node_force.clone(),
+            status: if converged { Status::Converged } else { Status::NotConverged },
+            iterations,
+            continuation_steps,
+            residual_norm,
+            energy: model.energy(&w.q),
+            stable,
+            message,
+        }
+    }
+}
+
+/// Follow `lambda` from 0 (straight rod, exact) to 1 with a tangent predictor
+/// and an adaptive step. Returns the outcome at `lambda = 1` and the steps taken.
+fn continuation(
+    local: &mut dyn LocalSolver,
+    model: &RodModel,
+    w: &mut Workspace,
+    tol: f64,
+    max_iter: usize,
+    min_step: f64,
+) -> (LocalOutcome, usize) {
+    let n = model.n;
+    w.saved.copy_from_slice(&model.straight());
+    let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
+    let (mut iterations, mut steps) = (0usize, 0usize);
+    while lambda < 1.0 {
+        let target = (lambda + dlambda).min(1.0);
+        // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last equilibrium.
+        model.residual_jacobian(&w.saved, lambda, &mut w.g, &mut w.jac);
+        model.residual_lambda_derivative(&w.saved, &mut w.step, &mut w.scratch);
+        let predicted = w.lu.factor(&w.jac, 0.0).is_ok();
+        if predicted {
+            w.lu.solve_in_place(&mut w.step);
+        }
+        let h = target - lambda;
+        w.q[0] = w.saved[0];
+        for j in 1..=n {
+            let d = if predicted { -h * w.step[j - 1] } else { Vector3::zeros() };
+            let d = if d.norm() > 0.5 { d * (0.5 / d.norm()) } else { d };
+            w.q[j] = w.saved[j].perturbed(d);
+        }
+        let out = local.run(model, w, target, max_iter.min(25), tol);
+        iterations += out.iterations;
+        if out.converged {
+            steps += 1;
+            lambda = target;
+            w.saved.copy_from_slice(&w.q);
+            if out.iterations <= 6 {
+                dlambda = (dlambda * 2.0).min(1.0);
+            }
+        } else {
+            dlambda *= 0.5;
+            if dlambda < min_step {
+                w.q.copy_from_slice(&w.saved);
+                model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+                return (LocalOutcome { converged: false, iterations }, steps);
+            }
+        }
+    }
+    // w.q is the equilibrium at lambda = 1; w.g and w.jac are current.
+    (LocalOutcome { converged: true, iterations }, steps)
+}
+
+/// Solve a scene once (see [`Solver`] to reuse the workspace).
+pub fn solve(scene: &Scene, settings: Settings, initial: Option<&[Quat]>) -> Result<Solution> {
+    Solver::new(scene, settings)?.solve(initial)
+}
+
+/// Scale the step so that no node turns by more than `max_node` and no element
+/// by more than `max_element` radians in one update (keeps `conj(a) b` far from
+/// the antipodal branch of the curvature formula).
+pub(crate) fn step_limit(step: &[Vector3<f64>], max_node: f64, max_element: f64) -> f64 {
+    let mut limit = 1.0f64;
+    let mut prev = Vector3::zeros();
+    for d in step {
+        let node = d.norm();
+        if node > max_node {
+            limit = limit.min(max_node / node);
+        }
+        let rel = (d - prev).norm();
+        if rel > max_element {
+            limit = limit.min(max_element / rel);
+        }
+        prev = *d;
+    }
+    limit
+}
+
+pub(crate) fn sum_squares(g: &[Vector3<f64>]) -> f64 {
+    g.iter().map(|x| x.norm_squared()).sum()
+}

@@ -1,0 +1,61 @@
+//! Damped Newton with a backtracking line search on the residual norm.
+//!
+//! The step solves `J d = -g` by the O(n) block-tridiagonal factorisation. `J` is
+//! the exact Jacobian of `g`, so `d` is a descent direction of `|g|^2` and the
+//! Armijo backtracking always terminates near a regular solution.
+
+use super::{step_limit, sum_squares, LocalOutcome, LocalSolver, Workspace};
+use crate::model::RodModel;
+
+pub(crate) struct Newton;
+
+/// Largest node rotation and element rotation of one update [rad].
+const MAX_NODE_TURN: f64 = 1.0;
+const MAX_ELEMENT_TURN: f64 = 0.3;
+
+impl LocalSolver for Newton {
+    fn run(&mut self, model: &RodModel, w: &mut Workspace, lambda: f64, max_iter: usize, tol: f64) -> LocalOutcome {
+        let n = model.n;
+        model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+        let mut merit = sum_squares(&w.g);
+        for it in 0..max_iter {
+            if model.residual_norm(&w.g) <= tol {
+                return LocalOutcome { converged: true, iterations: it };
+            }
+            // Factor J; a singular pivot (a bifurcation, a neutral direction) is damped.
+            let scale = w.jac.max_diagonal().max(model.residual_scale * model.ds);
+            let mut shift = 0.0;
+            while w.lu.factor(&w.jac, shift).is_err() {
+                shift = if shift == 0.0 { 1e-10 * scale } else { shift * 100.0 };
+                if shift > scale {
+                    return LocalOutcome { converged: false, iterations: it };
+                }
+            }
+            for (s, g) in w.step.iter_mut().zip(&w.g) {
+                *s = -g;
+            }
+            w.lu.solve_in_place(&mut w.step);
+            let mut alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
+            loop {
+                w.trial[0] = w.q[0];
+                for j in 1..=n {
+                    w.trial[j] = w.q[j].perturbed(alpha * w.step[j - 1]);
+                }
+                model.residual(&w.trial, lambda, &mut w.g_trial);
+                let trial_merit = sum_squares(&w.g_trial);
+                if trial_merit.is_finite() && trial_merit <= (1.0 - 1e-4 * alpha) * merit {
+                    merit = trial_merit;
+                    break;
+                }
+                alpha *= 0.5;
+                if alpha < 1e-4 {
+                    return LocalOutcome { converged: false, iterations: it + 1 };
+                }
+            }
+            std::mem::swap(&mut w.q, &mut w.trial);
+            model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+        }
+        let converged = model.residual_norm(&w.g) <= tol;
+        LocalOutcome { converged, iterations: max_iter }
+    }
+}

@@ -1,0 +1,71 @@
+"""softspine: fast, exact statics of soft continuum robots and elastic rods.
+
+The backbone is a chain of unit quaternions at ``n + 1`` nodes (finite
+differences); equilibrium comes from the discrete total potential and is solved
+by Newton's method on a block-tridiagonal system (O(n) per iteration) in Rust.
+
+>>> import softspine
+>>> scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+...          "tip_force": [3.0, 0.0, 0.0]}
+>>> sol = softspine.solve(scene, n_elements=40)
+>>> sol.converged, round(float(sol.tip_position[0]), 3)
+(True, 0.603)
+"""
+
+from __future__ import annotations
+
+from os import PathLike
+
+from ._core import Scene, Solution, SolverError, __version__
+from ._core import solve as _solve
+from .scenes import load_scene
+
+__all__ = ["Scene", "Solution", "SolverError", "load_scene", "solve", "__version__"]
+
+
+def solve(
+    scene: Scene | dict | str | PathLike,
+    n_elements: int = 20,
+    method: str = "newton",
+    initial: Solution | None = None,
+    tol: float = 1e-10,
+    max_iterations: int = 60,
+    check: bool = False,
+) -> Solution:
+    """Solve the statics of ``scene``.
+
+    Parameters
+    ----------
+    scene : Scene, dict, or path of a ``.json`` / ``.toml`` file
+        What is solved (see ``softspine.Scene``).
+    n_elements : int
+        Number of elements ``n``, a multiple of the number of sections.
+    method : {"newton", "lm"}
+        ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
+        continuation when a direct solve fails (default). ``"lm"``:
+        Levenberg-Marquardt on the same residual (dense, for comparison).
+    initial : Solution or array (n+1, 4), optional
+        Warm start, e.g. the solution of a neighbouring scene.
+    tol : float
+        Tolerance on the relative residual (largest torque imbalance over
+        ``max(k) / L``).
+    max_iterations : int
+        Iteration limit of one Newton run (LM: four times as many).
+    check : bool
+        Raise ``SolverError`` instead of returning ``converged=False``.
+
+    Returns
+    -------
+    Solution
+        Positions, quaternions, forces, tip pose, ``converged``, ``iterations``,
+        ``residual_norm``, ``energy`` and ``stable``.
+    """
+    return _solve(
+        load_scene(scene),
+        n_elements=n_elements,
+        method=method,
+        initial=initial,
+        tol=tol,
+        max_iterations=max_iterations,
+        check=check,
+    )

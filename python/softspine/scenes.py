@@ -1,0 +1,52 @@
+"""Loading scenes from dicts and files, and the scenes the demo and tests share."""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from os import PathLike
+from pathlib import Path
+
+from ._core import Scene
+
+
+def load_scene(source: Scene | dict | str | PathLike) -> Scene:
+    """A ``Scene`` from a Scene, a dict, or the path of a ``.json``/``.toml`` file."""
+    if isinstance(source, Scene):
+        return source
+    if isinstance(source, dict):
+        return Scene(source)
+    if isinstance(source, (str, PathLike)):
+        path = Path(source)
+        text = path.read_text()
+        if path.suffix == ".json":
+            return Scene.from_json(text)
+        if path.suffix == ".toml":
+            return Scene.from_toml(text)
+        raise ValueError(f"{path}: expected a .json or .toml file")
+    raise ValueError(f"scene: expected a Scene, a dict or a file path, got {type(source).__name__}")
+
+
+def demo_robot_scene() -> Scene:
+    """The demo scene: a hanging 1 m, 10-section robot under its own weight and 30 g."""
+    return load_scene(resources.files("softspine") / "data" / "demo_robot.toml")
+
+
+def cantilever(alpha: float, length: float = 1.0, ei: float = 1.0) -> dict:
+    """Bisshopp-Drucker cantilever: tip force ``alpha EI / L^2`` along +x, axis +z."""
+    return {
+        "name": f"cantilever alpha={alpha:g}",
+        "length": length,
+        "stiffness": {"kx": ei, "ky": ei, "kz": ei},
+        "tip_force": [alpha * ei / length**2, 0.0, 0.0],
+    }
+
+
+def end_moment(turns: float, length: float = 1.0, ei: float = 1.0) -> dict:
+    """Pure end moment about world y bending the rod into ``turns`` full circles."""
+    return {
+        "name": f"end moment {turns:g} turns",
+        "length": length,
+        "stiffness": {"kx": ei, "ky": ei, "kz": ei},
+        "tip_moment": [0.0, 2.0 * math.pi * turns * ei / length, 0.0],
+    }

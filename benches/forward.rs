@@ -1,1 +1,69 @@
-fn main() {}
+//! Forward statics: cold (straight guess) and warm (from the equilibrium of the
+//! same scene with every load 2 % lower, as between two steps of a control loop).
+//!
+//! `cargo bench --bench forward`; the medians go into the README's table.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use nalgebra::Vector3;
+use softspine::{Quat, Scene, Settings, Solver};
+use std::hint::black_box;
+
+const SIZES: [usize; 6] = [10, 20, 40, 80, 160, 1000];
+
+/// Bisshopp-Drucker cantilever, alpha = P L^2 / EI = 3.
+fn cantilever(scale: f64) -> Scene {
+    let mut s = Scene::new(1.0, 1.0, 1.0, 1.0);
+    s.tip_force = Vector3::new(3.0 * scale, 0.0, 0.0);
+    s
+}
+
+/// A 1 m, 10-section robot with 3D rest curvature under gravity and a tip load.
+fn robot(scale: f64) -> Scene {
+    let mut s = Scene::new(1.0, 0.8, 0.8, 0.6);
+    s.rest_curvature = (0..10)
+        .map(|k| {
+            let phi = k as f64 * 0.6;
+            [2.0 * phi.cos(), 2.0 * phi.sin()]
+        })
+        .collect();
+    s.distributed_force = Vector3::new(0.0, -0.5, -2.0) * scale;
+    s.tip_force = Vector3::new(0.1, 0.0, -0.3) * scale;
+    s.base_quaternion = Quat::new(0.0, 1.0, 0.0, 0.0);
+    s
+}
+
+fn bench_scene(c: &mut Criterion, name: &str, make: fn(f64) -> Scene) {
+    let mut group = c.benchmark_group(name);
+    for n in SIZES {
+        let settings = Settings {
+            n_elements: n,
+            ..Settings::default()
+        };
+        let mut solver = Solver::new(&make(1.0), settings.clone()).unwrap();
+        let neighbour = Solver::new(&make(0.98), settings)
+            .unwrap()
+            .solve(None)
+            .unwrap();
+        assert!(neighbour.converged() && solver.solve(None).unwrap().converged());
+        group.bench_with_input(BenchmarkId::new("cold", n), &n, |b, _| {
+            b.iter(|| black_box(solver.solve(None).unwrap()))
+        });
+        let warm = neighbour.quaternions.clone();
+        group.bench_with_input(BenchmarkId::new("warm", n), &n, |b, _| {
+            b.iter(|| black_box(solver.solve(Some(&warm)).unwrap()))
+        });
+    }
+    group.finish();
+}
+
+fn forward(c: &mut Criterion) {
+    bench_scene(c, "cantilever_alpha3", cantilever);
+    bench_scene(c, "robot_3d", robot);
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(1));
+    targets = forward
+}
+criterion_main!(benches);

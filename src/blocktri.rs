@@ -94,7 +94,8 @@ impl BlockLu {
         let mut pivot = a.diag[0] + Matrix3::identity() * shift;
         for j in 0..n {
             if j > 0 {
-                pivot = a.diag[j] + Matrix3::identity() * shift - a.lower[j - 1] * self.coupling[j - 1];
+                pivot =
+                    a.diag[j] + Matrix3::identity() * shift - a.lower[j - 1] * self.coupling[j - 1];
             }
             let inv = invert_checked(&pivot, scale).ok_or(SingularPivot(j))?;
             self.inv_pivot[j] = inv;
@@ -193,7 +194,12 @@ mod tests {
         lu.factor(&a, 0.0).unwrap();
         lu.solve_in_place(&mut b);
         for j in 0..n {
-            assert!((b[j] - x[j]).norm() < 1e-12, "{j}: {:?} vs {:?}", b[j], x[j]);
+            assert!(
+                (b[j] - x[j]).norm() < 1e-12,
+                "{j}: {:?} vs {:?}",
+                b[j],
+                x[j]
+            );
         }
     }
 

@@ -149,7 +149,8 @@ impl RodModel {
                 let jbb = amat.transpose() * kmat * amat / ds + radial + 0.5 * skew(&(gb + gbx));
                 jac.diag[i - 1] += jbb;
                 if i >= 2 {
-                    let jaa = amat * kmat * amat.transpose() / ds + radial + 0.5 * skew(&(ga + gax));
+                    let jaa =
+                        amat * kmat * amat.transpose() / ds + radial + 0.5 * skew(&(ga + gax));
                     jac.diag[i - 2] += jaa;
                     let mut jab = -(amat * kmat * amat) / ds
                         - 0.5

@@ -11,7 +11,12 @@ use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
-pyo3::create_exception!(_core, SolverError, PyException, "A solve did not converge (raised with check=True).");
+pyo3::create_exception!(
+    _core,
+    SolverError,
+    PyException,
+    "A solve did not converge (raised with check=True)."
+);
 
 impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
@@ -39,14 +44,22 @@ fn to_value(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<Value> {
             let key: String = k
                 .extract()
                 .map_err(|_| PyValueError::new_err(format!("{path}: keys must be strings")))?;
-            let child = if path.is_empty() { key.clone() } else { format!("{path}.{key}") };
+            let child = if path.is_empty() {
+                key.clone()
+            } else {
+                format!("{path}.{key}")
+            };
             entries.push((key, to_value(&v, &child)?));
         }
         return Ok(Value::Map(entries));
     }
     if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
         let items: Vec<Bound<'_, PyAny>> = obj.try_iter()?.collect::<PyResult<_>>()?;
-        return items.iter().map(|x| to_value(x, path)).collect::<PyResult<_>>().map(Value::List);
+        return items
+            .iter()
+            .map(|x| to_value(x, path))
+            .collect::<PyResult<_>>()
+            .map(Value::List);
     }
     if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
         return Ok(Value::Number(obj.extract()?));
@@ -89,7 +102,12 @@ fn from_value<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
 ///
 /// Build it from a dict (``Scene({...})``), a JSON or TOML file
 /// (``Scene.from_file(path)``); invalid input raises ``ValueError`` naming the key.
-#[pyclass(name = "Scene", module = "softspine._core", frozen, skip_from_py_object)]
+#[pyclass(
+    name = "Scene",
+    module = "softspine._core",
+    frozen,
+    skip_from_py_object
+)]
 #[derive(Clone)]
 pub struct PyScene {
     inner: Scene,
@@ -221,7 +239,11 @@ impl PySolution {
     }
     #[getter]
     fn tip_quaternion<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        self.inner.tip_quaternion().to_array().to_vec().into_pyarray(py)
+        self.inner
+            .tip_quaternion()
+            .to_array()
+            .to_vec()
+            .into_pyarray(py)
     }
     #[getter]
     fn converged(&self) -> bool {
@@ -287,19 +309,27 @@ fn quaternions_arg(name: &str, q: &Bound<'_, PyAny>) -> PyResult<Vec<Quat>> {
     if let Ok(s) = q.cast::<PySolution>() {
         return Ok(s.get().inner.quaternions.clone());
     }
-    let arr: PyReadonlyArray2<f64> = q
-        .extract()
-        .map_err(|_| PyValueError::new_err(format!("{name}: expected a Solution or a float array of shape (n+1, 4)")))?;
+    let arr: PyReadonlyArray2<f64> = q.extract().map_err(|_| {
+        PyValueError::new_err(format!(
+            "{name}: expected a Solution or a float array of shape (n+1, 4)"
+        ))
+    })?;
     let a = arr.as_array();
     if a.ncols() != 4 {
-        return Err(PyValueError::new_err(format!("{name}: expected shape (n+1, 4), got {:?}", a.shape())));
+        return Err(PyValueError::new_err(format!(
+            "{name}: expected shape (n+1, 4), got {:?}",
+            a.shape()
+        )));
     }
-    Ok(a.rows().into_iter().map(|r| Quat::new(r[0], r[1], r[2], r[3])).collect())
+    Ok(a.rows()
+        .into_iter()
+        .map(|r| Quat::new(r[0], r[1], r[2], r[3]))
+        .collect())
 }
 
 /// Solve the statics of a scene. See ``softspine.solve`` for the documentation.
 #[pyfunction]
-#[pyo3(signature = (scene, n_elements=20, method="newton", initial=None, tol=1e-10, max_iterations=60, check=false))]
+#[pyo3(signature = (scene, n_elements=20, method="newton", initial=None, tol=1e-10, max_iterations=500, check=false))]
 #[allow(clippy::too_many_arguments)]
 fn solve(
     py: Python<'_>,
@@ -313,10 +343,14 @@ fn solve(
 ) -> PyResult<PySolution> {
     let scene = scene_arg(scene)?;
     if n_elements <= 0 {
-        return Err(PyValueError::new_err(format!("n_elements: must be positive, got {n_elements}")));
+        return Err(PyValueError::new_err(format!(
+            "n_elements: must be positive, got {n_elements}"
+        )));
     }
     if max_iterations <= 0 {
-        return Err(PyValueError::new_err(format!("max_iterations: must be positive, got {max_iterations}")));
+        return Err(PyValueError::new_err(format!(
+            "max_iterations: must be positive, got {max_iterations}"
+        )));
     }
     let settings = Settings {
         n_elements: n_elements as usize,
@@ -332,7 +366,10 @@ fn solve(
     Ok(PySolution { inner: solution })
 }
 
-fn model_and_state(scene: &Bound<'_, PyAny>, quaternions: &Bound<'_, PyAny>) -> PyResult<(RodModel, Vec<Quat>)> {
+fn model_and_state(
+    scene: &Bound<'_, PyAny>,
+    quaternions: &Bound<'_, PyAny>,
+) -> PyResult<(RodModel, Vec<Quat>)> {
     let scene = scene_arg(scene)?;
     let q = quaternions_arg("quaternions", quaternions)?;
     if q.len() < 2 {
@@ -345,7 +382,11 @@ fn model_and_state(scene: &Bound<'_, PyAny>, quaternions: &Bound<'_, PyAny>) -> 
 /// The discrete residual, shape (n, 3): body-frame torque imbalance of nodes 1..n
 /// (N m) at the given node quaternions (base node included, replaced by the scene's).
 #[pyfunction]
-fn residual<'py>(py: Python<'py>, scene: &Bound<'py, PyAny>, quaternions: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+fn residual<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyAny>,
+    quaternions: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (model, mut q) = model_and_state(scene, quaternions)?;
     q[0] = model.base;
     let mut g = vec![Vector3::zeros(); model.n];
@@ -356,7 +397,11 @@ fn residual<'py>(py: Python<'py>, scene: &Bound<'py, PyAny>, quaternions: &Bound
 /// The analytic Jacobian of ``residual`` under the body-frame update
 /// ``q_j <- q_j * exp(theta_j / 2)``, dense, shape (3n, 3n).
 #[pyfunction]
-fn jacobian<'py>(py: Python<'py>, scene: &Bound<'py, PyAny>, quaternions: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+fn jacobian<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyAny>,
+    quaternions: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (model, mut q) = model_and_state(scene, quaternions)?;
     q[0] = model.base;
     let n = model.n;

@@ -38,7 +38,10 @@ impl Quat {
     }
 
     pub fn conj(self) -> Self {
-        Quat { w: self.w, v: -self.v }
+        Quat {
+            w: self.w,
+            v: -self.v,
+        }
     }
 
     pub fn norm(self) -> f64 {

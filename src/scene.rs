@@ -159,7 +159,12 @@ impl Scene {
         let name = match top.get("name") {
             None => None,
             Some(Value::String(s)) => Some(s.clone()),
-            Some(other) => return Err(Error::scene("name", format!("expected a string, got {}", other.kind()))),
+            Some(other) => {
+                return Err(Error::scene(
+                    "name",
+                    format!("expected a string, got {}", other.kind()),
+                ))
+            }
         };
         let length = positive(top.require("length")?, "length")?;
         let stiffness_spec = stiffness(top.require("stiffness")?)?;
@@ -205,11 +210,18 @@ impl Scene {
         m.push(("length".into(), num(self.length)));
         let stiff = match self.stiffness_spec {
             Stiffness::Diagonal { kx, ky, kz } => vec![("kx", kx), ("ky", ky), ("kz", kz)],
-            Stiffness::RoundRod { e, g, diameter } => vec![("E", e), ("G", g), ("diameter", diameter)],
+            Stiffness::RoundRod { e, g, diameter } => {
+                vec![("E", e), ("G", g), ("diameter", diameter)]
+            }
         };
         m.push((
             "stiffness".into(),
-            Value::Map(stiff.into_iter().map(|(k, x)| (k.to_string(), num(x))).collect()),
+            Value::Map(
+                stiff
+                    .into_iter()
+                    .map(|(k, x)| (k.to_string(), num(x)))
+                    .collect(),
+            ),
         ));
         if !self.rest_curvature.is_empty() {
             let rc = self
@@ -232,7 +244,10 @@ impl Scene {
         m.push(("tip_force".into(), v3(&self.tip_force)));
         m.push(("tip_moment".into(), v3(&self.tip_moment)));
         let q = self.base_quaternion.to_array();
-        m.push(("base_quaternion".into(), Value::List(q.iter().map(|x| num(*x)).collect())));
+        m.push((
+            "base_quaternion".into(),
+            Value::List(q.iter().map(|x| num(*x)).collect()),
+        ));
         let tip = match self.tip {
             TipCondition::Free => vec![("type".to_string(), Value::String("free".into()))],
         };
@@ -266,7 +281,10 @@ impl<'a> Table<'a> {
                 entries,
                 path: path.to_string(),
             }),
-            other => Err(Error::scene(path, format!("expected a table, got {}", other.kind()))),
+            other => Err(Error::scene(
+                path,
+                format!("expected a table, got {}", other.kind()),
+            )),
         }
     }
 
@@ -279,11 +297,15 @@ impl<'a> Table<'a> {
     }
 
     fn get(&self, k: &str) -> Option<&'a Value> {
-        self.entries.iter().find(|(key, _)| key == k).map(|(_, v)| v)
+        self.entries
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v)
     }
 
     fn require(&self, k: &str) -> Result<&'a Value> {
-        self.get(k).ok_or_else(|| Error::scene(self.key(k), "missing"))
+        self.get(k)
+            .ok_or_else(|| Error::scene(self.key(k), "missing"))
     }
 
     fn only(&self, allowed: &[&str]) -> Result<()> {
@@ -303,7 +325,10 @@ fn finite(v: &Value, key: &str) -> Result<f64> {
     match v {
         Value::Number(x) if x.is_finite() => Ok(*x),
         Value::Number(x) => Err(Error::scene(key, format!("must be finite, got {x}"))),
-        other => Err(Error::scene(key, format!("expected a number, got {}", other.kind()))),
+        other => Err(Error::scene(
+            key,
+            format!("expected a number, got {}", other.kind()),
+        )),
     }
 }
 
@@ -328,7 +353,10 @@ fn numbers<const N: usize>(v: &Value, key: &str) -> Result<[f64; N]> {
     if items.len() != N {
         return Err(Error::scene(
             key,
-            format!("expected a list of {N} numbers, got {} entries", items.len()),
+            format!(
+                "expected a list of {N} numbers, got {} entries",
+                items.len()
+            ),
         ));
     }
     let mut out = [0.0; N];
@@ -375,7 +403,10 @@ fn stiffness(v: &Value) -> Result<Stiffness> {
             "stiffness",
             "give either {kx, ky, kz} or {E, G, diameter}, not both",
         )),
-        (false, false) => Err(Error::scene("stiffness", "expected {kx, ky, kz} or {E, G, diameter}")),
+        (false, false) => Err(Error::scene(
+            "stiffness",
+            "expected {kx, ky, kz} or {E, G, diameter}",
+        )),
     }
 }
 
@@ -386,12 +417,18 @@ fn rest_curvature(v: &Value) -> Result<Vec<[f64; 2]>> {
         other => {
             return Err(Error::scene(
                 key,
-                format!("expected a list of [kappa_x, kappa_y] per section, got {}", other.kind()),
+                format!(
+                    "expected a list of [kappa_x, kappa_y] per section, got {}",
+                    other.kind()
+                ),
             ))
         }
     };
     if items.is_empty() {
-        return Err(Error::scene(key, "must name at least one section (omit the key for a straight rod)"));
+        return Err(Error::scene(
+            key,
+            "must name at least one section (omit the key for a straight rod)",
+        ));
     }
     items
         .iter()
@@ -420,7 +457,12 @@ fn tip(v: &Value) -> Result<TipCondition> {
     let t = Table::new(v, "tip")?;
     let kind = match t.require("type")? {
         Value::String(s) => s.as_str(),
-        other => return Err(Error::scene("tip.type", format!("expected a string, got {}", other.kind()))),
+        other => {
+            return Err(Error::scene(
+                "tip.type",
+                format!("expected a string, got {}", other.kind()),
+            ))
+        }
     };
     match kind {
         "free" => {
@@ -461,16 +503,31 @@ mod tests {
         let back = Scene::from_value(&s.to_value()).unwrap();
         assert_eq!(s, back);
         let toml = "length = 0.5\n[stiffness]\nkx = 1\nky = 2\nkz = 3\n";
-        assert_eq!(Scene::from_toml_str(toml).unwrap().stiffness(), Vector3::new(1.0, 2.0, 3.0));
+        assert_eq!(
+            Scene::from_toml_str(toml).unwrap().stiffness(),
+            Vector3::new(1.0, 2.0, 3.0)
+        );
     }
 
     #[test]
     fn refusals_name_the_key() {
         let base = r#""stiffness": {"kx": 1, "ky": 1, "kz": 1}"#;
         assert_eq!(err_key(&format!(r#"{{"length": -1, {base}}}"#)), "length");
-        assert_eq!(err_key(r#"{"length": 1, "stiffness": {"kx": 1, "ky": 0, "kz": 1}}"#), "stiffness.ky");
-        assert_eq!(err_key(&format!(r#"{{"length": 1, {base}, "tip_force": [1, 2]}}"#)), "tip_force");
-        assert_eq!(err_key(&format!(r#"{{"length": 1, {base}, "colour": 3}}"#)), "colour");
-        assert_eq!(err_key(r#"{"stiffness": {"kx": 1, "ky": 1, "kz": 1}}"#), "length");
+        assert_eq!(
+            err_key(r#"{"length": 1, "stiffness": {"kx": 1, "ky": 0, "kz": 1}}"#),
+            "stiffness.ky"
+        );
+        assert_eq!(
+            err_key(&format!(r#"{{"length": 1, {base}, "tip_force": [1, 2]}}"#)),
+            "tip_force"
+        );
+        assert_eq!(
+            err_key(&format!(r#"{{"length": 1, {base}, "colour": 3}}"#)),
+            "colour"
+        );
+        assert_eq!(
+            err_key(r#"{"stiffness": {"kx": 1, "ky": 1, "kz": 1}}"#),
+            "length"
+        );
     }
 }

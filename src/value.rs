@@ -36,7 +36,9 @@ impl From<&serde_json::Value> for Value {
             J::Number(n) => Value::Number(n.as_f64().unwrap_or(f64::NAN)),
             J::String(s) => Value::String(s.clone()),
             J::Array(a) => Value::List(a.iter().map(Value::from).collect()),
-            J::Object(m) => Value::Map(m.iter().map(|(k, v)| (k.clone(), Value::from(v))).collect()),
+            J::Object(m) => {
+                Value::Map(m.iter().map(|(k, v)| (k.clone(), Value::from(v))).collect())
+            }
         }
     }
 }

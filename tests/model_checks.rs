@@ -70,15 +70,34 @@ fn analytic_jacobian_matches_central_differences() {
 #[test]
 fn cantilever_matches_bisshopp_drucker() {
     // alpha = P L^2 / EI, tip deflection and shortening over L (MODEL.md).
-    for (alpha, deflection, shortening) in [(1.0, 0.30172077, 0.05643324), (3.0, 0.60325344, 0.25442018), (10.0, 0.81060902, 0.55499560)] {
+    for (alpha, deflection, shortening) in [
+        (1.0, 0.30172077, 0.05643324),
+        (3.0, 0.60325344, 0.25442018),
+        (10.0, 0.81060902, 0.55499560),
+    ] {
         let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0);
         scene.tip_force = Vector3::new(alpha, 0.0, 0.0);
-        let settings = Settings { n_elements: 160, ..Settings::default() };
+        let settings = Settings {
+            n_elements: 160,
+            ..Settings::default()
+        };
         let sol = solve(&scene, settings, None).unwrap();
-        assert!(sol.converged() && sol.stable, "alpha {alpha}: {}", sol.message);
+        assert!(
+            sol.converged() && sol.stable,
+            "alpha {alpha}: {}",
+            sol.message
+        );
         let tip = sol.tip_position();
-        assert!((tip.x - deflection).abs() < 2e-5, "alpha {alpha}: deflection {}", tip.x);
-        assert!((1.0 - tip.z - shortening).abs() < 2e-5, "alpha {alpha}: shortening {}", 1.0 - tip.z);
+        assert!(
+            (tip.x - deflection).abs() < 2e-5,
+            "alpha {alpha}: deflection {}",
+            tip.x
+        );
+        assert!(
+            (1.0 - tip.z - shortening).abs() < 2e-5,
+            "alpha {alpha}: shortening {}",
+            1.0 - tip.z
+        );
     }
 }
 
@@ -87,11 +106,17 @@ fn full_roll_up_by_end_moment() {
     let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0);
     scene.tip_moment = Vector3::new(0.0, 2.0 * std::f64::consts::PI, 0.0);
     for n in [20, 40, 80] {
-        let settings = Settings { n_elements: n, ..Settings::default() };
+        let settings = Settings {
+            n_elements: n,
+            ..Settings::default()
+        };
         let sol = solve(&scene, settings, None).unwrap();
         assert!(sol.converged(), "n {n}: {}", sol.message);
         // The tip returns to the base; the discrete error is second order.
         let err = sol.tip_position().norm();
-        assert!(err < 10.0 / (n * n) as f64, "n {n}: tip {err:e} from the base");
+        assert!(
+            err < 10.0 / (n * n) as f64,
+            "n {n}: tip {err:e} from the base"
+        );
     }
 }

@@ -335,15 +335,23 @@ def test_reference_second_order_against_closed_forms(case):
     assert errors[0] < 2e-2
 
 
-def test_reference_roll_up_is_a_closed_discrete_circle():
-    """Pure moment: every element has the same curvature, the tip orientation is exact."""
+def test_reference_roll_up_discrete_closed_form():
+    """Pure moment about body x: every element turns about x by the same angle.
+
+    The element energy ds/2 K |omega|^2 with |omega| = 2 sin(theta/2)/ds has
+    d/dtheta = K sin(theta)/ds, so the discrete equilibrium is
+    sin(theta) = M ds / K (not |omega| = M/K, nor theta = M ds/K).
+    """
     n = 20
     out = reference.solve(end_moment(2 * math.pi), n_elements=n)
     q = out["quaternions"]
     ds = LENGTH / n
-    omega = [(2 / ds) * _qmul(q[i - 1] * [1, -1, -1, -1], q[i])[1:] for i in range(1, n + 1)]
-    np.testing.assert_allclose(omega, np.tile(omega[0], (n, 1)), atol=1e-10)
-    assert abs(abs(out["tip_quaternion"][0]) - 1.0) < 1e-12  # full turn: identity rotation
+    theta = math.asin(2 * math.pi / LENGTH * ds)
+    step = [math.cos(theta / 2), math.sin(theta / 2), 0.0, 0.0]
+    for i in range(1, n + 1):
+        np.testing.assert_allclose(_qmul(q[i - 1] * [1, -1, -1, -1], q[i]), step, atol=1e-12)
+    expected = [math.cos(n * theta / 2), math.sin(n * theta / 2), 0.0, 0.0]
+    np.testing.assert_allclose(out["tip_quaternion"], expected, atol=1e-12)
 
 
 def test_reference_matches_shooting_in_3d():

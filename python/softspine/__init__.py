@@ -29,7 +29,7 @@ def solve(
     method: str = "newton",
     initial: Solution | None = None,
     tol: float = 1e-10,
-    max_iterations: int = 60,
+    max_iterations: int = 500,
     check: bool = False,
 ) -> Solution:
     """Solve the statics of ``scene``.
@@ -50,7 +50,7 @@ def solve(
         Tolerance on the relative residual (largest torque imbalance over
         ``max(k) / L``).
     max_iterations : int
-        Iteration limit of one Newton run (LM: four times as many).
+        Iteration budget of the solve, load-continuation steps included.
     check : bool
         Raise ``SolverError`` instead of returning ``converged=False``.
 

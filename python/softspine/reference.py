@@ -363,6 +363,10 @@ def _newton(model: dict, qfree: np.ndarray, scale: float, tol: float, max_iter: 
     return torque_inf <= tol, q, torque_inf
 
 
+# Largest accepted Newton corrector (max |q_j - predicted q_j|) per continuation step.
+_MAX_CORRECTOR = 0.1
+
+
 def solve(scene: dict, n_elements: int = 20, tol: float = 1e-13) -> dict:
     """Equilibrium of the discrete model with a free tip.
 
@@ -395,7 +399,9 @@ def solve(scene: dict, n_elements: int = 20, tol: float = 1e-13) -> dict:
         ok, q_new, _ = _newton(
             _scaled(model, lam_try), guess, scale, tol if final else 1e-9, 40 if final else 15
         )
-        if ok:
+        # A large corrector means Newton may have left the branch of
+        # equilibria followed from the straight rod: take a smaller step.
+        if ok and np.max(np.abs(q_new - guess)) <= _MAX_CORRECTOR:
             q_prev, lam_prev = q, lam
             q, lam = q_new, lam_try
             steps += 1

@@ -36,6 +36,10 @@ from scipy.optimize import root
 
 __all__ = ["solve"]
 
+# Largest accepted corrector in a continuation step, relative to 1 + |x|
+# (x = m(0) L / max(K), the scaled base moment).
+_MAX_CORRECTOR = 0.2
+
 
 def _arr(scene: dict, key: str, default: list) -> np.ndarray:
     """Optional vector entry of a scene (``default`` when absent)."""
@@ -206,7 +210,10 @@ def solve(scene: dict, rtol: float = 1e-12, n_samples: int = 101) -> dict:
         if lam > 0.0:  # secant predictor
             guess = x + (lam_try - lam) / (lam - lam_prev) * (x - x_prev)
         x_new, err_new = _shoot_free(model, lam_try, guess, rtol)
-        if err_new <= accept:
+        # A large corrector means the root finder may have jumped to another
+        # branch of equilibria (e.g. a looped cantilever): take a smaller step.
+        small = np.linalg.norm(x_new - guess) <= _MAX_CORRECTOR * (1.0 + np.linalg.norm(x))
+        if err_new <= accept and small:
             x_prev, lam_prev = x, lam
             x, lam, err = x_new, lam_try, err_new
             dlam = min(2.0 * dlam, 1.0)

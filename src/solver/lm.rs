@@ -6,7 +6,9 @@
 use super::{step_limit, sum_squares, LocalOutcome, LocalSolver, Workspace};
 use crate::model::RodModel;
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::{factor::cholesky_in_place, factor::cholesky_in_place_scratch, solve::solve_in_place};
+use faer::linalg::cholesky::llt::{
+    factor::cholesky_in_place, factor::cholesky_in_place_scratch, solve::solve_in_place,
+};
 use faer::{Accum, Mat, Par};
 use nalgebra::Vector3;
 
@@ -32,7 +34,11 @@ impl LevenbergMarquardt {
             normal: Mat::zeros(dim, dim),
             factor: Mat::zeros(dim, dim),
             rhs: Mat::zeros(dim, 1),
-            buffer: MemBuffer::new(cholesky_in_place_scratch::<f64>(dim, Par::Seq, Default::default())),
+            buffer: MemBuffer::new(cholesky_in_place_scratch::<f64>(
+                dim,
+                Par::Seq,
+                Default::default(),
+            )),
             predicted: vec![Vector3::zeros(); n],
         }
     }
@@ -67,10 +73,16 @@ impl LevenbergMarquardt {
 }
 
 impl LocalSolver for LevenbergMarquardt {
-    fn run(&mut self, model: &RodModel, w: &mut Workspace, lambda: f64, max_iter: usize, tol: f64) -> LocalOutcome {
+    fn run(
+        &mut self,
+        model: &RodModel,
+        w: &mut Workspace,
+        lambda: f64,
+        max_iter: usize,
+        tol: f64,
+    ) -> LocalOutcome {
         let n = model.n;
         let dim = 3 * n;
-        let max_iter = 4 * max_iter;
         model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
         self.load_normal_equations(w);
         let mut merit = sum_squares(&w.g);
@@ -78,14 +90,25 @@ impl LocalSolver for LevenbergMarquardt {
         let mut mu = 1e-6 * max_diag.max(f64::MIN_POSITIVE);
         for it in 0..max_iter {
             if model.residual_norm(&w.g) <= tol {
-                return LocalOutcome { converged: true, iterations: it };
+                return LocalOutcome {
+                    converged: true,
+                    iterations: it,
+                };
             }
             self.factor.copy_from(&self.normal);
             for i in 0..dim {
                 self.factor[(i, i)] += mu;
             }
             let stack = MemStack::new(&mut self.buffer);
-            if cholesky_in_place(self.factor.as_mut(), Default::default(), Par::Seq, stack, Default::default()).is_err() {
+            if cholesky_in_place(
+                self.factor.as_mut(),
+                Default::default(),
+                Par::Seq,
+                stack,
+                Default::default(),
+            )
+            .is_err()
+            {
                 mu *= 4.0;
                 continue;
             }
@@ -96,16 +119,37 @@ impl LocalSolver for LevenbergMarquardt {
                 }
             }
             let g_col = self.rhs.clone();
-            faer::linalg::matmul::matmul(self.rhs.as_mut(), Accum::Replace, self.jac.transpose(), g_col.as_ref(), -1.0, Par::Seq);
-            solve_in_place(self.factor.as_ref(), self.rhs.as_mut(), Par::Seq, MemStack::new(&mut self.buffer));
+            faer::linalg::matmul::matmul(
+                self.rhs.as_mut(),
+                Accum::Replace,
+                self.jac.transpose(),
+                g_col.as_ref(),
+                -1.0,
+                Par::Seq,
+            );
+            solve_in_place(
+                self.factor.as_ref(),
+                self.rhs.as_mut(),
+                Par::Seq,
+                MemStack::new(&mut self.buffer),
+            );
             for j in 0..n {
-                w.step[j] = Vector3::new(self.rhs[(3 * j, 0)], self.rhs[(3 * j + 1, 0)], self.rhs[(3 * j + 2, 0)]);
+                w.step[j] = Vector3::new(
+                    self.rhs[(3 * j, 0)],
+                    self.rhs[(3 * j + 1, 0)],
+                    self.rhs[(3 * j + 2, 0)],
+                );
             }
             let limit = step_limit(&w.step, 1.0, 0.3);
             w.step.iter_mut().for_each(|s| *s *= limit);
             // Gain ratio: actual over predicted decrease of |g|^2.
             w.jac.mul_vec(&w.step, &mut self.predicted);
-            let predicted_merit: f64 = self.predicted.iter().zip(&w.g).map(|(p, g)| (p + g).norm_squared()).sum();
+            let predicted_merit: f64 = self
+                .predicted
+                .iter()
+                .zip(&w.g)
+                .map(|(p, g)| (p + g).norm_squared())
+                .sum();
             w.trial[0] = w.q[0];
             for j in 1..=n {
                 w.trial[j] = w.q[j].perturbed(w.step[j - 1]);
@@ -129,6 +173,9 @@ impl LocalSolver for LevenbergMarquardt {
             }
         }
         let converged = model.residual_norm(&w.g) <= tol;
-        LocalOutcome { converged, iterations: max_iter }
+        LocalOutcome {
+            converged,
+            iterations: max_iter,
+        }
     }
 }

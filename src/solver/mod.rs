@@ -45,7 +45,9 @@ pub struct Settings {
     /// Convergence tolerance on the relative residual: the largest torque
     /// imbalance over `max(k) / L` (default 1e-10).
     pub tol: f64,
-    /// Iteration limit of one local solve (default 60; LM: 4 times that).
+    /// Iteration budget of a solve, all load-continuation steps included
+    /// (default 500). One direct attempt uses at most 60 of it, a continuation
+    /// step at most 25.
     pub max_iterations: usize,
     /// Smallest load-continuation step before giving up (default 1e-6).
     pub min_continuation_step: f64,
@@ -57,7 +59,7 @@ impl Default for Settings {
             n_elements: 20,
             method: Method::Newton,
             tol: 1e-10,
-            max_iterations: 60,
+            max_iterations: 500,
             min_continuation_step: 1e-6,
         }
     }
@@ -69,7 +71,10 @@ impl Settings {
             return Err(Error::argument("n_elements", "must be positive"));
         }
         if !(self.tol.is_finite() && self.tol > 0.0) {
-            return Err(Error::argument("tol", format!("must be positive and finite, got {}", self.tol)));
+            return Err(Error::argument(
+                "tol",
+                format!("must be positive and finite, got {}", self.tol),
+            ));
         }
         if self.max_iterations == 0 {
             return Err(Error::argument("max_iterations", "must be positive"));
@@ -181,7 +186,14 @@ pub(crate) struct LocalOutcome {
 /// A local method: drive `w.q` to an equilibrium at load scale `lambda`.
 /// On return `w.g` and `w.jac` hold the residual and Jacobian at `w.q`.
 pub(crate) trait LocalSolver {
-    fn run(&mut self, model: &RodModel, w: &mut Workspace, lambda: f64, max_iter: usize, tol: f64) -> LocalOutcome;
+    fn run(
+        &mut self,
+        model: &RodModel,
+        w: &mut Workspace,
+        lambda: f64,
+        max_iter: usize,
+        tol: f64,
+    ) -> LocalOutcome;
 }
 
 /// A reusable solver of one scene at one discretisation: build it once, call
@@ -226,8 +238,13 @@ impl Solver {
                     format!("has {} nodes, the discretisation has {}", q.len(), n + 1),
                 ));
             }
-            if q.iter().any(|x| !x.to_array().iter().all(|v| v.is_finite()) || x.norm() < 1e-6) {
-                return Err(Error::argument("initial", "quaternions must be finite and non-zero"));
+            if q.iter()
+                .any(|x| !x.to_array().iter().all(|v| v.is_finite()) || x.norm() < 1e-6)
+            {
+                return Err(Error::argument(
+                    "initial",
+                    "quaternions must be finite and non-zero",
+                ));
             }
         }
         let tol = self.settings.tol;
@@ -247,8 +264,10 @@ impl Solver {
             }
             None => w.q.copy_from_slice(&model.straight()),
         }
-        let max_iter = self.settings.max_iterations;
-        let direct = self.local.run(model, w, 1.0, max_iter, tol);
+        let budget = self.settings.max_iterations;
+        let direct = self
+            .local
+            .run(model, w, 1.0, budget.min(DIRECT_ITERATIONS), tol);
         let mut iterations = direct.iterations;
         if direct.converged && symmetric_part_is_positive_definite(&w.jac) {
             return Ok(self.finish(true, iterations, 0, "converged".into()));
@@ -256,25 +275,50 @@ impl Solver {
         // The direct attempt failed or found an unstable equilibrium: follow the
         // load path from the straight rod, which stays on the stable branch.
         let direct_state = direct.converged.then(|| w.q.clone());
-        let (cont, steps) = continuation(self.local.as_mut(), model, w, tol, max_iter, self.settings.min_continuation_step);
+        let remaining = budget - direct.iterations.min(budget);
+        let (cont, steps) = continuation(
+            self.local.as_mut(),
+            model,
+            w,
+            tol,
+            remaining,
+            self.settings.min_continuation_step,
+        );
         iterations += cont.iterations;
         let w = &mut self.work;
         if cont.converged {
-            return Ok(self.finish(true, iterations, steps, "converged by load continuation".into()));
+            return Ok(self.finish(
+                true,
+                iterations,
+                steps,
+                "converged by load continuation".into(),
+            ));
         }
         if let Some(q) = direct_state {
             w.q.copy_from_slice(&q);
-            self.model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
-            return Ok(self.finish(true, iterations, steps, "converged (unstable equilibrium)".into()));
+            self.model
+                .residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+            return Ok(self.finish(
+                true,
+                iterations,
+                steps,
+                "converged (unstable equilibrium)".into(),
+            ));
         }
         let msg = format!(
-            "no convergence: the direct solve and load continuation (stalled at {steps} steps) both failed"
+            "no convergence: the direct solve and load continuation (stopped after {steps} steps) both failed"
         );
         Ok(self.finish(false, iterations, steps, msg))
     }
 
     /// Build the Solution from the workspace (residual and Jacobian at `w.q` are current).
-    fn finish(&self, converged: bool, iterations: usize, continuation_steps: usize, message: String) -> Solution {
+    fn finish(
+        &self,
+        converged: bool,
+        iterations: usize,
+        continuation_steps: usize,
+        message: String,
+    ) -> Solution {
         let (model, w) = (&self.model, &self.work);
         let residual_norm = model.residual_norm(&w.g);
         let converged = converged && residual_norm <= self.settings.tol;
@@ -291,7 +335,11 @@ impl Solver {
             quaternions: w.q.clone(),
             positions,
             forces: model.node_force.clone(),
-            status: if converged { Status::Converged } else { Status::NotConverged },
+            status: if converged {
+                Status::Converged
+            } else {
+                Status::NotConverged
+            },
             iterations,
             continuation_steps,
             residual_norm,
@@ -302,14 +350,19 @@ impl Solver {
     }
 }
 
+/// Iteration limits of the direct attempt and of one continuation step.
+const DIRECT_ITERATIONS: usize = 60;
+const STEP_ITERATIONS: usize = 25;
+
 /// Follow `lambda` from 0 (straight rod, exact) to 1 with a tangent predictor
-/// and an adaptive step. Returns the outcome at `lambda = 1` and the steps taken.
+/// and an adaptive step, within `budget` iterations. Returns the outcome at
+/// `lambda = 1` and the steps taken.
 fn continuation(
     local: &mut dyn LocalSolver,
     model: &RodModel,
     w: &mut Workspace,
     tol: f64,
-    max_iter: usize,
+    budget: usize,
     min_step: f64,
 ) -> (LocalOutcome, usize) {
     let n = model.n;
@@ -328,11 +381,25 @@ fn continuation(
         let h = target - lambda;
         w.q[0] = w.saved[0];
         for j in 1..=n {
-            let d = if predicted { -h * w.step[j - 1] } else { Vector3::zeros() };
-            let d = if d.norm() > 0.5 { d * (0.5 / d.norm()) } else { d };
+            let d = if predicted {
+                -h * w.step[j - 1]
+            } else {
+                Vector3::zeros()
+            };
+            let d = if d.norm() > 0.5 {
+                d * (0.5 / d.norm())
+            } else {
+                d
+            };
             w.q[j] = w.saved[j].perturbed(d);
         }
-        let out = local.run(model, w, target, max_iter.min(25), tol);
+        let out = local.run(
+            model,
+            w,
+            target,
+            STEP_ITERATIONS.min(budget.saturating_sub(iterations)),
+            tol,
+        );
         iterations += out.iterations;
         if out.converged {
             steps += 1;
@@ -343,15 +410,27 @@ fn continuation(
             }
         } else {
             dlambda *= 0.5;
-            if dlambda < min_step {
+            if dlambda < min_step || iterations >= budget {
                 w.q.copy_from_slice(&w.saved);
                 model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
-                return (LocalOutcome { converged: false, iterations }, steps);
+                return (
+                    LocalOutcome {
+                        converged: false,
+                        iterations,
+                    },
+                    steps,
+                );
             }
         }
     }
     // w.q is the equilibrium at lambda = 1; w.g and w.jac are current.
-    (LocalOutcome { converged: true, iterations }, steps)
+    (
+        LocalOutcome {
+            converged: true,
+            iterations,
+        },
+        steps,
+    )
 }
 
 /// Solve a scene once (see [`Solver`] to reuse the workspace).

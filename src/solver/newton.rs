@@ -14,21 +14,38 @@ const MAX_NODE_TURN: f64 = 1.0;
 const MAX_ELEMENT_TURN: f64 = 0.3;
 
 impl LocalSolver for Newton {
-    fn run(&mut self, model: &RodModel, w: &mut Workspace, lambda: f64, max_iter: usize, tol: f64) -> LocalOutcome {
+    fn run(
+        &mut self,
+        model: &RodModel,
+        w: &mut Workspace,
+        lambda: f64,
+        max_iter: usize,
+        tol: f64,
+    ) -> LocalOutcome {
         let n = model.n;
         model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
         let mut merit = sum_squares(&w.g);
         for it in 0..max_iter {
             if model.residual_norm(&w.g) <= tol {
-                return LocalOutcome { converged: true, iterations: it };
+                return LocalOutcome {
+                    converged: true,
+                    iterations: it,
+                };
             }
             // Factor J; a singular pivot (a bifurcation, a neutral direction) is damped.
             let scale = w.jac.max_diagonal().max(model.residual_scale * model.ds);
             let mut shift = 0.0;
             while w.lu.factor(&w.jac, shift).is_err() {
-                shift = if shift == 0.0 { 1e-10 * scale } else { shift * 100.0 };
+                shift = if shift == 0.0 {
+                    1e-10 * scale
+                } else {
+                    shift * 100.0
+                };
                 if shift > scale {
-                    return LocalOutcome { converged: false, iterations: it };
+                    return LocalOutcome {
+                        converged: false,
+                        iterations: it,
+                    };
                 }
             }
             for (s, g) in w.step.iter_mut().zip(&w.g) {
@@ -49,13 +66,19 @@ impl LocalSolver for Newton {
                 }
                 alpha *= 0.5;
                 if alpha < 1e-4 {
-                    return LocalOutcome { converged: false, iterations: it + 1 };
+                    return LocalOutcome {
+                        converged: false,
+                        iterations: it + 1,
+                    };
                 }
             }
             std::mem::swap(&mut w.q, &mut w.trial);
             model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
         }
         let converged = model.residual_norm(&w.g) <= tol;
-        LocalOutcome { converged, iterations: max_iter }
+        LocalOutcome {
+            converged,
+            iterations: max_iter,
+        }
     }
 }

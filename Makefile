@@ -1,0 +1,28 @@
+# The two commands of the README. Both work on a fresh machine: they make a
+# virtual environment in .venv, build the Rust extension with maturin (through
+# pip) and install the package with what it needs from PyPI.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+
+.PHONY: demo test bench report
+
+$(PY):
+	python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+
+# Solve the demo robot, print the result and write softspine-demo.png.
+demo: $(PY)
+	$(PY) -m pip install -q ".[plot]"
+	$(PY) -m softspine demo --out softspine-demo.png
+
+# Every test: lint, pytest (Python API, references, bad input) and cargo test.
+test: $(PY)
+	$(PY) -m pip install -q ".[test]"
+	$(PY) -m ruff check python tests
+	cargo fmt --all -- --check
+	$(PY) -m pytest -q
+	cargo test
+
+# Criterion benchmarks (medians in the README).
+bench:
+	cargo bench --bench forward

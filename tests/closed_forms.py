@@ -27,13 +27,13 @@ def rotation_exp(u, s):
     return np.eye(3) + np.sin(t) * a + (1.0 - np.cos(t)) * a @ a
 
 
-def arc_chain_tip(rest_curvature, length, base_rotation=np.eye(3)):
+def arc_chain_tip(rest_curvature, length, base_rotation=None):
     """Tip position and rotation of a chain of equal arcs with body curvature
     [kx, ky, 0] each (an unloaded rod with piecewise constant rest curvature)."""
     m = len(rest_curvature)
     ell = length / m
     r = np.zeros(3)
-    R = np.array(base_rotation, dtype=float)
+    R = np.eye(3) if base_rotation is None else np.array(base_rotation, dtype=float)
     e3 = np.array([0.0, 0.0, 1.0])
     for kx, ky in rest_curvature:
         u = np.array([kx, ky, 0.0])

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 import softspine
 from softspine import Scene
 
@@ -35,7 +34,11 @@ def with_(**changes):
         (with_(tip_force=[1.0, math.nan, 0.0]), "tip_force[1]", "finite"),
         (with_(tip_moment=[0.0, 0.0, -math.inf]), "tip_moment[2]", "finite"),
         (with_(distributed_force="down"), "distributed_force", "list"),
-        (with_(gravity={"linear_density": -0.1, "vector": [0, 0, -9.81]}), "gravity.linear_density", "negative"),
+        (
+            with_(gravity={"linear_density": -0.1, "vector": [0, 0, -9.81]}),
+            "gravity.linear_density",
+            "negative",
+        ),
         (with_(gravity={"linear_density": 0.1}), "gravity.vector", "missing"),
         (with_(rest_curvature=[[1.0, 0.0], [1.0]]), "rest_curvature[1]", "2 numbers"),
         (with_(rest_curvature=[]), "rest_curvature", "at least one"),
@@ -81,7 +84,8 @@ def test_invalid_arguments_name_the_argument(kwargs, name):
 
 def test_elements_must_fit_the_sections():
     scene = with_(rest_curvature=[[1, 0], [0, 1], [1, 1]])
-    with pytest.raises(ValueError, match="n_elements: must be a positive multiple of the number of sections \\(3\\)"):
+    expected = "n_elements: must be a positive multiple of the number of sections \\(3\\)"
+    with pytest.raises(ValueError, match=expected):
         softspine.solve(scene, n_elements=20)
     assert softspine.solve(scene, n_elements=21).converged
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.linalg import solve_banded
 
 __all__ = ["normalize", "energy", "positions", "forces", "residual", "solve"]
 
@@ -331,6 +332,26 @@ def _jacobian(model: dict, qfree: np.ndarray, scale: float) -> np.ndarray:
     return J
 
 
+_BAND = 7  # half-bandwidth of the Jacobian: 4x4 blocks, nodes j-1..j+1
+
+
+def _solve_banded(J: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve with the banded (block-tridiagonal) Jacobian in O(n).
+
+    A banded LU also avoids multi-threaded dense BLAS, which is slow on small
+    matrices on a busy machine.
+    """
+    size = J.shape[0]
+    ab = np.zeros((2 * _BAND + 1, size))
+    for offset in range(-_BAND, _BAND + 1):
+        diag = np.diagonal(J, offset)
+        if offset >= 0:
+            ab[_BAND - offset, offset:] = diag
+        else:
+            ab[_BAND - offset, : size + offset] = diag
+    return solve_banded((_BAND, _BAND), ab, rhs)
+
+
 def _newton(model: dict, qfree: np.ndarray, scale: float, tol: float, max_iter: int):
     """Damped Newton on the square 4n system; returns (converged, q, torque_inf)."""
     q = qfree.copy()
@@ -341,7 +362,7 @@ def _newton(model: dict, qfree: np.ndarray, scale: float, tol: float, max_iter: 
             return True, q, torque_inf
         J = _jacobian(model, q, scale)
         try:
-            step = np.linalg.solve(J, -F).reshape(-1, 4)
+            step = _solve_banded(J, -F).reshape(-1, 4)
         except np.linalg.LinAlgError:
             return False, q, torque_inf
         if not np.all(np.isfinite(step)):

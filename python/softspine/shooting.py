@@ -36,9 +36,10 @@ from scipy.optimize import root
 
 __all__ = ["solve"]
 
-# Largest accepted corrector in a continuation step, relative to 1 + |x|
-# (x = m(0) L / max(K), the scaled base moment).
-_MAX_CORRECTOR = 0.2
+# Continuation step control: the largest rotation [rad] of any material frame
+# (checked on _SHAPE_SAMPLES points) between two accepted load steps.
+_MAX_FRAME_TURN = 0.5
+_SHAPE_SAMPLES = 33
 
 
 def _arr(scene: dict, key: str, default: list) -> np.ndarray:
@@ -188,6 +189,14 @@ def _shoot_free(model: dict, lam: float, x0: np.ndarray, rtol: float):
     return sol.x, err
 
 
+def _frames(model: dict, lam: float, x: np.ndarray, rtol: float) -> np.ndarray:
+    """Quaternions on a coarse grid of the solution with scaled base moment x."""
+    unit = float(np.max(model["K"]) / model["L"])
+    grid = np.linspace(0.0, model["L"], _SHAPE_SAMPLES)
+    _, samples = _integrate(model, lam, x * unit, _free_tip_base_force(model, lam), rtol, grid)
+    return samples[:, 3:7]
+
+
 def solve(scene: dict, rtol: float = 1e-12, n_samples: int = 101) -> dict:
     """Equilibrium of the continuous Kirchhoff rod with a free tip (dead loads).
 
@@ -195,14 +204,22 @@ def solve(scene: dict, rtol: float = 1e-12, n_samples: int = 101) -> dict:
     ``quaternions`` (n_samples, 4), ``tip_position`` (3,), ``tip_quaternion``
     (4,), ``base_moment`` (3,) = ``m(0)`` (world frame: the moment of all loads
     about the base, i.e. what the rod applies to the clamp), ``base_force``
-    (3,) = ``n(0)``, and ``tip_moment_error`` (N m, the shooting mismatch).
+    (3,) = ``n(0)``, ``tip_moment_error`` (N m, the shooting mismatch) and
+    ``lambda_steps`` (accepted continuation steps).
+
+    The continuation step is accepted only if the root finder converged and
+    no material frame of the rod turned by more than ``_MAX_FRAME_TURN`` since
+    the previous step: shooting problems have many roots (e.g. looped
+    cantilevers at large loads) and this keeps to the branch that grows
+    continuously from the straight rod.
     """
     model = _parse(scene)
     unit = float(np.max(model["K"]) / model["L"])
     accept = max(1e3 * rtol, 1e-10)  # mismatch accepted at intermediate steps
     x = np.zeros(3)
+    frames = _frames(model, 0.0, x, rtol)
     x_prev, lam_prev = x.copy(), 0.0
-    lam, dlam = 0.0, 1.0
+    lam, dlam, steps = 0.0, 1.0, 0
     err = 0.0
     while lam < 1.0:
         lam_try = min(1.0, lam + dlam)
@@ -210,12 +227,15 @@ def solve(scene: dict, rtol: float = 1e-12, n_samples: int = 101) -> dict:
         if lam > 0.0:  # secant predictor
             guess = x + (lam_try - lam) / (lam - lam_prev) * (x - x_prev)
         x_new, err_new = _shoot_free(model, lam_try, guess, rtol)
-        # A large corrector means the root finder may have jumped to another
-        # branch of equilibria (e.g. a looped cantilever): take a smaller step.
-        small = np.linalg.norm(x_new - guess) <= _MAX_CORRECTOR * (1.0 + np.linalg.norm(x))
-        if err_new <= accept and small:
+        ok = err_new <= accept
+        if ok:
+            frames_new = _frames(model, lam_try, x_new, rtol)
+            dots = np.clip(np.abs(np.sum(frames_new * frames, axis=1)), 0.0, 1.0)
+            ok = float(np.max(2.0 * np.arccos(dots))) <= _MAX_FRAME_TURN
+        if ok:
             x_prev, lam_prev = x, lam
-            x, lam, err = x_new, lam_try, err_new
+            x, lam, err, frames = x_new, lam_try, err_new, frames_new
+            steps += 1
             dlam = min(2.0 * dlam, 1.0)
         else:
             dlam *= 0.5
@@ -233,4 +253,5 @@ def solve(scene: dict, rtol: float = 1e-12, n_samples: int = 101) -> dict:
         "base_moment": x * unit,
         "base_force": _free_tip_base_force(model, 1.0),
         "tip_moment_error": err * unit,
+        "lambda_steps": steps,
     }

@@ -393,9 +393,14 @@ def solve(scene: dict, n_elements: int = 20, tol: float = 1e-13) -> dict:
 
     Unknowns are the raw quaternions ``q_1..q_n``; equations are the 3n
     torque rows of :func:`residual` (divided by ``max(K)/L``) and
-    ``|q_j|^2 - 1 = 0``. Damped Newton with an exact (complex-step) Jacobian,
+    ``|q_j|^2 - 1 = 0``. Damped Newton with an exact (complex-step) Jacobian
+    and a banded solve, each step followed by renormalising the ``q_j``;
     started from the straight rod, with adaptive continuation in a factor
-    ``lam`` multiplying all loads and the rest curvature.
+    ``lam`` multiplying all loads and the rest curvature (a step is retried
+    smaller if Newton fails or its corrector exceeds ``_MAX_CORRECTOR``, to
+    stay on the branch that grows from the straight rod). Converged when the
+    scaled torque rows are below ``tol`` in max-norm (or below 1e-12 if
+    Newton stalls at roundoff).
 
     Returns a dict with ``quaternions`` (n+1, 4), ``positions`` (n+1, 3),
     ``tip_position``, ``tip_quaternion``, ``energy``, ``residual_norm`` (the

@@ -142,7 +142,10 @@ def _integrate(
     if s_eval is not None:
         samples = np.empty((len(s_eval), 13))
         owner = np.clip(np.searchsorted(bounds, s_eval, side="right") - 1, 0, m - 1)
-    atol = rtol * max(1.0, float(np.max(np.abs(y))))
+    # absolute tolerances per component, in the units of r, q, m and n
+    moment = float(np.max(model["K"])) / length + float(np.max(np.abs(m0)))
+    force = float(np.max(model["K"])) / length**2 + float(np.max(np.abs(n0)))
+    atol = rtol * np.repeat([length, 1.0, moment, force], [3, 4, 3, 3])
     for k in range(m):
         sol = solve_ivp(
             _rhs,

@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+
 import softspine
 from softspine import Scene, SolverError
 from softspine.scenes import cantilever, demo_robot_scene

@@ -7,9 +7,11 @@ import math
 
 import numpy as np
 import pytest
+
 import softspine
-from closed_forms import BISSHOPP_DRUCKER, arc_chain_tip, observed_orders, quat_to_matrix
 from softspine.scenes import cantilever, end_moment
+
+from closed_forms import BISSHOPP_DRUCKER, arc_chain_tip, observed_orders, quat_to_matrix
 
 NS = (20, 40, 80)
 

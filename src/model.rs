@@ -182,7 +182,7 @@ impl RodModel {
         if self.tip_moment.norm() > 0.0 {
             let m = q[self.n].inverse_rotate(lambda * self.tip_moment);
             g[self.n - 1] -= m;
-            if let Some(jac) = jac.as_deref_mut() {
+            if let Some(jac) = jac {
                 jac.diag[self.n - 1] -= skew(&m);
             }
         }

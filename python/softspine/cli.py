@@ -36,9 +36,24 @@ def _demo(args: argparse.Namespace) -> int:
     fine = solve(scene, n_elements=8 * args.n_elements, method=args.method, initial=None)
     err = float(np.linalg.norm(fine.tip_position - tip))
     print(f"  tip difference to n = {fine.n_elements}: {err * 1e3:.3f} mm")
+    # What the load does: the same actuation without weight and without the tip load.
+    weightless = scene.to_dict()
+    weightless.pop("gravity", None)
+    weightless["distributed_force"] = [0.0, 0.0, 0.0]
+    weightless["tip_force"] = [0.0, 0.0, 0.0]
+    own_weight = scene.to_dict()
+    own_weight["tip_force"] = [0.0, 0.0, 0.0]
+    others = [solve(d, n_elements=args.n_elements, method=args.method) for d in (weightless, own_weight)]
+    sag = float(np.linalg.norm(tip - others[0].tip_position))
+    print(f"  the loads move the tip by {sag * 1e3:.1f} mm from its weightless position")
     from .plotting import plot_backbones
 
-    plot_backbones([sol], args.out, labels=[f"n = {sol.n_elements}"], title=scene.name or "")
+    plot_backbones(
+        [others[0], others[1], sol],
+        args.out,
+        labels=["actuation only (weightless)", "own weight", "own weight + tip load"],
+        title=scene.name or "",
+    )
     print(f"plot written to {args.out}")
     return 0 if sol.converged else 1
 

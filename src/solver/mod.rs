@@ -258,8 +258,8 @@ impl Solver {
         match initial {
             Some(q) => {
                 w.q[0] = model.base;
-                for j in 1..=n {
-                    w.q[j] = q[j].normalized();
+                for (dst, src) in w.q.iter_mut().zip(q).skip(1) {
+                    *dst = src.normalized();
                 }
             }
             None => w.q.copy_from_slice(&model.straight()),

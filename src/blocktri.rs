@@ -55,6 +55,26 @@ impl BlockTridiagonal {
         }
     }
 
+    /// Visit every stored entry as `(row, column, value)` of the full `3n x 3n`
+    /// matrix (to copy it into a dense or sparse matrix of another library).
+    pub fn for_each_entry(&self, mut visit: impl FnMut(usize, usize, f64)) {
+        let n = self.n();
+        let mut block = |bi: usize, bj: usize, m: &Matrix3<f64>| {
+            for r in 0..3 {
+                for c in 0..3 {
+                    visit(3 * bi + r, 3 * bj + c, m[(r, c)]);
+                }
+            }
+        };
+        for j in 0..n {
+            block(j, j, &self.diag[j]);
+            if j + 1 < n {
+                block(j, j + 1, &self.upper[j]);
+                block(j + 1, j, &self.lower[j]);
+            }
+        }
+    }
+
     /// Largest absolute diagonal entry (a scale for damping).
     pub fn max_diagonal(&self) -> f64 {
         self.diag

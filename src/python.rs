@@ -409,20 +409,7 @@ fn jacobian<'py>(
     let mut jac = BlockTridiagonal::zeros(n);
     model.residual_jacobian(&q, 1.0, &mut g, &mut jac);
     let mut dense = Array2::<f64>::zeros((3 * n, 3 * n));
-    let mut put = |bi: usize, bj: usize, m: &nalgebra::Matrix3<f64>| {
-        for r in 0..3 {
-            for c in 0..3 {
-                dense[(3 * bi + r, 3 * bj + c)] = m[(r, c)];
-            }
-        }
-    };
-    for j in 0..n {
-        put(j, j, &jac.diag[j]);
-        if j + 1 < n {
-            put(j, j + 1, &jac.upper[j]);
-            put(j + 1, j, &jac.lower[j]);
-        }
-    }
+    jac.for_each_entry(|r, c, v| dense[(r, c)] = v);
     Ok(dense.into_pyarray(py))
 }
 

@@ -43,7 +43,9 @@ def _demo(args: argparse.Namespace) -> int:
     weightless["tip_force"] = [0.0, 0.0, 0.0]
     own_weight = scene.to_dict()
     own_weight["tip_force"] = [0.0, 0.0, 0.0]
-    others = [solve(d, n_elements=args.n_elements, method=args.method) for d in (weightless, own_weight)]
+    others = [
+        solve(d, n_elements=args.n_elements, method=args.method) for d in (weightless, own_weight)
+    ]
     sag = float(np.linalg.norm(tip - others[0].tip_position))
     print(f"  the loads move the tip by {sag * 1e3:.1f} mm from its weightless position")
     from .plotting import plot_backbones

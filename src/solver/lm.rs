@@ -45,22 +45,8 @@ impl LevenbergMarquardt {
 
     /// Dense copy of the block-tridiagonal Jacobian, then `J^T J` and `J^T g`.
     fn load_normal_equations(&mut self, w: &Workspace) {
-        let n = w.g.len();
         self.jac.fill(0.0);
-        let mut put = |bi: usize, bj: usize, m: &nalgebra::Matrix3<f64>| {
-            for r in 0..3 {
-                for c in 0..3 {
-                    self.jac[(3 * bi + r, 3 * bj + c)] = m[(r, c)];
-                }
-            }
-        };
-        for j in 0..n {
-            put(j, j, &w.jac.diag[j]);
-            if j + 1 < n {
-                put(j, j + 1, &w.jac.upper[j]);
-                put(j + 1, j, &w.jac.lower[j]);
-            }
-        }
+        w.jac.for_each_entry(|r, c, v| self.jac[(r, c)] = v);
         faer::linalg::matmul::matmul(
             self.normal.as_mut(),
             Accum::Replace,

@@ -53,11 +53,29 @@ pub struct Gravity {
     pub vector: Vector3<f64>,
 }
 
-/// The tip's boundary condition. Pinned and clamped tips (unknown reactions)
-/// extend this enum; the free tip carries the given `tip_force` and `tip_moment`.
+/// The tip's boundary condition.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TipCondition {
+    /// Loaded by the given `tip_force` and `tip_moment`.
     Free,
+    /// Held at a point by a ball joint: the tip force is an unknown reaction
+    /// (an applied `tip_force` adds to it; a `tip_moment` still acts).
+    Pinned { position: Vector3<f64> },
+    /// Position and orientation held: force and moment are unknown reactions.
+    Clamped {
+        position: Vector3<f64>,
+        quaternion: Quat,
+    },
+}
+
+/// A point of the backbone held at a position (a port or a ring the robot
+/// passes through); the guide's force on the rod is an unknown reaction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Guide {
+    /// Arc length of the held point [m]; must fall on a node.
+    pub s: f64,
+    /// World position of that point [m].
+    pub position: Vector3<f64>,
 }
 
 /// A rod or robot backbone with its loads and boundary conditions.
@@ -77,6 +95,8 @@ pub struct Scene {
     /// Base orientation `Q0`, unit.
     pub base_quaternion: Quat,
     pub tip: TipCondition,
+    /// Interior points held in place, by increasing `s`.
+    pub guides: Vec<Guide>,
 }
 
 impl Scene {
@@ -93,6 +113,7 @@ impl Scene {
             tip_moment: Vector3::zeros(),
             base_quaternion: Quat::IDENTITY,
             tip: TipCondition::Free,
+            guides: Vec::new(),
         }
     }
 
@@ -155,6 +176,7 @@ impl Scene {
             "tip_moment",
             "base_quaternion",
             "tip",
+            "guides",
         ])?;
         let name = match top.get("name") {
             None => None,
@@ -185,6 +207,10 @@ impl Scene {
             None => TipCondition::Free,
             Some(v) => tip(v)?,
         };
+        let guides = match top.get("guides") {
+            None => Vec::new(),
+            Some(v) => guides(v)?,
+        };
         Ok(Scene {
             name,
             length,
@@ -196,6 +222,7 @@ impl Scene {
             tip_moment: vec3_or_zero("tip_moment")?,
             base_quaternion,
             tip,
+            guides,
         })
     }
 
@@ -248,10 +275,26 @@ impl Scene {
             "base_quaternion".into(),
             Value::List(q.iter().map(|x| num(*x)).collect()),
         ));
-        let tip = match self.tip {
-            TipCondition::Free => vec![("type".to_string(), Value::String("free".into()))],
+        let q4 = |q: &Quat| Value::List(q.to_array().iter().map(|x| num(*x)).collect());
+        let kind = |k: &str| ("type".to_string(), Value::String(k.into()));
+        let tip = match &self.tip {
+            TipCondition::Free => vec![kind("free")],
+            TipCondition::Pinned { position } => vec![kind("pinned"), ("position".into(), v3(position))],
+            TipCondition::Clamped { position, quaternion } => vec![
+                kind("clamped"),
+                ("position".into(), v3(position)),
+                ("quaternion".into(), q4(quaternion)),
+            ],
         };
         m.push(("tip".into(), Value::Map(tip)));
+        if !self.guides.is_empty() {
+            let g = self
+                .guides
+                .iter()
+                .map(|g| Value::Map(vec![("s".into(), num(g.s)), ("position".into(), v3(&g.position))]))
+                .collect();
+            m.push(("guides".into(), Value::List(g)));
+        }
         Value::Map(m)
     }
 
@@ -469,15 +512,49 @@ fn tip(v: &Value) -> Result<TipCondition> {
             t.only(&["type"])?;
             Ok(TipCondition::Free)
         }
-        "pinned" | "clamped" => Err(Error::scene(
-            "tip.type",
-            format!("'{kind}' tips are not supported yet (only 'free')"),
-        )),
+        "pinned" => {
+            t.only(&["type", "position"])?;
+            Ok(TipCondition::Pinned {
+                position: vec3(t.require("position")?, "tip.position")?,
+            })
+        }
+        "clamped" => {
+            t.only(&["type", "position", "quaternion"])?;
+            Ok(TipCondition::Clamped {
+                position: vec3(t.require("position")?, "tip.position")?,
+                quaternion: unit_quaternion(t.require("quaternion")?, "tip.quaternion")?,
+            })
+        }
         other => Err(Error::scene(
             "tip.type",
             format!("unknown tip type '{other}' (expected 'free', 'pinned' or 'clamped')"),
         )),
     }
+}
+
+fn guides(v: &Value) -> Result<Vec<Guide>> {
+    let items = match v {
+        Value::List(items) => items,
+        other => {
+            return Err(Error::scene(
+                "guides",
+                format!("expected a list of {{s, position}} tables, got {}", other.kind()),
+            ))
+        }
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| {
+            let path = format!("guides[{i}]");
+            let t = Table::new(item, &path)?;
+            t.only(&["s", "position"])?;
+            Ok(Guide {
+                s: finite(t.require("s")?, &t.key("s"))?,
+                position: vec3(t.require("position")?, &t.key("position"))?,
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]

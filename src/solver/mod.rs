@@ -4,6 +4,8 @@
 
 mod lm;
 mod newton;
+pub mod paper;
+pub mod pso;
 
 use crate::blocktri::{symmetric_part_is_positive_definite, BlockLu, BlockTridiagonal};
 use crate::error::{Error, Result};

@@ -1,0 +1,1 @@
+//! The seed paper's method (placeholder; being written).

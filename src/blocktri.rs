@@ -184,6 +184,30 @@ pub fn symmetric_part_is_positive_definite(a: &BlockTridiagonal) -> bool {
     true
 }
 
+/// Number of negative eigenvalues of a symmetric block-tridiagonal matrix, by
+/// block LDL^T and Sylvester's law of inertia; `None` when a pivot is
+/// (numerically) singular and the count would be meaningless.
+pub fn negative_eigenvalues(a: &BlockTridiagonal) -> Option<usize> {
+    let n = a.n();
+    let scale = a.max_diagonal().max(f64::MIN_POSITIVE);
+    let mut negative = 0;
+    let mut prev_inv = Matrix3::zeros();
+    for j in 0..n {
+        let mut pivot = a.diag[j];
+        if j > 0 {
+            pivot -= a.lower[j - 1] * prev_inv * a.upper[j - 1];
+        }
+        let pivot = 0.5 * (pivot + pivot.transpose());
+        let eig = pivot.symmetric_eigenvalues();
+        if eig.iter().any(|v| v.abs() <= 1e-12 * scale) {
+            return None;
+        }
+        negative += eig.iter().filter(|v| **v < 0.0).count();
+        prev_inv = pivot.try_inverse()?;
+    }
+    Some(negative)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

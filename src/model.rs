@@ -13,8 +13,27 @@
 
 use crate::blocktri::BlockTridiagonal;
 use crate::quat::{skew, tangent_bilinear, tangent_form_apply, Quat};
-use crate::scene::Scene;
+use crate::scene::{Scene, TipCondition};
 use nalgebra::{Matrix3, Vector3};
+
+/// A node held at a position (a pinned tip or a guide). Its reaction force is
+/// an unknown that acts on the rod like a point force at the node.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointConstraint {
+    pub node: usize,
+    /// Prescribed position [m].
+    pub target: Vector3<f64>,
+    /// Where the straight rod puts the node: the start of the load path.
+    pub straight: Vector3<f64>,
+}
+
+impl PointConstraint {
+    /// The target at load scale `lambda`, moved linearly from the straight rod.
+    /// Both ends are within reach, and so is every point between (convexity).
+    pub fn target_at(&self, lambda: f64) -> Vector3<f64> {
+        self.straight + lambda * (self.target - self.straight)
+    }
+}
 
 /// A scene discretised by `n` elements of length `ds`.
 #[derive(Debug, Clone)]
@@ -34,6 +53,10 @@ pub struct RodModel {
     /// Internal force `F_j` at node `j = 0..n`, world frame [N].
     pub node_force: Vec<Vector3<f64>>,
     pub tip_moment: Vector3<f64>,
+    /// Held nodes, by increasing node (guides, then a pinned or clamped tip).
+    pub constraints: Vec<PointConstraint>,
+    /// Orientation of a clamped tip, on the base's side of the quaternion sphere.
+    pub clamped_tip: Option<Quat>,
     /// Moment scale `max(k) / L` that makes residuals dimensionless.
     pub residual_scale: f64,
 }
@@ -62,6 +85,42 @@ impl RodModel {
             .map(|j| mean_force[j - 1] + mean_force.get(j).copied().unwrap_or_else(Vector3::zeros))
             .collect();
         let stiffness = scene.stiffness();
+        let base = scene.base_quaternion;
+        let straight_at = |node: usize| base.tangent() * (node as f64 * ds);
+        let mut constraints: Vec<PointConstraint> = scene
+            .guides
+            .iter()
+            .map(|g| {
+                let node = (g.s / ds).round() as usize;
+                PointConstraint {
+                    node,
+                    target: g.position,
+                    straight: straight_at(node),
+                }
+            })
+            .collect();
+        let (tip_target, clamped_tip) = match &scene.tip {
+            TipCondition::Free => (None, None),
+            TipCondition::Pinned { position } => (Some(*position), None),
+            TipCondition::Clamped {
+                position,
+                quaternion,
+            } => {
+                let q = if quaternion.dot(base) < 0.0 {
+                    -*quaternion
+                } else {
+                    *quaternion
+                };
+                (Some(*position), Some(q))
+            }
+        };
+        if let Some(target) = tip_target {
+            constraints.push(PointConstraint {
+                node: n,
+                target,
+                straight: straight_at(n),
+            });
+        }
         RodModel {
             n,
             length,
@@ -73,6 +132,8 @@ impl RodModel {
             node_force_weight,
             node_force,
             tip_moment: scene.tip_moment,
+            constraints,
+            clamped_tip,
             residual_scale: stiffness.max() / length,
         }
     }
@@ -82,6 +143,30 @@ impl RodModel {
         self.rest_curvature.iter().all(|k| k.norm() == 0.0)
             && self.mean_force.iter().all(|f| f.norm() == 0.0)
             && self.tip_moment.norm() == 0.0
+            && self.constraints.iter().all(|c| c.target == c.straight)
+            && self.clamped_tip.is_none_or(|q| q == self.base)
+    }
+
+    /// Whether the scene has unknown reactions (held nodes or a clamped tip).
+    pub fn is_constrained(&self) -> bool {
+        !self.constraints.is_empty() || self.clamped_tip.is_some()
+    }
+
+    /// Orientation of a clamped tip at load scale `lambda` (slerp from the base).
+    pub fn clamped_tip_at(&self, lambda: f64) -> Option<Quat> {
+        self.clamped_tip
+            .map(|target| slerp(self.base, target, lambda))
+    }
+
+    /// The initial guess of a solve without one: the straight rod, or for a
+    /// clamped tip the rod turning uniformly from the base to the tip orientation.
+    pub fn initial_guess(&self) -> Vec<Quat> {
+        match self.clamped_tip {
+            None => self.straight(),
+            Some(target) => (0..=self.n)
+                .map(|j| slerp(self.base, target, j as f64 / self.n as f64))
+                .collect(),
+        }
     }
 
     /// The straight rod along the base tangent.
@@ -91,7 +176,7 @@ impl RodModel {
 
     /// Residual `g` (node `j` at index `j - 1`) at load scale `lambda`.
     pub fn residual(&self, q: &[Quat], lambda: f64, g: &mut [Vector3<f64>]) {
-        self.assemble(q, lambda, g, None);
+        self.assemble(q, lambda, &[], g, None);
     }
 
     /// Residual and its exact Jacobian at load scale `lambda`.
@@ -102,13 +187,37 @@ impl RodModel {
         g: &mut [Vector3<f64>],
         jac: &mut BlockTridiagonal,
     ) {
-        self.assemble(q, lambda, g, Some(jac));
+        self.assemble(q, lambda, &[], g, Some(jac));
+    }
+
+    /// Residual with the constraint reactions (one per constraint, world frame)
+    /// acting as point forces, and optionally its Jacobian in the rotations.
+    pub fn residual_with_reactions(
+        &self,
+        q: &[Quat],
+        lambda: f64,
+        reactions: &[Vector3<f64>],
+        g: &mut [Vector3<f64>],
+        jac: Option<&mut BlockTridiagonal>,
+    ) {
+        self.assemble(q, lambda, reactions, g, jac);
+    }
+
+    /// Sum of the reactions at nodes `>= node`: their share of the internal force there.
+    fn reactions_from(&self, reactions: &[Vector3<f64>], node: usize) -> Vector3<f64> {
+        self.constraints
+            .iter()
+            .zip(reactions)
+            .filter(|(c, _)| c.node >= node)
+            .map(|(_, r)| *r)
+            .sum()
     }
 
     fn assemble(
         &self,
         q: &[Quat],
         lambda: f64,
+        reactions: &[Vector3<f64>],
         g: &mut [Vector3<f64>],
         mut jac: Option<&mut BlockTridiagonal>,
     ) {
@@ -132,7 +241,10 @@ impl RodModel {
             let gb = amat.transpose() * w;
             // Load potential kappa * a^T S b with kappa = -ds/3 (F . T(a,b) term).
             let kappa = -ds / 3.0;
-            let fbar = lambda * self.mean_force[i - 1];
+            let mut fbar = lambda * self.mean_force[i - 1];
+            if !reactions.is_empty() {
+                fbar += self.reactions_from(reactions, i);
+            }
             let sb = tangent_form_apply(&fbar, b);
             let sa = tangent_form_apply(&fbar, a);
             let gax = 0.5 * kappa * (a.conj() * sb).v;
@@ -171,7 +283,11 @@ impl RodModel {
         }
         // Nodes: the quadratic part of the load potential, h . T(q_j).
         for j in 1..=self.n {
-            let h = (-ds / 3.0 * lambda) * self.node_force_weight[j - 1];
+            let mut weight = lambda * self.node_force_weight[j - 1];
+            if !reactions.is_empty() {
+                weight += self.reactions_from(reactions, j) + self.reactions_from(reactions, j + 1);
+            }
+            let h = (-ds / 3.0) * weight;
             let f = q[j].inverse_rotate(h);
             g[j - 1] += Vector3::new(-f.y, f.x, 0.0);
             if let Some(jac) = jac.as_deref_mut() {
@@ -202,6 +318,66 @@ impl RodModel {
         }
     }
 
+    /// `h_c = r_{node_c} - target_c(lambda)` for every constraint; `r` is scratch
+    /// of `n + 1` positions.
+    pub fn constraint_residual(
+        &self,
+        q: &[Quat],
+        lambda: f64,
+        r: &mut [Vector3<f64>],
+        h: &mut [Vector3<f64>],
+    ) {
+        self.positions(q, r);
+        for (c, hc) in self.constraints.iter().zip(h.iter_mut()) {
+            *hc = r[c.node] - c.target_at(lambda);
+        }
+    }
+
+    /// `d r_k / d theta_j` for every node `j` (index `j - 1`; zero beyond `k`):
+    /// the Jacobian of a held node's position. The residual depends on that
+    /// node's reaction `R` through `-(d r_k / d theta)^T R`.
+    pub fn position_jacobian(&self, q: &[Quat], k: usize, out: &mut [Matrix3<f64>]) {
+        let third = self.ds / 3.0;
+        for j in 1..=self.n {
+            if j > k {
+                out[j - 1] = Matrix3::zeros();
+                continue;
+            }
+            // Row c: gradient of e_c . r_k. T(q_j) counts once per element of node
+            // j inside [1, k]; the bilinear terms pair it with its neighbours.
+            let diagonal_weight = if j < k { 2.0 } else { 1.0 };
+            let mut block = Matrix3::zeros();
+            for c in 0..3 {
+                let e = Vector3::ith(c, 1.0);
+                let f = q[j].inverse_rotate(e);
+                let mut row = diagonal_weight * Vector3::new(-f.y, f.x, 0.0);
+                row += 0.5 * (q[j].conj() * tangent_form_apply(&e, q[j - 1])).v;
+                if j < k {
+                    row += 0.5 * (q[j].conj() * tangent_form_apply(&e, q[j + 1])).v;
+                }
+                block.set_row(c, &(third * row).transpose());
+            }
+            out[j - 1] = block;
+        }
+    }
+
+    /// Internal force at the nodes with the reactions: the force that the distal
+    /// part exerts on the proximal one (a held node's reaction counts distal).
+    pub fn node_forces(&self, reactions: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+        (0..=self.n)
+            .map(|j| {
+                let held: Vector3<f64> = self
+                    .constraints
+                    .iter()
+                    .zip(reactions)
+                    .filter(|(c, _)| c.node > j || c.node == self.n)
+                    .map(|(_, r)| *r)
+                    .sum();
+                self.node_force[j] + held
+            })
+            .collect()
+    }
+
     /// Dimensionless residual norm: largest torque imbalance over `max(k) / L`.
     pub fn residual_norm(&self, g: &[Vector3<f64>]) -> f64 {
         g.iter().map(|x| x.amax()).fold(0.0, f64::max) / self.residual_scale
@@ -227,6 +403,19 @@ impl RodModel {
         }
         total
     }
+}
+
+/// Spherical interpolation from `a` (t = 0) to `b` (t = 1) along the short arc
+/// when `a . b >= 0` (the caller chooses the sign of `b`).
+pub fn slerp(a: Quat, b: Quat, t: f64) -> Quat {
+    let rel = a.conj() * b;
+    let angle = 2.0 * rel.v.norm().atan2(rel.w);
+    let axis = if rel.v.norm() > 0.0 {
+        rel.v / rel.v.norm()
+    } else {
+        Vector3::zeros()
+    };
+    (a * Quat::from_rotation_vector(axis * (angle * t))).normalized()
 }
 
 /// Mean tangent of an element: the exact mean of `T` under linear interpolation of `q`.

@@ -141,6 +141,16 @@ pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 
+impl std::ops::Neg for Quat {
+    type Output = Quat;
+    fn neg(self) -> Quat {
+        Quat {
+            w: -self.w,
+            v: -self.v,
+        }
+    }
+}
+
 impl Mul for Quat {
     type Output = Quat;
     fn mul(self, o: Quat) -> Quat {

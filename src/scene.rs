@@ -279,8 +279,13 @@ impl Scene {
         let kind = |k: &str| ("type".to_string(), Value::String(k.into()));
         let tip = match &self.tip {
             TipCondition::Free => vec![kind("free")],
-            TipCondition::Pinned { position } => vec![kind("pinned"), ("position".into(), v3(position))],
-            TipCondition::Clamped { position, quaternion } => vec![
+            TipCondition::Pinned { position } => {
+                vec![kind("pinned"), ("position".into(), v3(position))]
+            }
+            TipCondition::Clamped {
+                position,
+                quaternion,
+            } => vec![
                 kind("clamped"),
                 ("position".into(), v3(position)),
                 ("quaternion".into(), q4(quaternion)),
@@ -291,7 +296,12 @@ impl Scene {
             let g = self
                 .guides
                 .iter()
-                .map(|g| Value::Map(vec![("s".into(), num(g.s)), ("position".into(), v3(&g.position))]))
+                .map(|g| {
+                    Value::Map(vec![
+                        ("s".into(), num(g.s)),
+                        ("position".into(), v3(&g.position)),
+                    ])
+                })
                 .collect();
             m.push(("guides".into(), Value::List(g)));
         }
@@ -308,6 +318,84 @@ impl Scene {
             ));
         }
         Ok(())
+    }
+}
+
+impl Scene {
+    /// Check the held points against a discretisation of `n` elements: guides
+    /// inside the rod, on nodes, in order; every target within reach of the
+    /// previous held point (base included); a clamped tip without applied tip
+    /// loads. Returns a reason when a target is exactly at full reach (only the
+    /// straight rod reaches it: the reaction is indeterminate or unbounded).
+    pub fn check_constraints(&self, n: usize) -> Result<Option<String>> {
+        let ds = self.length / n as f64;
+        if let TipCondition::Clamped { .. } = self.tip {
+            if self.tip_force.norm() > 0.0 || self.tip_moment.norm() > 0.0 {
+                return Err(Error::scene(
+                    "tip",
+                    "a clamped tip has prescribed position and orientation, so its force and moment \
+                     are reactions: remove tip_force and tip_moment (prescribing all three \
+                     over-determines an inextensible rod)",
+                ));
+            }
+        }
+        let mut held: Vec<(String, f64, Vector3<f64>)> = Vec::new();
+        for (i, g) in self.guides.iter().enumerate() {
+            let key = format!("guides[{i}].s");
+            if !(g.s > 0.0 && g.s < self.length) {
+                return Err(Error::scene(
+                    key,
+                    format!(
+                        "must lie inside (0, L) = (0, {}), got {} (the base is clamped; hold the tip with tip.type)",
+                        self.length, g.s
+                    ),
+                ));
+            }
+            let node = g.s / ds;
+            if (node - node.round()).abs() > 1e-9 * node.max(1.0) {
+                return Err(Error::scene(
+                    key,
+                    format!(
+                        "must fall on a node: s = {} is not a multiple of L/n = {ds}",
+                        g.s
+                    ),
+                ));
+            }
+            if let Some((_, prev, _)) = held.last() {
+                if g.s <= *prev {
+                    return Err(Error::scene(key, "guides must be given by increasing s"));
+                }
+            }
+            held.push((format!("guides[{i}].position"), g.s, g.position));
+        }
+        match &self.tip {
+            TipCondition::Free => {}
+            TipCondition::Pinned { position } | TipCondition::Clamped { position, .. } => {
+                held.push(("tip.position".into(), self.length, *position));
+            }
+        }
+        let mut from = (0.0, Vector3::zeros());
+        let mut full_reach = None;
+        for (key, s, p) in held {
+            let (arc, distance) = (s - from.0, (p - from.1).norm());
+            if distance > arc * (1.0 + 1e-12) {
+                return Err(Error::scene(
+                    key,
+                    format!(
+                        "unreachable: {distance:.6} m from the previous held point (or the base), \
+                         farther than the {arc:.6} m of rod between them"
+                    ),
+                ));
+            }
+            if distance >= arc * (1.0 - 1e-12) && full_reach.is_none() {
+                full_reach = Some(format!(
+                    "{key} is at full reach ({distance} m of {arc} m of rod): only the straight \
+                     rod reaches it and its reaction is indeterminate or unbounded"
+                ));
+            }
+            from = (s, p);
+        }
+        Ok(full_reach)
     }
 }
 
@@ -538,7 +626,10 @@ fn guides(v: &Value) -> Result<Vec<Guide>> {
         other => {
             return Err(Error::scene(
                 "guides",
-                format!("expected a list of {{s, position}} tables, got {}", other.kind()),
+                format!(
+                    "expected a list of {{s, position}} tables, got {}",
+                    other.kind()
+                ),
             ))
         }
     };

@@ -27,7 +27,8 @@ const GAIN_SHRINK: f64 = 0.75;
 const GAIN_GROW: f64 = 0.45;
 
 impl LevenbergMarquardt {
-    pub(crate) fn new(n: usize) -> Self {
+    pub(crate) fn new(model: &RodModel) -> Self {
+        let n = model.n;
         let dim = 3 * n;
         LevenbergMarquardt {
             jac: Mat::zeros(dim, dim),

@@ -2,6 +2,7 @@
 //! driver shared by every local method (a direct attempt from the initial
 //! guess, then load continuation from the straight rod when that fails).
 
+mod constrained;
 mod lm;
 mod newton;
 pub mod paper;
@@ -104,6 +105,12 @@ pub struct Solution {
     pub positions: Vec<Vector3<f64>>,
     /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
     pub forces: Vec<Vector3<f64>>,
+    /// Force that a pinned or clamped tip's support exerts on the rod, world frame [N].
+    pub tip_reaction_force: Option<Vector3<f64>>,
+    /// Moment that a clamped tip's support exerts on the rod, world frame [N m].
+    pub tip_reaction_moment: Option<Vector3<f64>>,
+    /// Force of each guide on the rod, in the scene's order, world frame [N].
+    pub guide_reactions: Vec<Vector3<f64>>,
     pub status: Status,
     /// Newton or LM iterations, all continuation steps included.
     pub iterations: usize,
@@ -159,6 +166,8 @@ pub(crate) struct Workspace {
     pub scratch: Vec<Vector3<f64>>,
     pub jac: BlockTridiagonal,
     pub lu: BlockLu,
+    /// Constrained scenes only (empty otherwise): see `constrained.rs`.
+    pub kkt: constrained::KktWorkspace,
 }
 
 impl Workspace {
@@ -174,6 +183,7 @@ impl Workspace {
             scratch: vec![Vector3::zeros(); n],
             jac: BlockTridiagonal::zeros(n),
             lu: BlockLu::new(n),
+            kkt: constrained::KktWorkspace::new(model),
         }
     }
 }
@@ -205,23 +215,27 @@ pub struct Solver {
     settings: Settings,
     work: Workspace,
     local: Box<dyn LocalSolver + Send>,
+    /// Why the scene cannot be solved as posed (a held point at full reach).
+    full_reach: Option<String>,
 }
 
 impl Solver {
     pub fn new(scene: &Scene, settings: Settings) -> Result<Self> {
         settings.validate()?;
         scene.check_elements(settings.n_elements)?;
+        let full_reach = scene.check_constraints(settings.n_elements)?;
         let model = RodModel::new(scene, settings.n_elements);
         let work = Workspace::new(&model);
         let local: Box<dyn LocalSolver + Send> = match settings.method {
             Method::Newton => Box::new(newton::Newton),
-            Method::LevenbergMarquardt => Box::new(lm::LevenbergMarquardt::new(model.n)),
+            Method::LevenbergMarquardt => Box::new(lm::LevenbergMarquardt::new(&model)),
         };
         Ok(Solver {
             model,
             settings,
             work,
             local,
+            full_reach,
         })
     }
 
@@ -230,7 +244,9 @@ impl Solver {
     }
 
     /// Solve from `initial` (node quaternions `q_0..q_n`; `q_0` is replaced by the
-    /// base) or from the straight rod. Never fails: the status says how it ended.
+    /// base) or from the straight rod (a clamped tip: the rod turning uniformly to
+    /// the tip orientation). Errors only on invalid `initial`; otherwise the
+    /// Solution's status says how the solve ended.
     pub fn solve(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
         let n = self.model.n;
         if let Some(q) = initial {
@@ -251,10 +267,20 @@ impl Solver {
         }
         let tol = self.settings.tol;
         let (model, w) = (&self.model, &mut self.work);
+        w.kkt
+            .reactions
+            .iter_mut()
+            .for_each(|r| *r = Vector3::zeros());
+        if let Some(reason) = &self.full_reach {
+            w.q.copy_from_slice(&model.initial_guess());
+            evaluate(model, w, 1.0);
+            let msg = format!("not solved: {reason}");
+            return Ok(self.finish(false, 0, 0, msg));
+        }
         if initial.is_none() && model.is_trivial() {
             // Nothing bends the rod: the straight rod is exact, no iteration needed.
             w.q.copy_from_slice(&model.straight());
-            model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+            evaluate(model, w, 1.0);
             return Ok(self.finish(true, 0, 0, "straight rod: exact without iteration".into()));
         }
         match initial {
@@ -264,30 +290,25 @@ impl Solver {
                     *dst = src.normalized();
                 }
             }
-            None => w.q.copy_from_slice(&model.straight()),
+            None => w.q.copy_from_slice(&model.initial_guess()),
         }
         let budget = self.settings.max_iterations;
         let direct = self
             .local
             .run(model, w, 1.0, budget.min(DIRECT_ITERATIONS), tol);
         let mut iterations = direct.iterations;
-        if direct.converged && symmetric_part_is_positive_definite(&w.jac) {
+        if direct.converged && is_stable(model, w) {
             return Ok(self.finish(true, iterations, 0, "converged".into()));
         }
         // The direct attempt failed or found an unstable equilibrium: follow the
         // load path from the straight rod, which stays on the stable branch.
-        let direct_state = direct.converged.then(|| w.q.clone());
+        let direct_state = direct
+            .converged
+            .then(|| (w.q.clone(), w.kkt.reactions.clone()));
         let remaining = budget - direct.iterations.min(budget);
-        let (cont, steps) = continuation(
-            self.local.as_mut(),
-            model,
-            w,
-            tol,
-            remaining,
-            self.settings.min_continuation_step,
-        );
+        let min_step = self.settings.min_continuation_step;
+        let (cont, steps) = continuation(self.local.as_mut(), model, w, tol, remaining, min_step);
         iterations += cont.iterations;
-        let w = &mut self.work;
         if cont.converged {
             return Ok(self.finish(
                 true,
@@ -296,10 +317,10 @@ impl Solver {
                 "converged by load continuation".into(),
             ));
         }
-        if let Some(q) = direct_state {
+        if let Some((q, reactions)) = direct_state {
             w.q.copy_from_slice(&q);
-            self.model
-                .residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+            w.kkt.reactions.copy_from_slice(&reactions);
+            evaluate(model, w, 1.0);
             return Ok(self.finish(
                 true,
                 iterations,
@@ -315,28 +336,35 @@ impl Solver {
 
     /// Build the Solution from the workspace (residual and Jacobian at `w.q` are current).
     fn finish(
-        &self,
+        &mut self,
         converged: bool,
         iterations: usize,
         continuation_steps: usize,
         message: String,
     ) -> Solution {
-        let (model, w) = (&self.model, &self.work);
-        let residual_norm = model.residual_norm(&w.g);
+        let (model, w) = (&self.model, &mut self.work);
+        let residual_norm = residual_norm(model, w);
         let converged = converged && residual_norm <= self.settings.tol;
         let mut positions = vec![Vector3::zeros(); model.n + 1];
         model.positions(&w.q, &mut positions);
-        let stable = converged && symmetric_part_is_positive_definite(&w.jac);
+        let stable = converged && is_stable(model, w);
         let message = if converged && !stable && !message.contains("unstable") {
             format!("{message} (unstable equilibrium)")
         } else {
             message
         };
+        let reactions = &w.kkt.reactions;
+        let tip_held = model.constraints.last().is_some_and(|c| c.node == model.n);
+        let guides = model.constraints.len() - usize::from(tip_held);
+        let tip_q = w.q[model.n];
         Solution {
             n_elements: model.n,
             quaternions: w.q.clone(),
             positions,
-            forces: model.node_force.clone(),
+            forces: model.node_forces(reactions),
+            tip_reaction_force: tip_held.then(|| reactions[guides]),
+            tip_reaction_moment: model.clamped_tip.map(|_| tip_q.rotate(w.kkt.tip_torque)),
+            guide_reactions: reactions[..guides].to_vec(),
             status: if converged {
                 Status::Converged
             } else {
@@ -349,6 +377,31 @@ impl Solver {
             stable,
             message,
         }
+    }
+}
+
+/// Residual and Jacobian at the workspace state, free or constrained.
+fn evaluate(model: &RodModel, w: &mut Workspace, lambda: f64) {
+    if model.is_constrained() {
+        constrained::evaluate(model, w, lambda, true);
+    } else {
+        model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+    }
+}
+
+fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
+    if model.is_constrained() {
+        constrained::residual_norm(model, w)
+    } else {
+        model.residual_norm(&w.g)
+    }
+}
+
+fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
+    if model.is_constrained() {
+        constrained::is_stable(model, w)
+    } else {
+        symmetric_part_is_positive_definite(&w.jac)
     }
 }
 
@@ -369,14 +422,22 @@ fn continuation(
 ) -> (LocalOutcome, usize) {
     let n = model.n;
     w.saved.copy_from_slice(&model.straight());
+    w.kkt
+        .reactions_saved
+        .iter_mut()
+        .for_each(|r| *r = Vector3::zeros());
     let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
     let (mut iterations, mut steps) = (0usize, 0usize);
     while lambda < 1.0 {
         let target = (lambda + dlambda).min(1.0);
-        // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last equilibrium.
-        model.residual_jacobian(&w.saved, lambda, &mut w.g, &mut w.jac);
-        model.residual_lambda_derivative(&w.saved, &mut w.step, &mut w.scratch);
-        let predicted = w.lu.factor(&w.jac, 0.0).is_ok();
+        // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last equilibrium
+        // (free scenes; a constrained step starts from the last equilibrium).
+        w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+        let predicted = !model.is_constrained() && {
+            model.residual_jacobian(&w.saved, lambda, &mut w.g, &mut w.jac);
+            model.residual_lambda_derivative(&w.saved, &mut w.step, &mut w.scratch);
+            w.lu.factor(&w.jac, 0.0).is_ok()
+        };
         if predicted {
             w.lu.solve_in_place(&mut w.step);
         }
@@ -407,6 +468,7 @@ fn continuation(
             steps += 1;
             lambda = target;
             w.saved.copy_from_slice(&w.q);
+            w.kkt.reactions_saved.copy_from_slice(&w.kkt.reactions);
             if out.iterations <= 6 {
                 dlambda = (dlambda * 2.0).min(1.0);
             }
@@ -414,7 +476,8 @@ fn continuation(
             dlambda *= 0.5;
             if dlambda < min_step || iterations >= budget {
                 w.q.copy_from_slice(&w.saved);
-                model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+                w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+                evaluate(model, w, 1.0);
                 return (
                     LocalOutcome {
                         converged: false,

@@ -22,6 +22,14 @@ impl LocalSolver for Newton {
         max_iter: usize,
         tol: f64,
     ) -> LocalOutcome {
+        if model.is_constrained() {
+            let (converged, iterations) =
+                super::constrained::newton(model, w, lambda, max_iter, tol);
+            return LocalOutcome {
+                converged,
+                iterations,
+            };
+        }
         let n = model.n;
         model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
         let mut merit = sum_squares(&w.g);

@@ -1,0 +1,311 @@
+//! Held nodes (a pinned tip, guides) and a clamped tip: the KKT system.
+//!
+//! Each held node `k` adds its reaction `R_c` (3 unknowns) and the rows
+//! `h_c = r_k(q) - p_c = 0`. The reactions act on the rod as point forces, so the
+//! residual is `g(theta, R) = g_0(theta) - sum_c D_c^T R_c` with `D_c = dr_k/dtheta`,
+//! and a Newton step solves
+//!
+//! ```text
+//! [ A   -D^T ] [dtheta]   [-g]
+//! [ D    0   ] [dR    ] = [-h]
+//! ```
+//!
+//! by the Schur complement `S = D A^{-1} D^T` (3m x 3m, m held nodes): two sweeps
+//! of the O(n) block-tridiagonal factorisation per column of `D^T`, so the cost
+//! stays linear in n. A clamped tip fixes `q_n` (a Dirichlet row); its reaction
+//! moment is what the torque balance of node n leaves over. Nothing here runs
+//! for a free tip without guides.
+
+use super::{step_limit, Workspace};
+use crate::blocktri::{BlockLu, BlockTridiagonal};
+use crate::model::RodModel;
+use nalgebra::{DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
+
+/// Buffers of the constrained solve, sized once (empty for free scenes).
+#[derive(Debug, Clone)]
+pub(crate) struct KktWorkspace {
+    pub reactions: Vec<Vector3<f64>>,
+    pub reactions_start: Vec<Vector3<f64>>,
+    pub reaction_step: Vec<Vector3<f64>>,
+    pub reactions_saved: Vec<Vector3<f64>>,
+    /// Constraint residuals `h_c` (m).
+    pub h: Vec<Vector3<f64>>,
+    /// `D_c` blocks per constraint, per node.
+    pub d: Vec<Vec<Matrix3<f64>>>,
+    /// `A^{-1} D^T e` per constraint component (3m columns of n blocks).
+    pub columns: Vec<Vec<Vector3<f64>>>,
+    pub positions: Vec<Vector3<f64>>,
+    pub schur: DMatrix<f64>,
+    pub rhs: DVector<f64>,
+    /// Torque balance of a clamped tip node before it is replaced by the
+    /// Dirichlet row: the reaction moment in the body frame.
+    pub tip_torque: Vector3<f64>,
+}
+
+impl KktWorkspace {
+    pub fn new(model: &RodModel) -> Self {
+        let (n, m) = (model.n, model.constraints.len());
+        let positions = if model.is_constrained() { n + 1 } else { 0 };
+        KktWorkspace {
+            reactions: vec![Vector3::zeros(); m],
+            reactions_start: vec![Vector3::zeros(); m],
+            reaction_step: vec![Vector3::zeros(); m],
+            reactions_saved: vec![Vector3::zeros(); m],
+            h: vec![Vector3::zeros(); m],
+            d: vec![vec![Matrix3::zeros(); n]; m],
+            columns: vec![vec![Vector3::zeros(); n]; 3 * m],
+            positions: vec![Vector3::zeros(); positions],
+            schur: DMatrix::zeros(3 * m, 3 * m),
+            rhs: DVector::zeros(3 * m),
+            tip_torque: Vector3::zeros(),
+        }
+    }
+}
+
+/// Scale that turns a position error [m] into a torque [N m] comparable with
+/// the residual: `max(k) / L^2`, so that `tol` bounds `|h| / L`.
+fn position_weight(model: &RodModel) -> f64 {
+    model.residual_scale / model.length
+}
+
+/// Residual (and Jacobian) at `w.q` with the reactions `w.kkt.reactions`;
+/// applies the clamped tip's Dirichlet row. Returns the merit `|g|^2 + |W h|^2`.
+pub(crate) fn evaluate(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    with_jacobian: bool,
+) -> f64 {
+    let n = model.n;
+    let jac = if with_jacobian {
+        Some(&mut w.jac)
+    } else {
+        None
+    };
+    model.residual_with_reactions(&w.q, lambda, &w.kkt.reactions, &mut w.g, jac);
+    model.constraint_residual(&w.q, lambda, &mut w.kkt.positions, &mut w.kkt.h);
+    if model.clamped_tip.is_some() {
+        w.kkt.tip_torque = w.g[n - 1];
+        w.g[n - 1] = Vector3::zeros();
+        if with_jacobian {
+            let scale = w.jac.max_diagonal().max(f64::MIN_POSITIVE);
+            w.jac.diag[n - 1] = Matrix3::identity() * scale;
+            if n >= 2 {
+                w.jac.upper[n - 2] = Matrix3::zeros();
+                w.jac.lower[n - 2] = Matrix3::zeros();
+            }
+        }
+    }
+    merit(model, &w.g, &w.kkt.h)
+}
+
+fn merit(model: &RodModel, g: &[Vector3<f64>], h: &[Vector3<f64>]) -> f64 {
+    let wt = position_weight(model);
+    g.iter().map(|x| x.norm_squared()).sum::<f64>()
+        + wt * wt * h.iter().map(|x| x.norm_squared()).sum::<f64>()
+}
+
+/// Dimensionless residual: torque rows and weighted constraint rows together.
+pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
+    let h = w.kkt.h.iter().map(|x| x.amax()).fold(0.0, f64::max) * position_weight(model);
+    model.residual_norm(&w.g).max(h / model.residual_scale)
+}
+
+/// Fill `D_c` at `w.q` (zero on a clamped tip node, which does not move).
+fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
+    for (c, d) in model.constraints.iter().zip(w.kkt.d.iter_mut()) {
+        model.position_jacobian(&w.q, c.node, d);
+        if model.clamped_tip.is_some() {
+            d[model.n - 1] = Matrix3::zeros();
+        }
+    }
+}
+
+/// `sum_j D_c[j].row(e) . x_j`: component `e` of `D_c x`.
+fn d_times(d: &[Matrix3<f64>], e: usize, x: &[Vector3<f64>]) -> f64 {
+    d.iter()
+        .zip(x)
+        .map(|(b, v)| b.row(e).transpose().dot(v))
+        .sum()
+}
+
+/// Solve the KKT system at the current state (Jacobian and `D` loaded, `lu`
+/// factored): the rotation step goes to `w.step`, the reaction step to `w.kkt.rhs`.
+fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
+    let m = w.kkt.d.len();
+    // y = A^{-1} g  (in w.scratch)
+    w.scratch.copy_from_slice(&w.g);
+    lu.solve_in_place(&mut w.scratch);
+    // columns = A^{-1} D^T e_(c, e)
+    for c in 0..m {
+        for e in 0..3 {
+            let col = &mut w.kkt.columns[3 * c + e];
+            for (x, b) in col.iter_mut().zip(&w.kkt.d[c]) {
+                *x = b.row(e).transpose();
+            }
+            lu.solve_in_place(col);
+        }
+    }
+    for c in 0..m {
+        for e in 0..3 {
+            let r = 3 * c + e;
+            for k in 0..3 * m {
+                w.kkt.schur[(r, k)] = d_times(&w.kkt.d[c], e, &w.kkt.columns[k]);
+            }
+            w.kkt.rhs[r] = d_times(&w.kkt.d[c], e, &w.scratch) - w.kkt.h[c][e];
+        }
+    }
+    if !solve_small_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
+        return false;
+    }
+    for (j, s) in w.step.iter_mut().enumerate() {
+        let mut v = -w.scratch[j];
+        for (k, col) in w.kkt.columns.iter().enumerate() {
+            v += col[j] * w.kkt.rhs[k];
+        }
+        *s = v;
+    }
+    true
+}
+
+/// Minimum-norm solution of the small Schur system by SVD. `S` is singular where
+/// a held point cannot move to first order: at the straight rod, along its axis
+/// (the rod is inextensible). The pseudo-inverse leaves that reaction component
+/// alone for this step; the loads bend the rod and the next step sees it.
+fn solve_small_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
+    let svd = a.clone().svd(true, true);
+    let cutoff = 1e-11 * svd.singular_values.max();
+    if !(cutoff > 0.0) {
+        return false;
+    }
+    match svd.solve(b, cutoff) {
+        Ok(x) if x.iter().all(|v| v.is_finite()) => {
+            b.copy_from(&x);
+            true
+        }
+        _ => false,
+    }
+}
+
+/// Newton on the KKT system with a backtracking line search on the merit.
+pub(crate) fn newton(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    max_iter: usize,
+    tol: f64,
+) -> (bool, usize) {
+    let n = model.n;
+    if let Some(tip) = model.clamped_tip_at(lambda) {
+        w.q[n] = tip;
+    }
+    let mut merit_now = evaluate(model, w, lambda, true);
+    for it in 0..max_iter {
+        if residual_norm(model, w) <= tol {
+            return (true, it);
+        }
+        load_constraint_jacobian(model, w);
+        let scale = w.jac.max_diagonal().max(model.residual_scale * model.ds);
+        let mut shift = 0.0;
+        let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
+        let solved = loop {
+            if lu.factor(&w.jac, shift).is_ok() && kkt_step(&lu, w) {
+                break true;
+            }
+            shift = if shift == 0.0 {
+                1e-10 * scale
+            } else {
+                shift * 100.0
+            };
+            if shift > scale {
+                break false;
+            }
+        };
+        w.lu = lu;
+        if !solved {
+            return (false, it);
+        }
+        for (i, d) in w.kkt.reaction_step.iter_mut().enumerate() {
+            *d = Vector3::new(w.kkt.rhs[3 * i], w.kkt.rhs[3 * i + 1], w.kkt.rhs[3 * i + 2]);
+        }
+        w.kkt.reactions_start.copy_from_slice(&w.kkt.reactions);
+        let mut alpha = step_limit(&w.step, 1.0, 0.3);
+        loop {
+            // Trial state in place; the start is kept in `w.trial` and `reactions_start`.
+            w.trial.copy_from_slice(&w.q);
+            for j in 1..=n {
+                w.q[j] = w.trial[j].perturbed(alpha * w.step[j - 1]);
+            }
+            for ((r, r0), d) in w
+                .kkt
+                .reactions
+                .iter_mut()
+                .zip(&w.kkt.reactions_start)
+                .zip(&w.kkt.reaction_step)
+            {
+                *r = r0 + alpha * d;
+            }
+            let trial_merit = evaluate(model, w, lambda, false);
+            if trial_merit.is_finite() && trial_merit <= (1.0 - 1e-4 * alpha) * merit_now {
+                merit_now = evaluate(model, w, lambda, true);
+                break;
+            }
+            w.q.copy_from_slice(&w.trial);
+            w.kkt.reactions.copy_from_slice(&w.kkt.reactions_start);
+            alpha *= 0.5;
+            if alpha < 1e-4 {
+                evaluate(model, w, lambda, true);
+                return (false, it + 1);
+            }
+        }
+    }
+    (residual_norm(model, w) <= tol, max_iter)
+}
+
+/// Stability of a constrained equilibrium: the reduced Hessian `Z^T A Z` on the
+/// null space of `D` is positive definite iff the KKT matrix has exactly 3m
+/// negative eigenvalues; by Haynsworth's inertia formula that number is
+/// `neg(A) + pos(D A^{-1} D^T)` (symmetric parts, `A` nonsingular).
+pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
+    let n = model.n;
+    let mut sym = BlockTridiagonal::zeros(n);
+    for j in 0..n {
+        sym.diag[j] = 0.5 * (w.jac.diag[j] + w.jac.diag[j].transpose());
+        if j + 1 < n {
+            sym.upper[j] = 0.5 * (w.jac.upper[j] + w.jac.lower[j].transpose());
+            sym.lower[j] = sym.upper[j].transpose();
+        }
+    }
+    let Some(negative) = crate::blocktri::negative_eigenvalues(&sym) else {
+        return false;
+    };
+    load_constraint_jacobian(model, w);
+    let mut lu = BlockLu::new(n);
+    if lu.factor(&sym, 0.0).is_err() {
+        return false;
+    }
+    let m = model.constraints.len();
+    let mut s = DMatrix::zeros(3 * m, 3 * m);
+    let mut col = vec![Vector3::zeros(); n];
+    for c2 in 0..m {
+        for e2 in 0..3 {
+            for (x, b) in col.iter_mut().zip(&w.kkt.d[c2]) {
+                *x = b.row(e2).transpose();
+            }
+            lu.solve_in_place(&mut col);
+            for c in 0..m {
+                for e in 0..3 {
+                    s[(3 * c + e, 3 * c2 + e2)] = d_times(&w.kkt.d[c], e, &col);
+                }
+            }
+        }
+    }
+    let s = 0.5 * (&s + s.transpose());
+    let eig = SymmetricEigen::new(s);
+    let tiny = 1e-12 * eig.eigenvalues.amax().max(f64::MIN_POSITIVE);
+    if eig.eigenvalues.iter().any(|v| v.abs() <= tiny) {
+        return false;
+    }
+    let positive = eig.eigenvalues.iter().filter(|v| **v > 0.0).count();
+    negative + positive == 3 * m
+}

@@ -245,6 +245,21 @@ impl PySolution {
             .to_vec()
             .into_pyarray(py)
     }
+    /// Force of a pinned or clamped tip's support on the rod, world frame (N); None if free.
+    #[getter]
+    fn tip_reaction_force<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner.tip_reaction_force.map(|f| vec3_array(py, &f))
+    }
+    /// Moment of a clamped tip's support on the rod, world frame (N m); None otherwise.
+    #[getter]
+    fn tip_reaction_moment<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner.tip_reaction_moment.map(|m| vec3_array(py, &m))
+    }
+    /// Force of each guide on the rod, world frame, shape (guides, 3), N.
+    #[getter]
+    fn guide_reactions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows3(py, &self.inner.guide_reactions)
+    }
     #[getter]
     fn converged(&self) -> bool {
         self.inner.converged()

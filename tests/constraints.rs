@@ -115,3 +115,31 @@ fn position_jacobian_matches_central_differences() {
         }
     }
 }
+
+#[test]
+fn lm_solves_held_tips_too() {
+    let free = loaded();
+    let sol = solve(&free, settings(20), None).unwrap();
+    let mut held_tip = free.clone();
+    held_tip.tip_force = Vector3::zeros();
+    held_tip.tip = TipCondition::Clamped {
+        position: sol.tip_position(),
+        quaternion: sol.tip_quaternion(),
+    };
+    let held = solve(&held_tip, lm_settings(), None).unwrap();
+    assert!(held.converged(), "{}", held.message);
+    assert!((held.tip_reaction_force.unwrap() - free.tip_force).norm() < 1e-8);
+    held_tip.tip = TipCondition::Pinned {
+        position: sol.tip_position(),
+    };
+    let held = solve(&held_tip, lm_settings(), None).unwrap();
+    assert!(held.converged(), "{}", held.message);
+    assert!((held.tip_reaction_force.unwrap() - free.tip_force).norm() < 1e-8);
+}
+
+fn lm_settings() -> Settings {
+    Settings {
+        method: softspine::Method::LevenbergMarquardt,
+        ..settings(20)
+    }
+}

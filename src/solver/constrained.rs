@@ -64,7 +64,7 @@ impl KktWorkspace {
 
 /// Scale that turns a position error [m] into a torque [N m] comparable with
 /// the residual: `max(k) / L^2`, so that `tol` bounds `|h| / L`.
-fn position_weight(model: &RodModel) -> f64 {
+pub(crate) fn position_weight(model: &RodModel) -> f64 {
     model.residual_scale / model.length
 }
 
@@ -112,7 +112,7 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
 }
 
 /// Fill `D_c` at `w.q` (zero on a clamped tip node, which does not move).
-fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
+pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     for (c, d) in model.constraints.iter().zip(w.kkt.d.iter_mut()) {
         model.position_jacobian(&w.q, c.node, d);
         if model.clamped_tip.is_some() {

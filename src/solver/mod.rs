@@ -317,6 +317,26 @@ impl Solver {
                 "converged by load continuation".into(),
             ));
         }
+        // Held points that only a strongly bent (buckled) rod reaches make the
+        // undamped KKT steps fail from near-straight states; Levenberg-Marquardt's
+        // damping gets there (dense, so only as a fallback).
+        if self.settings.method == Method::Newton
+            && model.is_constrained()
+            && direct_state.is_none()
+        {
+            let mut lm = lm::LevenbergMarquardt::new(model);
+            w.q.copy_from_slice(&model.initial_guess());
+            w.kkt
+                .reactions
+                .iter_mut()
+                .for_each(|r| *r = Vector3::zeros());
+            let out = lm.run(model, w, 1.0, budget, tol);
+            iterations += out.iterations;
+            if out.converged {
+                let msg = "converged (Levenberg-Marquardt fallback)".to_string();
+                return Ok(self.finish(true, iterations, steps, msg));
+            }
+        }
         if let Some((q, reactions)) = direct_state {
             w.q.copy_from_slice(&q);
             w.kkt.reactions.copy_from_slice(&reactions);

@@ -110,7 +110,11 @@ def test_clamped_solution_is_an_equilibrium_of_the_free_rod_with_its_reactions()
         ({**SCENE, "guides": [{"s": 1.2, "position": [0, 0, -0.5]}]}, "guides[0].s", "inside"),
         ({**SCENE, "guides": [{"s": 0.0, "position": [0, 0, 0]}]}, "guides[0].s", "inside"),
         ({**SCENE, "guides": [{"s": 0.4, "position": [0, 0, -0.4]}]}, "guides[0].s", "node"),
-        ({**SCENE, "guides": [{"s": 0.45, "position": [0.5, 0, 0]}]}, "guides[0].position", "unreachable"),
+        (
+            {**SCENE, "guides": [{"s": 0.45, "position": [0.5, 0, 0]}]},
+            "guides[0].position",
+            "unreachable",
+        ),
         (
             {
                 **SCENE,

@@ -1,11 +1,12 @@
 //! Forward statics: cold (straight guess) and warm (from the equilibrium of the
-//! same scene with every load 2 % lower, as between two steps of a control loop).
+//! same scene with every load 2 % lower, as between two steps of a control loop);
+//! held tips: warm from the equilibrium with the target 10 % closer to the free tip.
 //!
 //! `cargo bench --bench forward`; the medians go into the README's table.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::Vector3;
-use softspine::{Quat, Scene, Settings, Solver};
+use softspine::{solve, Quat, Scene, Settings, Solver, TipCondition};
 use std::hint::black_box;
 
 const SIZES: [usize; 6] = [10, 20, 40, 80, 160, 1000];
@@ -56,9 +57,59 @@ fn bench_scene(c: &mut Criterion, name: &str, make: fn(f64) -> Scene) {
     group.finish();
 }
 
+/// The 3D robot with its tip held 2 cm (times `scale`) off where it hangs freely:
+/// by a ball joint, or clamped in the free tip's orientation.
+fn held_tip(scale: f64, clamped: bool, n: usize) -> Scene {
+    let mut s = robot(1.0);
+    let settings = Settings {
+        n_elements: n,
+        ..Settings::default()
+    };
+    let free = solve(&s, settings, None).unwrap();
+    let position = free.tip_position() + Vector3::new(0.02, -0.01, 0.01) * scale;
+    s.tip_force = Vector3::zeros();
+    s.tip = if clamped {
+        TipCondition::Clamped {
+            position,
+            quaternion: free.tip_quaternion(),
+        }
+    } else {
+        TipCondition::Pinned { position }
+    };
+    s
+}
+
+fn held(c: &mut Criterion) {
+    let mut group = c.benchmark_group("robot_3d_held_tip");
+    for clamped in [false, true] {
+        let kind = if clamped { "clamped" } else { "pinned" };
+        for n in [20, 80] {
+            let settings = Settings {
+                n_elements: n,
+                ..Settings::default()
+            };
+            let mut solver = Solver::new(&held_tip(1.0, clamped, n), settings.clone()).unwrap();
+            let neighbour = Solver::new(&held_tip(0.9, clamped, n), settings)
+                .unwrap()
+                .solve(None)
+                .unwrap();
+            assert!(neighbour.converged() && solver.solve(None).unwrap().converged());
+            group.bench_with_input(BenchmarkId::new(format!("{kind}/cold"), n), &n, |b, _| {
+                b.iter(|| black_box(solver.solve(None).unwrap()))
+            });
+            let warm = neighbour.quaternions.clone();
+            group.bench_with_input(BenchmarkId::new(format!("{kind}/warm"), n), &n, |b, _| {
+                b.iter(|| black_box(solver.solve(Some(&warm)).unwrap()))
+            });
+        }
+    }
+    group.finish();
+}
+
 fn forward(c: &mut Criterion) {
     bench_scene(c, "cantilever_alpha3", cantilever);
     bench_scene(c, "robot_3d", robot);
+    held(c);
 }
 
 criterion_group! {

@@ -175,7 +175,7 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
 fn solve_small_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
     let svd = a.clone().svd(true, true);
     let cutoff = 1e-11 * svd.singular_values.max();
-    if !(cutoff > 0.0) {
+    if cutoff.is_nan() || cutoff <= 0.0 {
         return false;
     }
     match svd.solve(b, cutoff) {

@@ -274,14 +274,14 @@ impl Solver {
         if let Some(reason) = &self.full_reach {
             w.q.copy_from_slice(&model.initial_guess());
             evaluate(model, w, 1.0);
-            let msg = format!("not solved: {reason}");
-            return Ok(self.finish(false, 0, 0, msg));
+            let ending = Ending::Refused(format!("not solved: {reason}"));
+            return Ok(self.finish(ending, 0, 0));
         }
         if initial.is_none() && model.is_trivial() {
             // Nothing bends the rod: the straight rod is exact, no iteration needed.
             w.q.copy_from_slice(&model.straight());
             evaluate(model, w, 1.0);
-            return Ok(self.finish(true, 0, 0, "straight rod: exact without iteration".into()));
+            return Ok(self.finish(Ending::Exact, 0, 0));
         }
         match initial {
             Some(q) => {
@@ -298,7 +298,7 @@ impl Solver {
             .run(model, w, 1.0, budget.min(DIRECT_ITERATIONS), tol);
         let mut iterations = direct.iterations;
         if direct.converged && is_stable(model, w) {
-            return Ok(self.finish(true, iterations, 0, "converged".into()));
+            return Ok(self.finish(Ending::DirectStable, iterations, 0));
         }
         // The direct attempt failed or found an unstable equilibrium: follow the
         // load path from the straight rod, which stays on the stable branch.
@@ -310,12 +310,7 @@ impl Solver {
         let (cont, steps) = continuation(self.local.as_mut(), model, w, tol, remaining, min_step);
         iterations += cont.iterations;
         if cont.converged {
-            return Ok(self.finish(
-                true,
-                iterations,
-                steps,
-                "converged by load continuation".into(),
-            ));
+            return Ok(self.finish(Ending::Continuation, iterations, steps));
         }
         // Held points that only a strongly bent (buckled) rod reaches make the
         // undamped KKT steps fail from near-straight states; Levenberg-Marquardt's
@@ -333,46 +328,33 @@ impl Solver {
             let out = lm.run(model, w, 1.0, budget, tol);
             iterations += out.iterations;
             if out.converged {
-                let msg = "converged (Levenberg-Marquardt fallback)".to_string();
-                return Ok(self.finish(true, iterations, steps, msg));
+                return Ok(self.finish(Ending::LmFallback, iterations, steps));
             }
         }
         if let Some((q, reactions)) = direct_state {
             w.q.copy_from_slice(&q);
             w.kkt.reactions.copy_from_slice(&reactions);
             evaluate(model, w, 1.0);
-            return Ok(self.finish(
-                true,
-                iterations,
-                steps,
-                "converged (unstable equilibrium)".into(),
-            ));
+            return Ok(self.finish(Ending::DirectUnstable, iterations, steps));
         }
         let msg = format!(
             "no convergence: the direct solve and load continuation (stopped after {steps} steps) both failed"
         );
-        Ok(self.finish(false, iterations, steps, msg))
+        Ok(self.finish(Ending::Failed(msg), iterations, steps))
     }
 
     /// Build the Solution from the workspace (residual and Jacobian at `w.q` are current).
-    fn finish(
-        &mut self,
-        converged: bool,
-        iterations: usize,
-        continuation_steps: usize,
-        message: String,
-    ) -> Solution {
+    fn finish(&mut self, ending: Ending, iterations: usize, continuation_steps: usize) -> Solution {
         let (model, w) = (&self.model, &mut self.work);
         let residual_norm = residual_norm(model, w);
-        let converged = converged && residual_norm <= self.settings.tol;
+        let converged = ending.converged() && residual_norm <= self.settings.tol;
         let mut positions = vec![Vector3::zeros(); model.n + 1];
         model.positions(&w.q, &mut positions);
-        let stable = converged && is_stable(model, w);
-        let message = if converged && !stable && !message.contains("unstable") {
-            format!("{message} (unstable equilibrium)")
-        } else {
-            message
-        };
+        let stable = converged && (ending == Ending::DirectStable || is_stable(model, w));
+        let mut message = ending.message();
+        if converged && !stable && ending != Ending::DirectUnstable {
+            message.push_str(" (unstable equilibrium)");
+        }
         let reactions = &w.kkt.reactions;
         let tip_held = model.constraints.last().is_some_and(|c| c.node == model.n);
         let guides = model.constraints.len() - usize::from(tip_held);
@@ -396,6 +378,41 @@ impl Solver {
             energy: model.energy(&w.q),
             stable,
             message,
+        }
+    }
+}
+
+/// How a solve ended (the Solution's message says it in words).
+#[derive(Debug, Clone, PartialEq)]
+enum Ending {
+    /// Nothing bends the rod: the straight rod, without iterating.
+    Exact,
+    /// The direct solve converged to an equilibrium already tested stable.
+    DirectStable,
+    /// Load continuation from the straight rod converged.
+    Continuation,
+    /// Levenberg-Marquardt converged after Newton failed (held points).
+    LmFallback,
+    /// Only the direct solve converged, to an unstable equilibrium.
+    DirectUnstable,
+    /// Not attempted: the scene has no well-defined answer.
+    Refused(String),
+    Failed(String),
+}
+
+impl Ending {
+    fn converged(&self) -> bool {
+        !matches!(self, Ending::Refused(_) | Ending::Failed(_))
+    }
+
+    fn message(&self) -> String {
+        match self {
+            Ending::Exact => "straight rod: exact without iteration".into(),
+            Ending::DirectStable => "converged".into(),
+            Ending::Continuation => "converged by load continuation".into(),
+            Ending::LmFallback => "converged (Levenberg-Marquardt fallback)".into(),
+            Ending::DirectUnstable => "converged (unstable equilibrium)".into(),
+            Ending::Refused(m) | Ending::Failed(m) => m.clone(),
         }
     }
 }

@@ -33,6 +33,6 @@ mod python;
 pub use error::{Error, Result};
 pub use model::RodModel;
 pub use quat::Quat;
-pub use scene::{Gravity, Scene, Stiffness, TipCondition};
+pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
 pub use solver::{solve, Method, Settings, Solution, Solver, Status};
 pub use value::Value;

@@ -75,11 +75,33 @@ impl RodModel {
             })
             .collect();
         let f = scene.distributed_force();
+        // Point loads by node: a load at node k acts on every element i <= k.
+        let point_loads: Vec<(usize, Vector3<f64>)> = scene
+            .point_loads
+            .iter()
+            .map(|p| (((p.s / ds).round() as usize).min(n), p.force))
+            .collect();
+        let point_loads_from = |node: usize, strictly_distal: bool| -> Vector3<f64> {
+            point_loads
+                .iter()
+                .filter(|(k, _)| {
+                    if strictly_distal {
+                        *k > node || *k == n
+                    } else {
+                        *k >= node
+                    }
+                })
+                .map(|(_, q)| *q)
+                .sum()
+        };
         let node_force: Vec<Vector3<f64>> = (0..=n)
-            .map(|j| scene.tip_force + f * (length - j as f64 * ds))
+            .map(|j| scene.tip_force + f * (length - j as f64 * ds) + point_loads_from(j, true))
             .collect();
         let mean_force: Vec<Vector3<f64>> = (1..=n)
-            .map(|i| 0.5 * (node_force[i - 1] + node_force[i]))
+            .map(|i| {
+                let s_mid = (i as f64 - 0.5) * ds;
+                scene.tip_force + f * (length - s_mid) + point_loads_from(i, false)
+            })
             .collect();
         let node_force_weight = (1..=n)
             .map(|j| mean_force[j - 1] + mean_force.get(j).copied().unwrap_or_else(Vector3::zeros))

@@ -68,6 +68,15 @@ pub enum TipCondition {
     },
 }
 
+/// A dead force applied at a node (a disk's weight, a hung mass).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointLoad {
+    /// Arc length [m], in `(0, L]`; must fall on a node.
+    pub s: f64,
+    /// World frame [N].
+    pub force: Vector3<f64>,
+}
+
 /// A point of the backbone held at a position (a port or a ring the robot
 /// passes through); the guide's force on the rod is an unknown reaction.
 #[derive(Debug, Clone, PartialEq)]
@@ -97,6 +106,8 @@ pub struct Scene {
     pub tip: TipCondition,
     /// Interior points held in place, by increasing `s`.
     pub guides: Vec<Guide>,
+    /// Dead forces at nodes, in addition to the distributed and tip loads.
+    pub point_loads: Vec<PointLoad>,
 }
 
 impl Scene {
@@ -114,6 +125,7 @@ impl Scene {
             base_quaternion: Quat::IDENTITY,
             tip: TipCondition::Free,
             guides: Vec::new(),
+            point_loads: Vec::new(),
         }
     }
 
@@ -177,6 +189,7 @@ impl Scene {
             "base_quaternion",
             "tip",
             "guides",
+            "point_loads",
         ])?;
         let name = match top.get("name") {
             None => None,
@@ -211,6 +224,10 @@ impl Scene {
             None => Vec::new(),
             Some(v) => guides(v)?,
         };
+        let point_loads = match top.get("point_loads") {
+            None => Vec::new(),
+            Some(v) => point_loads(v)?,
+        };
         Ok(Scene {
             name,
             length,
@@ -223,6 +240,7 @@ impl Scene {
             base_quaternion,
             tip,
             guides,
+            point_loads,
         })
     }
 
@@ -305,6 +323,14 @@ impl Scene {
                 .collect();
             m.push(("guides".into(), Value::List(g)));
         }
+        if !self.point_loads.is_empty() {
+            let p = self
+                .point_loads
+                .iter()
+                .map(|p| Value::Map(vec![("s".into(), num(p.s)), ("force".into(), v3(&p.force))]))
+                .collect();
+            m.push(("point_loads".into(), Value::List(p)));
+        }
         Value::Map(m)
     }
 
@@ -316,6 +342,25 @@ impl Scene {
                 "n_elements",
                 format!("must be a positive multiple of the number of sections ({m}), got {n}"),
             ));
+        }
+        let ds = self.length / n as f64;
+        for (i, p) in self.point_loads.iter().enumerate() {
+            let key = format!("point_loads[{i}].s");
+            if !(p.s > 0.0 && p.s <= self.length) {
+                return Err(Error::scene(
+                    key,
+                    format!("must lie in (0, L] = (0, {}], got {}", self.length, p.s),
+                ));
+            }
+            if !on_node(p.s, ds) {
+                return Err(Error::scene(
+                    key,
+                    format!(
+                        "must fall on a node: s = {} is not a multiple of L/n = {ds}",
+                        p.s
+                    ),
+                ));
+            }
         }
         Ok(())
     }
@@ -351,8 +396,7 @@ impl Scene {
                     ),
                 ));
             }
-            let node = g.s / ds;
-            if (node - node.round()).abs() > 1e-9 * node.max(1.0) {
+            if !on_node(g.s, ds) {
                 return Err(Error::scene(
                     key,
                     format!(
@@ -620,14 +664,21 @@ fn tip(v: &Value) -> Result<TipCondition> {
     }
 }
 
-fn guides(v: &Value) -> Result<Vec<Guide>> {
+/// Whether arc length `s` falls on a node of spacing `ds` (up to round-off).
+fn on_node(s: f64, ds: f64) -> bool {
+    let node = s / ds;
+    (node - node.round()).abs() <= 1e-9 * node.max(1.0)
+}
+
+/// A list of `{s, <vector key>}` tables: guides and point loads.
+fn located_vectors(v: &Value, key: &str, vector_key: &str) -> Result<Vec<(f64, Vector3<f64>)>> {
     let items = match v {
         Value::List(items) => items,
         other => {
             return Err(Error::scene(
-                "guides",
+                key,
                 format!(
-                    "expected a list of {{s, position}} tables, got {}",
+                    "expected a list of {{s, {vector_key}}} tables, got {}",
                     other.kind()
                 ),
             ))
@@ -637,15 +688,29 @@ fn guides(v: &Value) -> Result<Vec<Guide>> {
         .iter()
         .enumerate()
         .map(|(i, item)| {
-            let path = format!("guides[{i}]");
+            let path = format!("{key}[{i}]");
             let t = Table::new(item, &path)?;
-            t.only(&["s", "position"])?;
-            Ok(Guide {
-                s: finite(t.require("s")?, &t.key("s"))?,
-                position: vec3(t.require("position")?, &t.key("position"))?,
-            })
+            t.only(&["s", vector_key])?;
+            Ok((
+                finite(t.require("s")?, &t.key("s"))?,
+                vec3(t.require(vector_key)?, &t.key(vector_key))?,
+            ))
         })
         .collect()
+}
+
+fn point_loads(v: &Value) -> Result<Vec<PointLoad>> {
+    Ok(located_vectors(v, "point_loads", "force")?
+        .into_iter()
+        .map(|(s, force)| PointLoad { s, force })
+        .collect())
+}
+
+fn guides(v: &Value) -> Result<Vec<Guide>> {
+    Ok(located_vectors(v, "guides", "position")?
+        .into_iter()
+        .map(|(s, position)| Guide { s, position })
+        .collect())
 }
 
 #[cfg(test)]

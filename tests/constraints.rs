@@ -143,3 +143,37 @@ fn lm_settings() -> Settings {
         ..settings(20)
     }
 }
+
+#[test]
+fn a_guide_where_a_point_load_put_the_rod_carries_that_load() {
+    let mut loaded_point = loaded();
+    let q = Vector3::new(0.3, 0.5, -0.8);
+    loaded_point.point_loads = vec![softspine::PointLoad { s: 0.54, force: q }];
+    let sol = solve(&loaded_point, settings(20), None).unwrap();
+    assert!(sol.converged());
+    // Whole-rod balance: base force = tip force + distributed load + point load.
+    let expected = loaded_point.tip_force + 0.9 * loaded_point.distributed_force + q;
+    assert!((sol.forces[0] - expected).norm() < 1e-12);
+    let mut guided = loaded();
+    guided.guides = vec![softspine::Guide {
+        s: 0.54,
+        position: sol.positions[12],
+    }];
+    let held = solve(&guided, settings(20), None).unwrap();
+    assert!(held.converged(), "{}", held.message);
+    assert!(
+        (held.guide_reactions[0] - q).norm() < 1e-9,
+        "{:?}",
+        held.guide_reactions
+    );
+    // A point load at the tip node is a tip force.
+    let mut at_tip = loaded();
+    at_tip.point_loads = vec![softspine::PointLoad { s: 0.9, force: q }];
+    let mut as_tip_force = loaded();
+    as_tip_force.tip_force += q;
+    let (a, b) = (
+        solve(&at_tip, settings(20), None).unwrap(),
+        solve(&as_tip_force, settings(20), None).unwrap(),
+    );
+    assert!((a.tip_position() - b.tip_position()).norm() < 1e-14);
+}

@@ -34,5 +34,5 @@ pub use error::{Error, Result};
 pub use model::RodModel;
 pub use quat::Quat;
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
-pub use solver::{solve, Method, Settings, Solution, Solver, Status};
+pub use solver::{solve, Method, Settings, Solution, Solver, Status, TipSensitivity};
 pub use value::Value;

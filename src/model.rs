@@ -160,6 +160,41 @@ impl RodModel {
         }
     }
 
+    /// Replace the rest curvature, one `[kappa_x, kappa_y]` per equal section
+    /// (the number of sections must divide `n`).
+    pub fn set_section_curvature(&mut self, sections: &[[f64; 2]]) {
+        let m = sections.len().max(1);
+        debug_assert_eq!(self.n % m, 0);
+        for (i, k) in self.rest_curvature.iter_mut().enumerate() {
+            *k = sections
+                .get(i * m / self.n)
+                .map_or(Vector3::zeros(), |s| Vector3::new(s[0], s[1], 0.0));
+        }
+    }
+
+    /// `d g / d kappa_c` of one section's rest curvature component `c` (0: x, 1: y),
+    /// the section covering elements `first..=last`: the residual depends on the
+    /// rest curvature through the elastic moment `K (omega - omega0)`.
+    pub fn rest_curvature_gradient(
+        &self,
+        q: &[Quat],
+        first: usize,
+        last: usize,
+        component: usize,
+        out: &mut [Vector3<f64>],
+    ) {
+        out.iter_mut().for_each(|x| *x = Vector3::zeros());
+        let dk = Vector3::ith(component, self.stiffness[component]);
+        for i in first..=last {
+            let c = q[i - 1].conj() * q[i];
+            let amat = Matrix3::identity() * c.w + skew(&c.v);
+            out[i - 1] -= amat.transpose() * dk;
+            if i >= 2 {
+                out[i - 2] += amat * dk;
+            }
+        }
+    }
+
     /// True when nothing bends the rod: the straight rod is the exact equilibrium.
     pub fn is_trivial(&self) -> bool {
         self.rest_curvature.iter().all(|k| k.norm() == 0.0)

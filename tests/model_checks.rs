@@ -120,3 +120,40 @@ fn full_roll_up_by_end_moment() {
         );
     }
 }
+
+#[test]
+fn tip_sensitivity_matches_finite_differences() {
+    let mut scene = Scene::new(0.8, 0.9, 1.3, 0.7);
+    scene.rest_curvature = vec![[1.2, -0.4], [-0.6, 0.9]];
+    scene.distributed_force = Vector3::new(0.3, -1.1, -2.0);
+    scene.tip_force = Vector3::new(-0.7, 0.4, 0.5);
+    scene.base_quaternion = Quat::new(0.9, 0.2, -0.3, 0.1).normalized();
+    let settings = Settings {
+        n_elements: 20,
+        tol: 1e-13,
+        ..Settings::default()
+    };
+    let mut solver = softspine::Solver::new(&scene, settings).unwrap();
+    let sol = solver.solve(None).unwrap();
+    let sens = solver.tip_sensitivity(2).unwrap();
+    let h = 1e-6;
+    for col in 0..4 {
+        let tip_at = |delta: f64, solver: &mut softspine::Solver| {
+            let mut k = scene.rest_curvature.clone();
+            k[col / 2][col % 2] += delta;
+            solver.set_rest_curvature(&k).unwrap();
+            let s = solver.solve(Some(&sol.quaternions)).unwrap();
+            (s.tip_position(), s.tip_quaternion().tangent())
+        };
+        let (rp, tp) = tip_at(h, &mut solver);
+        let (rm, tm) = tip_at(-h, &mut solver);
+        let fd_r = (rp - rm) / (2.0 * h);
+        let fd_t = (tp - tm) / (2.0 * h);
+        assert!(
+            (fd_r - sens.position.column(col)).norm() < 1e-6 * (1.0 + fd_r.norm()),
+            "{col}: {fd_r:?} vs {:?}",
+            sens.position.column(col)
+        );
+        assert!((fd_t - sens.tangent.column(col)).norm() < 1e-6 * (1.0 + fd_t.norm()));
+    }
+}

@@ -1,0 +1,422 @@
+//! The robot: a backbone with `m` equal sections, each bent by three pneumatic
+//! artificial muscles at radius `d`, a constraint disk (a point mass) at each
+//! section end and an optional tip load, and the maps between its four spaces
+//! (seed Fig. 2c):
+//!
+//! ```text
+//! actuator (inflation time) <-> joint (muscle length) <-> rest curvature
+//!     -> configuration (loaded equilibrium) -> task (tip pose)
+//! ```
+//!
+//! Muscle `i` of a section sits at angle `phi_i` in the cross-section; bending
+//! the section (backbone length `l_s`, fixed) with curvature `(kx, ky)` changes
+//! its length by `l_s d (kx sin phi_i - ky cos phi_i)` (the fibre at offset `p`
+//! stretches by `kappa . (p x e3)`). What the three lengths share (their common
+//! mode) does not bend the backbone; it is chosen to centre the lengths in the
+//! muscles' range, which leaves the most room for the next move.
+
+mod ik;
+pub mod trajectory;
+
+pub use ik::{IkOptions, IkResult, InverseSolver, Strategy};
+
+use crate::error::{Error, Result};
+use crate::quat::Quat;
+use crate::scene::{Gravity, PointLoad, Scene, Stiffness};
+use crate::value::Value;
+use nalgebra::{Matrix3, Vector3};
+
+/// Standard gravity [m/s^2].
+pub const STANDARD_GRAVITY: f64 = 9.81;
+
+/// A multi-section pneumatic continuum robot. `Robot::default()` resembles the
+/// seed's prototype: 1 m, 10 sections, hanging from its base.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Robot {
+    /// Backbone length [m] (default 1).
+    pub length: f64,
+    /// Backbone stiffness (default: spring steel, 3 mm: E 200 GPa, G 77 GPa).
+    pub stiffness: Stiffness,
+    /// Mass per length of backbone, muscles and tubing [kg/m] (default 0.2).
+    pub linear_density: f64,
+    /// Number of equal sections `m` (default 10).
+    pub sections: usize,
+    /// Distance of the muscles from the backbone `d` [m] (default 0.02).
+    pub muscle_radius: f64,
+    /// Angles of the three muscles in the cross-section [deg] (default 90, 210, 330).
+    pub muscle_angles: [f64; 3],
+    /// Mass of each constraint disk at a section end [kg] (default 0.01).
+    pub disk_mass: f64,
+    /// Gravitational acceleration, world frame [m/s^2] (default `[0, 0, -9.81]`).
+    pub gravity: Vector3<f64>,
+    /// Base orientation (default `[0, 1, 0, 0]`: hanging, tangent `-z`).
+    pub base_quaternion: Quat,
+    /// Muscle length at zero inflation time [m] (default: the section length).
+    pub muscle_rest_length: f64,
+    /// Calibration `length = rest_length + rate * time` [m/s] (default -0.01:
+    /// inflation shortens a muscle by 1 cm a second).
+    pub inflation_rate: f64,
+    /// Shortest and longest muscle length [m] (default 0.8 and 1.05 times the
+    /// rest length): the contraction range.
+    pub muscle_length_range: [f64; 2],
+    /// Elements of the discretisation used by every solve (default 20).
+    pub n_elements: usize,
+}
+
+impl Default for Robot {
+    fn default() -> Self {
+        let length = 1.0;
+        let sections = 10;
+        let rest = length / sections as f64;
+        Robot {
+            length,
+            stiffness: Stiffness::RoundRod {
+                e: 200e9,
+                g: 77e9,
+                diameter: 0.003,
+            },
+            linear_density: 0.2,
+            sections,
+            muscle_radius: 0.02,
+            muscle_angles: [90.0, 210.0, 330.0],
+            disk_mass: 0.01,
+            gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
+            base_quaternion: Quat::new(0.0, 1.0, 0.0, 0.0),
+            muscle_rest_length: rest,
+            inflation_rate: -0.01,
+            muscle_length_range: [0.8 * rest, 1.05 * rest],
+            n_elements: 20,
+        }
+    }
+}
+
+impl Robot {
+    /// Backbone length of one section [m].
+    pub fn section_length(&self) -> f64 {
+        self.length / self.sections as f64
+    }
+
+    /// Length change of each muscle per unit curvature: row `i` is
+    /// `l_s d (sin phi_i, -cos phi_i)`.
+    fn lever(&self) -> [[f64; 2]; 3] {
+        let ld = self.section_length() * self.muscle_radius;
+        self.muscle_angles.map(|a| {
+            let phi = a.to_radians();
+            [ld * phi.sin(), -ld * phi.cos()]
+        })
+    }
+
+    /// Joint space from rest curvature: the three muscle lengths of each section,
+    /// their common mode centred in the muscles' range.
+    pub fn muscle_lengths(&self, rest_curvature: &[[f64; 2]]) -> Vec<[f64; 3]> {
+        let lever = self.lever();
+        let centre = 0.5 * (self.muscle_length_range[0] + self.muscle_length_range[1]);
+        rest_curvature
+            .iter()
+            .map(|k| {
+                let delta = lever.map(|l| l[0] * k[0] + l[1] * k[1]);
+                let mid = 0.5
+                    * (delta.iter().cloned().fold(f64::MIN, f64::max)
+                        + delta.iter().cloned().fold(f64::MAX, f64::min));
+                delta.map(|d| centre - mid + d)
+            })
+            .collect()
+    }
+
+    /// Rest curvature from joint space (the common mode of the lengths, which
+    /// does not bend an inextensible backbone, drops out).
+    pub fn rest_curvature(&self, muscle_lengths: &[[f64; 3]]) -> Result<Vec<[f64; 2]>> {
+        let lever = self.lever();
+        // [1, lever_i] [common, kx, ky]^T = l_i
+        let a = Matrix3::from_fn(|r, c| if c == 0 { 1.0 } else { lever[r][c - 1] });
+        let inv = a.try_inverse().ok_or_else(|| {
+            Error::argument(
+                "muscle_angles",
+                "three muscles on one line cannot bend a section in 2D",
+            )
+        })?;
+        Ok(muscle_lengths
+            .iter()
+            .map(|l| {
+                let x = inv * Vector3::from(*l);
+                [x[1], x[2]]
+            })
+            .collect())
+    }
+
+    /// Actuator space from joint space: inflation time of each muscle [s].
+    pub fn inflation_times(&self, muscle_lengths: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        muscle_lengths
+            .iter()
+            .map(|l| l.map(|x| (x - self.muscle_rest_length) / self.inflation_rate))
+            .collect()
+    }
+
+    /// Joint space from actuator space.
+    pub fn muscle_lengths_from_times(&self, times: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        times
+            .iter()
+            .map(|t| t.map(|x| self.muscle_rest_length + self.inflation_rate * x))
+            .collect()
+    }
+
+    /// Whether every muscle length of every section lies in the range.
+    pub fn within_bounds(&self, rest_curvature: &[[f64; 2]]) -> bool {
+        let [lo, hi] = self.muscle_length_range;
+        let tol = 1e-12 * hi;
+        self.muscle_lengths(rest_curvature)
+            .iter()
+            .all(|l| l.iter().all(|x| *x >= lo - tol && *x <= hi + tol))
+    }
+
+    /// Scale each section's curvature back into the muscles' range (the largest
+    /// difference between two muscle lengths must fit in the range).
+    pub fn clamp_to_bounds(&self, rest_curvature: &mut [[f64; 2]]) -> bool {
+        let lever = self.lever();
+        let span = self.muscle_length_range[1] - self.muscle_length_range[0];
+        let mut clamped = false;
+        for k in rest_curvature.iter_mut() {
+            let delta = lever.map(|l| l[0] * k[0] + l[1] * k[1]);
+            let spread = delta.iter().cloned().fold(f64::MIN, f64::max)
+                - delta.iter().cloned().fold(f64::MAX, f64::min);
+            if spread > span {
+                let f = span / spread;
+                *k = [k[0] * f, k[1] * f];
+                clamped = true;
+            }
+        }
+        clamped
+    }
+
+    /// The scene of the robot with the given actuation and a tip mass [kg]: own
+    /// weight, the disks as point loads at the section ends, the tip mass's weight.
+    pub fn scene(&self, rest_curvature: &[[f64; 2]], tip_mass: f64) -> Result<Scene> {
+        self.validate()?;
+        if rest_curvature.len() != self.sections {
+            return Err(Error::argument(
+                "rest_curvature",
+                format!(
+                    "expected {} sections, got {}",
+                    self.sections,
+                    rest_curvature.len()
+                ),
+            ));
+        }
+        if !(tip_mass.is_finite() && tip_mass >= 0.0) {
+            return Err(Error::argument(
+                "load",
+                format!("must be a mass >= 0 kg, got {tip_mass}"),
+            ));
+        }
+        if rest_curvature.iter().flatten().any(|k| !k.is_finite()) {
+            return Err(Error::argument("rest_curvature", "must be finite"));
+        }
+        let mut s = Scene::new(self.length, 1.0, 1.0, 1.0);
+        s.name = Some(format!(
+            "robot, {} sections, {:.0} g at the tip",
+            self.sections,
+            tip_mass * 1e3
+        ));
+        s.stiffness_spec = self.stiffness.clone();
+        s.rest_curvature = rest_curvature.to_vec();
+        s.gravity = Some(Gravity {
+            linear_density: self.linear_density,
+            vector: self.gravity,
+        });
+        s.base_quaternion = self.base_quaternion;
+        s.tip_force = tip_mass * self.gravity;
+        s.point_loads = (1..=self.sections)
+            .map(|k| PointLoad {
+                s: k as f64 * self.section_length(),
+                force: self.disk_mass * self.gravity,
+            })
+            .filter(|p| p.force.norm() > 0.0)
+            .collect();
+        Ok(s)
+    }
+
+    /// The same robot without weight or load: what a purely geometric model sees.
+    pub fn weightless(&self) -> Robot {
+        Robot {
+            gravity: Vector3::zeros(),
+            ..self.clone()
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let positive = |name: &str, x: f64| -> Result<()> {
+            if x.is_finite() && x > 0.0 {
+                Ok(())
+            } else {
+                Err(Error::scene(
+                    name,
+                    format!("must be positive and finite, got {x}"),
+                ))
+            }
+        };
+        positive("length", self.length)?;
+        positive("muscle_radius", self.muscle_radius)?;
+        positive("muscle_rest_length", self.muscle_rest_length)?;
+        if self.sections == 0 {
+            return Err(Error::scene("sections", "must be at least 1"));
+        }
+        if self.n_elements == 0 || self.n_elements % self.sections != 0 {
+            return Err(Error::scene(
+                "n_elements",
+                format!(
+                    "must be a positive multiple of sections ({}), got {}",
+                    self.sections, self.n_elements
+                ),
+            ));
+        }
+        for (name, x) in [
+            ("linear_density", self.linear_density),
+            ("disk_mass", self.disk_mass),
+        ] {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(Error::scene(
+                    name,
+                    format!("must be >= 0 and finite, got {x}"),
+                ));
+            }
+        }
+        if !(self.inflation_rate.is_finite() && self.inflation_rate != 0.0) {
+            return Err(Error::scene(
+                "inflation_rate",
+                "must be finite and non-zero",
+            ));
+        }
+        let [lo, hi] = self.muscle_length_range;
+        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
+            return Err(Error::scene(
+                "muscle_length_range",
+                format!("must be [min, max] with 0 < min < max, got [{lo}, {hi}]"),
+            ));
+        }
+        if self.muscle_angles.iter().any(|a| !a.is_finite())
+            || self.gravity.iter().any(|g| !g.is_finite())
+        {
+            return Err(Error::scene("muscle_angles", "must be finite"));
+        }
+        if let Stiffness::RoundRod { e, g, diameter } = self.stiffness {
+            positive("stiffness.E", e)?;
+            positive("stiffness.G", g)?;
+            positive("stiffness.diameter", diameter)?;
+        }
+        if let Stiffness::Diagonal { kx, ky, kz } = self.stiffness {
+            positive("stiffness.kx", kx)?;
+            positive("stiffness.ky", ky)?;
+            positive("stiffness.kz", kz)?;
+        }
+        self.rest_curvature(&[[0.0; 3]]).map(|_| ())
+    }
+
+    /// Read a robot from a value tree: every field optional, defaults as `Robot::default()`.
+    pub fn from_value(v: &Value) -> Result<Self> {
+        let entries = match v {
+            Value::Map(entries) => entries,
+            other => {
+                return Err(Error::scene(
+                    "robot",
+                    format!("expected a table, got {}", other.kind()),
+                ))
+            }
+        };
+        let mut r = Robot::default();
+        let mut rest_length_given = false;
+        let mut range_given = false;
+        for (key, value) in entries {
+            let num = |v: &Value| -> Result<f64> {
+                match v {
+                    Value::Number(x) if x.is_finite() => Ok(*x),
+                    Value::Number(x) => Err(Error::scene(
+                        key.as_str(),
+                        format!("must be finite, got {x}"),
+                    )),
+                    other => Err(Error::scene(
+                        key.as_str(),
+                        format!("expected a number, got {}", other.kind()),
+                    )),
+                }
+            };
+            let list = |v: &Value, len: usize| -> Result<Vec<f64>> {
+                match v {
+                    Value::List(items) if items.len() == len => items.iter().map(num).collect(),
+                    _ => Err(Error::scene(
+                        key.as_str(),
+                        format!("expected a list of {len} numbers"),
+                    )),
+                }
+            };
+            match key.as_str() {
+                "length" => r.length = num(value)?,
+                "stiffness" => {
+                    let probe = Value::Map(vec![
+                        ("length".into(), Value::Number(1.0)),
+                        ("stiffness".into(), value.clone()),
+                    ]);
+                    r.stiffness = Scene::from_value(&probe)?.stiffness_spec;
+                }
+                "linear_density" => r.linear_density = num(value)?,
+                "sections" => {
+                    let x = num(value)?;
+                    if x < 1.0 || x.fract() != 0.0 {
+                        return Err(Error::scene("sections", format!("must be a positive integer, got {x}")));
+                    }
+                    r.sections = x as usize;
+                }
+                "muscle_radius" => r.muscle_radius = num(value)?,
+                "muscle_angles" => {
+                    let a = list(value, 3)?;
+                    r.muscle_angles = [a[0], a[1], a[2]];
+                }
+                "disk_mass" => r.disk_mass = num(value)?,
+                "gravity" => r.gravity = Vector3::from_vec(list(value, 3)?),
+                "base_quaternion" => {
+                    let q = list(value, 4)?;
+                    let q = Quat::new(q[0], q[1], q[2], q[3]);
+                    if (q.norm() - 1.0).abs() > 1e-6 {
+                        return Err(Error::scene("base_quaternion", "must be a unit quaternion [w, x, y, z]"));
+                    }
+                    r.base_quaternion = q.normalized();
+                }
+                "muscle_rest_length" => {
+                    r.muscle_rest_length = num(value)?;
+                    rest_length_given = true;
+                }
+                "inflation_rate" => r.inflation_rate = num(value)?,
+                "muscle_length_range" => {
+                    let a = list(value, 2)?;
+                    r.muscle_length_range = [a[0], a[1]];
+                    range_given = true;
+                }
+                "n_elements" => {
+                    let x = num(value)?;
+                    if x < 1.0 || x.fract() != 0.0 {
+                        return Err(Error::scene("n_elements", format!("must be a positive integer, got {x}")));
+                    }
+                    r.n_elements = x as usize;
+                }
+                other => {
+                    return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, muscle_rest_length, inflation_rate, muscle_length_range, n_elements)"))
+                }
+            }
+        }
+        // Defaults that follow the section length.
+        let rest = r.section_length();
+        if !rest_length_given {
+            r.muscle_rest_length = rest;
+        }
+        if !range_given {
+            r.muscle_length_range = [0.8 * r.muscle_rest_length, 1.05 * r.muscle_rest_length];
+        }
+        if r.sections > 0
+            && r.n_elements % r.sections != 0
+            && !entries.iter().any(|(k, _)| k == "n_elements")
+        {
+            r.n_elements = 2 * r.sections;
+        }
+        r.validate()?;
+        Ok(r)
+    }
+}

@@ -1,0 +1,90 @@
+//! The robot: maps between spaces, load-aware inverse kinematics, trajectories.
+
+use nalgebra::Vector3;
+use softspine::robot::trajectory;
+use softspine::{solve, IkOptions, Robot, Settings, Strategy};
+
+#[test]
+fn spaces_round_trip() {
+    let robot = Robot::default();
+    let kappa: Vec<[f64; 2]> = (0..10)
+        .map(|k| [0.3 * k as f64 - 1.0, 2.0 - 0.25 * k as f64])
+        .collect();
+    let lengths = robot.muscle_lengths(&kappa);
+    let back = robot.rest_curvature(&lengths).unwrap();
+    for (a, b) in kappa.iter().zip(&back) {
+        assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12);
+    }
+    let times = robot.inflation_times(&lengths);
+    let again = robot.muscle_lengths_from_times(&times);
+    for (a, b) in lengths.iter().zip(&again) {
+        for i in 0..3 {
+            assert!((a[i] - b[i]).abs() < 1e-15);
+        }
+    }
+}
+
+#[test]
+fn tracking_reaches_every_point_of_the_circle_with_30_g() {
+    let robot = Robot::default();
+    let points = trajectory::circle(60);
+    let options = IkOptions {
+        tip_mass: 0.03,
+        ..IkOptions::default()
+    };
+    let t0 = std::time::Instant::now();
+    let results = robot.track(&points, &options).unwrap();
+    eprintln!("60 points in {:?}", t0.elapsed());
+    for (r, p) in results.iter().zip(&points) {
+        assert!(r.reached, "{}: {}", p, r.message);
+        assert!(r.tip_miss < 1e-9);
+        assert!(robot.within_bounds(&r.rest_curvature));
+        // A true equilibrium: a fresh solve from the straight rod lands on the same tip.
+        let scene = robot.scene(&r.rest_curvature, 0.03).unwrap();
+        let fresh = solve(
+            &scene,
+            Settings {
+                n_elements: robot.n_elements,
+                ..Settings::default()
+            },
+            None,
+        )
+        .unwrap();
+        assert!(
+            (fresh.tip_position() - p).norm() < 1e-8,
+            "{}",
+            (fresh.tip_position() - p).norm()
+        );
+    }
+    let iters: Vec<usize> = results.iter().map(|r| r.iterations).collect();
+    eprintln!("iterations {iters:?}");
+}
+
+#[test]
+fn geometric_strategy_misses_under_load() {
+    let robot = Robot::default();
+    let target = Vector3::new(0.2, 0.0, -0.88);
+    let options = IkOptions {
+        tip_mass: 0.06,
+        strategy: Strategy::Geometric,
+        ..IkOptions::default()
+    };
+    let r = robot.inverse(target, &options).unwrap();
+    eprintln!("geometric miss {:.4} m: {}", r.tip_miss, r.message);
+    assert!(r.tip_miss > 0.01);
+}
+
+#[test]
+fn unreachable_target_returns_the_closest_tip() {
+    let robot = Robot::default();
+    // Farther from the base than the rod is long.
+    let target = Vector3::new(1.0, 0.0, -1.0);
+    let r = robot.inverse(target, &IkOptions::default()).unwrap();
+    eprintln!("{} (tip {:?})", r.message, r.tip_position);
+    assert!(!r.reached);
+    assert!(r.message.contains("not reached"));
+    // The closest tip found is much closer than the hanging rod's, and the
+    // actuation respects the muscles' range.
+    assert!(r.tip_miss < 0.5 * (Vector3::new(0.0, 0.0, -1.0) - target).norm());
+    assert!(robot.within_bounds(&r.rest_curvature));
+}

@@ -370,14 +370,16 @@ impl Robot {
                     let message = format!(
                         "geometric fit (load ignored): the loaded tip misses by {miss:.3e} m"
                     );
-                    loaded.result(
+                    let mut r = loaded.result(
                         fit.rest_curvature,
                         sol,
                         miss,
                         miss <= options.tol,
                         message,
                         fit.iterations,
-                    )
+                    );
+                    r.seconds = started.elapsed().as_secs_f64();
+                    r
                 }
             };
             reference = Some(result.rest_curvature.clone());

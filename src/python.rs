@@ -3,6 +3,7 @@
 //! (a solve that did not converge, when the caller asked with `check=True`).
 
 use crate::blocktri::BlockTridiagonal;
+use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot, Strategy};
 use crate::{Error, Method, Quat, RodModel, Scene, Settings, Solution, Solver, Value};
 use nalgebra::Vector3;
 use numpy::ndarray::Array2;
@@ -428,8 +429,428 @@ fn jacobian<'py>(
     Ok(dense.into_pyarray(py))
 }
 
+fn rows_n<'py, const N: usize>(py: Python<'py>, rows: &[[f64; N]]) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((rows.len(), N), |(i, c)| rows[i][c]).into_pyarray(py)
+}
+
+fn rows_arg<const N: usize>(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; N]>> {
+    let bad = || PyValueError::new_err(format!("{name}: expected a float array of shape (m, {N})"));
+    let converted = obj
+        .py()
+        .import("numpy")?
+        .call_method1("asarray", (obj, "float64"))
+        .map_err(|_| bad())?;
+    let arr: PyReadonlyArray2<f64> = converted.extract().map_err(|_| bad())?;
+    let a = arr.as_array();
+    if a.ncols() != N {
+        return Err(PyValueError::new_err(format!(
+            "{name}: expected shape (m, {N}), got {:?}",
+            a.shape()
+        )));
+    }
+    let rows: Vec<[f64; N]> = a
+        .rows()
+        .into_iter()
+        .map(|r| std::array::from_fn(|c| r[c]))
+        .collect();
+    if rows.iter().flatten().any(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!("{name}: must be finite")));
+    }
+    Ok(rows)
+}
+
+fn vec3_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f64>> {
+    let v: Vec<f64> = obj
+        .call_method0("__iter__")
+        .and_then(|_| obj.extract())
+        .or_else(|_| obj.call_method0("tolist").and_then(|l| l.extract()))
+        .map_err(|_| PyValueError::new_err(format!("{name}: expected 3 numbers")))?;
+    if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "{name}: expected 3 finite numbers, got {v:?}"
+        )));
+    }
+    Ok(Vector3::new(v[0], v[1], v[2]))
+}
+
+fn strategy_arg(s: &str) -> PyResult<Strategy> {
+    match s {
+        "equilibrium" => Ok(Strategy::Equilibrium),
+        "geometric" => Ok(Strategy::Geometric),
+        other => Err(PyValueError::new_err(format!(
+            "strategy: unknown strategy '{other}' (expected 'equilibrium' or 'geometric')"
+        ))),
+    }
+}
+
+/// A multi-section pneumatic continuum robot (three muscles a section).
+///
+/// ``Robot()`` resembles the seed's prototype (1 m, 10 sections, hanging);
+/// ``Robot({...})`` overrides any field (see ``Robot().to_dict()``).
+#[pyclass(
+    name = "Robot",
+    module = "softspine._core",
+    frozen,
+    skip_from_py_object
+)]
+pub struct PyRobot {
+    inner: Robot,
+}
+
+/// The actuation of one inverse solve in every space, with its equilibrium.
+#[pyclass(name = "IkResult", module = "softspine._core", frozen)]
+pub struct PyIkResult {
+    inner: IkResult,
+}
+
+#[pymethods]
+impl PyIkResult {
+    /// ``[kappa_x, kappa_y]`` per section, shape (m, 2), 1/m.
+    #[getter]
+    fn rest_curvature<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows_n(py, &self.inner.rest_curvature)
+    }
+    /// Muscle lengths, shape (m, 3), m.
+    #[getter]
+    fn muscle_lengths<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows_n(py, &self.inner.muscle_lengths)
+    }
+    /// Inflation times, shape (m, 3), s.
+    #[getter]
+    fn inflation_times<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows_n(py, &self.inner.inflation_times)
+    }
+    /// The loaded equilibrium with this actuation.
+    #[getter]
+    fn solution(&self) -> PySolution {
+        PySolution {
+            inner: self.inner.solution.clone(),
+        }
+    }
+    #[getter]
+    fn tip_position<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vec3_array(py, &self.inner.tip_position)
+    }
+    /// Distance from the tip to the target, m.
+    #[getter]
+    fn tip_miss(&self) -> f64 {
+        self.inner.tip_miss
+    }
+    #[getter]
+    fn reached(&self) -> bool {
+        self.inner.reached
+    }
+    #[getter]
+    fn message(&self) -> String {
+        self.inner.message.clone()
+    }
+    #[getter]
+    fn iterations(&self) -> usize {
+        self.inner.iterations
+    }
+    /// Wall-clock time of the inverse solve, s.
+    #[getter]
+    fn time(&self) -> f64 {
+        self.inner.seconds
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "IkResult(reached={}, tip_miss={:.3e}, iterations={}, time={:.1} us, message={:?})",
+            self.inner.reached,
+            self.inner.tip_miss,
+            self.inner.iterations,
+            self.inner.seconds * 1e6,
+            self.inner.message
+        )
+    }
+}
+
+/// Inverse kinematics of one robot under one tip mass, warm from its last answer.
+#[pyclass(name = "InverseSolver", module = "softspine._core")]
+pub struct PyInverseSolver {
+    inner: InverseSolver,
+}
+
+#[pymethods]
+impl PyInverseSolver {
+    /// The actuation whose loaded equilibrium reaches ``target`` (see ``Robot.inverse``).
+    #[pyo3(signature = (target, reference=None, direction=None, tol=1e-9, max_iterations=60))]
+    fn solve(
+        &mut self,
+        py: Python<'_>,
+        target: &Bound<'_, PyAny>,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        tol: f64,
+        max_iterations: usize,
+    ) -> PyResult<PyIkResult> {
+        let target = vec3_arg("target", target)?;
+        let reference = reference
+            .map(|r| rows_arg::<2>("reference", r))
+            .transpose()?;
+        let direction = direction.map(|d| vec3_arg("direction", d)).transpose()?;
+        if !(tol.is_finite() && tol > 0.0) {
+            return Err(PyValueError::new_err("tol: must be positive"));
+        }
+        let inner = &mut self.inner;
+        let r = py
+            .detach(|| inner.solve(target, direction, reference.as_deref(), tol, max_iterations))?;
+        Ok(PyIkResult { inner: r })
+    }
+}
+
+#[pymethods]
+impl PyRobot {
+    #[new]
+    #[pyo3(signature = (data=None))]
+    fn new(data: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let inner = match data {
+            None => Robot::default(),
+            Some(d) if d.is_instance_of::<PyDict>() => Robot::from_value(&to_value(d, "")?)?,
+            Some(d) => {
+                return Err(PyValueError::new_err(format!(
+                    "robot: expected a dict, got {}",
+                    d.get_type().name()?
+                )))
+            }
+        };
+        Ok(PyRobot { inner })
+    }
+
+    #[getter]
+    fn sections(&self) -> usize {
+        self.inner.sections
+    }
+    #[getter]
+    fn length(&self) -> f64 {
+        self.inner.length
+    }
+    #[getter]
+    fn n_elements(&self) -> usize {
+        self.inner.n_elements
+    }
+    /// ``[min, max]`` muscle length, m.
+    #[getter]
+    fn muscle_length_range(&self) -> (f64, f64) {
+        (
+            self.inner.muscle_length_range[0],
+            self.inner.muscle_length_range[1],
+        )
+    }
+
+    /// Every field as a dict (``Robot(robot.to_dict())`` is the same robot).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let r = &self.inner;
+        let d = PyDict::new(py);
+        d.set_item("length", r.length)?;
+        let stiffness = from_value(
+            py,
+            &Scene {
+                stiffness_spec: r.stiffness.clone(),
+                ..Scene::new(1.0, 1.0, 1.0, 1.0)
+            }
+            .to_value(),
+        )?;
+        d.set_item("stiffness", stiffness.get_item("stiffness")?)?;
+        d.set_item("linear_density", r.linear_density)?;
+        d.set_item("sections", r.sections)?;
+        d.set_item("muscle_radius", r.muscle_radius)?;
+        d.set_item("muscle_angles", r.muscle_angles.to_vec())?;
+        d.set_item("disk_mass", r.disk_mass)?;
+        d.set_item("gravity", vec![r.gravity.x, r.gravity.y, r.gravity.z])?;
+        d.set_item("base_quaternion", r.base_quaternion.to_array().to_vec())?;
+        d.set_item("muscle_rest_length", r.muscle_rest_length)?;
+        d.set_item("inflation_rate", r.inflation_rate)?;
+        d.set_item("muscle_length_range", r.muscle_length_range.to_vec())?;
+        d.set_item("n_elements", r.n_elements)?;
+        Ok(d.into_any())
+    }
+
+    /// The Scene of this robot with an actuation (m, 2) and a tip mass (kg).
+    #[pyo3(signature = (rest_curvature, load=0.0))]
+    fn scene(&self, rest_curvature: &Bound<'_, PyAny>, load: f64) -> PyResult<PyScene> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        Ok(PyScene {
+            inner: self.inner.scene(&k, load)?,
+        })
+    }
+
+    /// Joint space from rest curvature: muscle lengths (m, 3).
+    fn muscle_lengths<'py>(
+        &self,
+        py: Python<'py>,
+        rest_curvature: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        Ok(rows_n(py, &self.inner.muscle_lengths(&k)))
+    }
+
+    /// Rest curvature (m, 2) from muscle lengths (m, 3).
+    fn rest_curvature<'py>(
+        &self,
+        py: Python<'py>,
+        muscle_lengths: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let l = rows_arg::<3>("muscle_lengths", muscle_lengths)?;
+        Ok(rows_n(py, &self.inner.rest_curvature(&l)?))
+    }
+
+    /// Actuator space: inflation times (m, 3) from muscle lengths.
+    fn inflation_times<'py>(
+        &self,
+        py: Python<'py>,
+        muscle_lengths: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let l = rows_arg::<3>("muscle_lengths", muscle_lengths)?;
+        Ok(rows_n(py, &self.inner.inflation_times(&l)))
+    }
+
+    /// Joint space from actuator space: muscle lengths from inflation times.
+    fn muscle_lengths_from_times<'py>(
+        &self,
+        py: Python<'py>,
+        times: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let t = rows_arg::<3>("times", times)?;
+        Ok(rows_n(py, &self.inner.muscle_lengths_from_times(&t)))
+    }
+
+    /// Whether every muscle length lies in the range for this actuation.
+    fn within_bounds(&self, rest_curvature: &Bound<'_, PyAny>) -> PyResult<bool> {
+        Ok(self
+            .inner
+            .within_bounds(&rows_arg::<2>("rest_curvature", rest_curvature)?))
+    }
+
+    /// Forward statics: the loaded equilibrium of an actuation.
+    #[pyo3(signature = (rest_curvature, load=0.0))]
+    fn forward(
+        &self,
+        py: Python<'_>,
+        rest_curvature: &Bound<'_, PyAny>,
+        load: f64,
+    ) -> PyResult<PySolution> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        let scene = self.inner.scene(&k, load)?;
+        let settings = Settings {
+            n_elements: self.inner.n_elements,
+            ..Settings::default()
+        };
+        let sol = py.detach(|| crate::solve(&scene, settings, None))?;
+        Ok(PySolution { inner: sol })
+    }
+
+    /// A reusable inverse solver for one tip mass (warm starts between calls).
+    #[pyo3(signature = (load=0.0))]
+    fn inverse_solver(&self, load: f64) -> PyResult<PyInverseSolver> {
+        Ok(PyInverseSolver {
+            inner: InverseSolver::new(&self.inner, load)?,
+        })
+    }
+
+    /// Load-aware inverse kinematics of one target.
+    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, strategy="equilibrium", tol=1e-9, max_iterations=60))]
+    #[allow(clippy::too_many_arguments)]
+    fn inverse(
+        &self,
+        py: Python<'_>,
+        target: &Bound<'_, PyAny>,
+        load: f64,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        strategy: &str,
+        tol: f64,
+        max_iterations: usize,
+    ) -> PyResult<PyIkResult> {
+        let target = vec3_arg("target", target)?;
+        let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
+        let robot = &self.inner;
+        let r = py.detach(|| robot.inverse(target, &options))?;
+        Ok(PyIkResult { inner: r })
+    }
+
+    /// Inverse kinematics of a sequence of targets (N, 3), each warm from the
+    /// previous one and closest to its actuation.
+    #[pyo3(signature = (points, load=0.0, reference=None, direction=None, strategy="equilibrium", tol=1e-9, max_iterations=60))]
+    #[allow(clippy::too_many_arguments)]
+    fn track(
+        &self,
+        py: Python<'_>,
+        points: &Bound<'_, PyAny>,
+        load: f64,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        strategy: &str,
+        tol: f64,
+        max_iterations: usize,
+    ) -> PyResult<Vec<PyIkResult>> {
+        let pts: Vec<Vector3<f64>> = rows_arg::<3>("points", points)?
+            .into_iter()
+            .map(Vector3::from)
+            .collect();
+        let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
+        let robot = &self.inner;
+        let rs = py.detach(|| robot.track(&pts, &options))?;
+        Ok(rs.into_iter().map(|inner| PyIkResult { inner }).collect())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot(length={}, sections={}, n_elements={})",
+            self.inner.length, self.inner.sections, self.inner.n_elements
+        )
+    }
+}
+
+impl PyRobot {
+    fn ik_options(
+        &self,
+        load: f64,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        strategy: &str,
+        tol: f64,
+        max_iterations: usize,
+    ) -> PyResult<IkOptions> {
+        Ok(IkOptions {
+            tip_mass: load,
+            reference: reference
+                .map(|r| rows_arg::<2>("reference", r))
+                .transpose()?,
+            direction: direction.map(|d| vec3_arg("direction", d)).transpose()?,
+            strategy: strategy_arg(strategy)?,
+            tol,
+            max_iterations,
+        })
+    }
+}
+
+/// One of the seed's trajectories for the default robot: "pentagram", "circle"
+/// or "spiral", shape (points, 3), m.
+#[pyfunction]
+#[pyo3(signature = (name, points=60))]
+fn trajectory_points<'py>(
+    py: Python<'py>,
+    name: &str,
+    points: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    if points == 0 {
+        return Err(PyValueError::new_err("points: must be positive"));
+    }
+    let pts = trajectory::by_name(name, points).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "trajectory: unknown '{name}' (expected pentagram, circle or spiral)"
+        ))
+    })?;
+    Ok(rows3(py, &pts))
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyRobot>()?;
+    m.add_class::<PyIkResult>()?;
+    m.add_class::<PyInverseSolver>()?;
+    m.add_function(wrap_pyfunction!(trajectory_points, m)?)?;
     m.add_class::<PyScene>()?;
     m.add_class::<PySolution>()?;
     m.add_function(wrap_pyfunction!(solve, m)?)?;

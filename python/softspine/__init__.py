@@ -16,11 +16,23 @@ from __future__ import annotations
 
 from os import PathLike
 
-from ._core import Scene, Solution, SolverError, __version__
+from . import trajectories
+from ._core import IkResult, InverseSolver, Robot, Scene, Solution, SolverError, __version__
 from ._core import solve as _solve
 from .scenes import load_scene
 
-__all__ = ["Scene", "Solution", "SolverError", "load_scene", "solve", "__version__"]
+__all__ = [
+    "IkResult",
+    "InverseSolver",
+    "Robot",
+    "Scene",
+    "Solution",
+    "SolverError",
+    "load_scene",
+    "solve",
+    "trajectories",
+    "__version__",
+]
 
 
 def solve(

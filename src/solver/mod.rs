@@ -214,7 +214,7 @@ pub struct Solver {
     model: RodModel,
     settings: Settings,
     work: Workspace,
-    local: Box<dyn LocalSolver + Send>,
+    local: Box<dyn LocalSolver + Send + Sync>,
     /// Why the scene cannot be solved as posed (a held point at full reach).
     full_reach: Option<String>,
 }
@@ -226,7 +226,7 @@ impl Solver {
         let full_reach = scene.check_constraints(settings.n_elements)?;
         let model = RodModel::new(scene, settings.n_elements);
         let work = Workspace::new(&model);
-        let local: Box<dyn LocalSolver + Send> = match settings.method {
+        let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
             Method::Newton => Box::new(newton::Newton),
             Method::LevenbergMarquardt => Box::new(lm::LevenbergMarquardt::new(&model)),
         };

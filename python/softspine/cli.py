@@ -1,4 +1,5 @@
-"""Command line: ``softspine demo`` solves and plots the demo scene."""
+"""Command line: ``softspine demo`` solves and plots the demo scene; ``softspine track``
+tracks one of the seed's trajectories with load-aware inverse kinematics."""
 
 from __future__ import annotations
 
@@ -60,6 +61,61 @@ def _demo(args: argparse.Namespace) -> int:
     return 0 if sol.converged else 1
 
 
+def _progress(done: int, total: int, width: int = 30) -> None:
+    if not sys.stdout.isatty():
+        return
+    filled = width * done // total
+    sys.stdout.write(f"\r  [{'#' * filled}{'.' * (width - filled)}] {done}/{total}")
+    sys.stdout.flush()
+    if done == total:
+        sys.stdout.write("\n")
+
+
+def _track(args: argparse.Namespace) -> int:
+    from . import Robot, trajectories
+
+    robot = Robot()
+    points = trajectories.by_name(args.trajectory, args.points)
+    print(f"{args.trajectory}: {len(points)} points, {args.load * 1e3:.0f} g at the tip, "
+          f"{robot.sections}-section robot, n = {robot.n_elements}, strategy {args.strategy}")
+    solver = robot.inverse_solver(args.load)
+    geometric = None
+    results = []
+    reference = None
+    for i, p in enumerate(points):
+        if args.strategy == "equilibrium":
+            r = solver.solve(p, reference=reference)
+        else:
+            r = robot.inverse(p, load=args.load, reference=reference, strategy="geometric")
+        reference = r.rest_curvature
+        results.append(r)
+        _progress(i + 1, len(points))
+    if args.strategy == "equilibrium":
+        geometric = robot.track(points, load=args.load, strategy="geometric")
+    misses = np.array([r.tip_miss for r in results])
+    times = np.array([r.time for r in results])
+    reached = sum(r.reached for r in results)
+    print(f"  reached {reached}/{len(points)}; tip miss max {misses.max():.2e} m, "
+          f"median {np.median(misses):.2e} m")
+    print(f"  time per point: median {np.median(times) * 1e6:.0f} us, "
+          f"max {times.max() * 1e6:.0f} us; whole trajectory {times.sum() * 1e3:.1f} ms")
+    if geometric is not None:
+        g = np.array([r.tip_miss for r in geometric])
+        print(f"  the geometric (load-ignoring) actuation would miss by up to "
+              f"{g.max() * 100:.1f} cm "
+              f"(median {np.median(g) * 100:.1f} cm)")
+    for r in results:
+        if not r.reached:
+            print(f"  {r.message}")
+    from .plotting import plot_tracking
+
+    plot_tracking(points, results, args.out,
+                  title=f"{args.trajectory}, {args.load * 1e3:.0f} g at the tip",
+                  geometric=geometric)
+    print(f"plot written to {args.out}")
+    return 0 if reached == len(points) else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="softspine", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -69,6 +125,13 @@ def main(argv: list[str] | None = None) -> int:
     demo.add_argument("--method", default="newton", choices=["newton", "lm"])
     demo.add_argument("--out", default="softspine-demo.png", help="PNG file to write")
     demo.set_defaults(func=_demo)
+    track = sub.add_parser("track", help="track one of the seed's trajectories (load-aware IK)")
+    track.add_argument("--trajectory", default="circle", choices=["pentagram", "circle", "spiral"])
+    track.add_argument("--load", type=float, default=0.03, help="tip mass, kg")
+    track.add_argument("--points", type=int, default=60)
+    track.add_argument("--strategy", default="equilibrium", choices=["equilibrium", "geometric"])
+    track.add_argument("--out", default="softspine-track.png", help="PNG file to write")
+    track.set_defaults(func=_track)
     args = parser.parse_args(argv)
     try:
         return args.func(args)

@@ -47,3 +47,45 @@ def plot_backbones(
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_tracking(
+    points, results, path, title: str = "", geometric=None, backbones: int = 5
+) -> None:
+    """3D plot of a tracked trajectory: targets, reached tips, a few backbones and,
+    if given, where the geometric (load-ignoring) actuation puts the tip."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    points = np.asarray(points)
+    tips = np.array([r.tip_position for r in results])
+    fig = plt.figure(figsize=(7.0, 6.4))
+    ax = fig.add_subplot(projection="3d")
+    for k in np.linspace(0, len(results) - 1, backbones).astype(int):
+        r = results[k].solution.positions
+        ax.plot(r[:, 0], r[:, 1], r[:, 2], "-", color="0.55", lw=1.5)
+    ax.plot(*points.T, "o", ms=5, mfc="none", color="tab:blue", label="targets")
+    ax.plot(*tips.T, ".", ms=4, color="tab:red", label="reached tips (load-aware IK)")
+    if geometric is not None:
+        g = np.array([r.tip_position for r in geometric])
+        label = "tips of the geometric IK (load ignored)"
+        ax.plot(*g.T, "x", ms=4, color="tab:orange", label=label)
+    ax.plot(0, 0, 0, "ks", ms=8, label="base")
+    pts = np.vstack([points, tips, np.zeros((1, 3))])
+    centre = 0.5 * (pts.max(axis=0) + pts.min(axis=0))
+    half = 0.5 * np.ptp(pts, axis=0).max()
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    if title:
+        ax.set_title(title)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -59,14 +59,14 @@ def test_ik_reaches_every_point_and_is_a_true_equilibrium(robot, name, load):
     points = trajectories.by_name(name)
     assert points.shape == (60, 3)
     results = robot.track(points, load=load)
-    for p, r in zip(points, results):
+    for p, r in zip(points, results, strict=True):
         assert r.reached, r.message
         assert r.tip_miss < 1e-9
         assert np.linalg.norm(r.tip_position - p) < 1e-9
         assert robot.within_bounds(r.rest_curvature)
     # A fresh forward solve from the straight rod with the returned actuation
     # lands on the same tip (every 6th point, to keep the suite fast).
-    for p, r in list(zip(points, results))[::6]:
+    for p, r in list(zip(points, results, strict=True))[::6]:
         fresh = softspine.solve(robot.scene(r.rest_curvature, load=load), n_elements=20)
         assert fresh.converged and fresh.stable
         assert np.linalg.norm(fresh.tip_position - p) < 1e-9
@@ -118,7 +118,7 @@ def test_ignoring_the_load_misses_by_centimetres(robot):
     assert miss.min() > 0.01, miss.min()
     for_zero = robot.track(points, load=0.0)
     loaded = [robot.forward(r.rest_curvature, load=0.06) for r in for_zero]
-    miss_load = np.array([np.linalg.norm(s.tip_position - p) for s, p in zip(loaded, points)])
+    miss_load = np.array([np.linalg.norm(s.tip_position - p) for s, p in zip(loaded, points, strict=True)])
     assert miss_load.min() > 0.005, miss_load.min()
 
 

@@ -116,6 +116,38 @@ def _track(args: argparse.Namespace) -> int:
     return 0 if reached == len(points) else 1
 
 
+def _table(args: argparse.Namespace) -> int:
+    """Every trajectory with 0, 30 and 60 g: a Markdown table for the README."""
+    from . import Robot, trajectories
+
+    robot = Robot()
+    print("| trajectory | load | reached | tip miss, max | IK per point, median | "
+          "whole trajectory | geometric IK misses by | IK for 0 g misses by |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name in trajectories.NAMES:
+        points = trajectories.by_name(name, args.points)
+        unloaded = robot.track(points, load=0.0)
+        for load in (0.0, 0.03, 0.06):
+            # Best of three runs of the whole trajectory (timing noise of a shared machine).
+            runs = [robot.track(points, load=load) for _ in range(3)]
+            results = min(runs, key=lambda rs: sum(r.time for r in rs))
+            times = np.array([r.time for r in results])
+            misses = np.array([r.tip_miss for r in results])
+            geometric = robot.track(points, load=load, strategy="geometric")
+            g = np.array([r.tip_miss for r in geometric])
+            zero = np.array([
+                np.linalg.norm(robot.forward(r.rest_curvature, load=load).tip_position - p)
+                for r, p in zip(unloaded, points, strict=True)
+            ])
+            reached = sum(r.reached for r in results)
+            print(f"| {name} | {load * 1e3:.0f} g | {reached}/{len(points)} "
+                  f"| {misses.max():.1e} m | {np.median(times) * 1e6:.0f} us "
+                  f"| {times.sum() * 1e3:.1f} ms | {np.median(g) * 100:.1f} cm "
+                  f"(max {g.max() * 100:.1f}) | {np.median(zero) * 100:.1f} cm "
+                  f"(max {zero.max() * 100:.1f}) |")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="softspine", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -132,6 +164,9 @@ def main(argv: list[str] | None = None) -> int:
     track.add_argument("--strategy", default="equilibrium", choices=["equilibrium", "geometric"])
     track.add_argument("--out", default="softspine-track.png", help="PNG file to write")
     track.set_defaults(func=_track)
+    table = sub.add_parser("track-table", help="all trajectories and loads: a Markdown table")
+    table.add_argument("--points", type=int, default=60)
+    table.set_defaults(func=_table)
     args = parser.parse_args(argv)
     try:
         return args.func(args)

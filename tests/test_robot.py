@@ -118,7 +118,9 @@ def test_ignoring_the_load_misses_by_centimetres(robot):
     assert miss.min() > 0.01, miss.min()
     for_zero = robot.track(points, load=0.0)
     loaded = [robot.forward(r.rest_curvature, load=0.06) for r in for_zero]
-    miss_load = np.array([np.linalg.norm(s.tip_position - p) for s, p in zip(loaded, points, strict=True)])
+    miss_load = np.array(
+        [np.linalg.norm(s.tip_position - p) for s, p in zip(loaded, points, strict=True)]
+    )
     assert miss_load.min() > 0.005, miss_load.min()
 
 

@@ -191,9 +191,6 @@ impl InverseSolver {
         // Phase 1: minimum-norm Gauss-Newton with backtracking.
         let mut stalled = false;
         while iterations < max_iterations {
-            if reached(&e) && iterations > 0 {
-                break;
-            }
             iterations += 1;
             let j = self.jacobian(direction.is_some())?;
             let r = flatten(&reference) - flatten(&kappa);
@@ -204,6 +201,10 @@ impl InverseSolver {
                 break;
             };
             let step = &r + j.transpose() * (inv * (&e - &j * &r));
+            let size = 1.0 + flatten(&kappa).norm();
+            if reached(&e) && step.norm() <= 1e-12 * size {
+                break;
+            }
             let mut alpha = 1.0;
             let mut accepted = false;
             while alpha > 1e-3 {
@@ -234,7 +235,9 @@ impl InverseSolver {
                 stalled = true;
                 break;
             }
-            if reached(&e) && step.norm() * alpha <= 1e-9 * (1.0 + flatten(&kappa).norm()) {
+            // Quadratic convergence: after a small full step the next one is
+            // negligible, and the actuation is the minimum-norm one.
+            if reached(&e) && alpha == 1.0 && step.norm() <= 1e-6 * size {
                 break;
             }
         }

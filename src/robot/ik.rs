@@ -17,6 +17,9 @@ use crate::quat::Quat;
 use crate::solver::{Settings, Solution, Solver};
 use nalgebra::{DMatrix, DVector, Vector3};
 
+/// Relative accuracy to which the actuation is the one closest to the reference.
+const MIN_NORM_ACCURACY: f64 = 1e-5;
+
 /// How the actuation is found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Strategy {
@@ -180,7 +183,10 @@ impl InverseSolver {
         };
         // Direction rows are weighted by L: tol on them is an angle of tol / L.
         let dir_tol = tol;
-        let mut kappa = self.kappa.clone();
+        // Start at the reference: the Gauss-Newton path from there to the nearest
+        // solution is short, while sliding along the solution set from elsewhere
+        // converges only linearly (for tracking, the reference is the last answer).
+        let mut kappa = reference.clone();
         let mut sol = self.forward(&kappa)?;
         let mut e = self.error(&sol, &target, direction.as_ref());
         let mut iterations = 0;
@@ -235,9 +241,12 @@ impl InverseSolver {
                 stalled = true;
                 break;
             }
-            // Quadratic convergence: after a small full step the next one is
-            // negligible, and the actuation is the minimum-norm one.
-            if reached(&e) && alpha == 1.0 && step.norm() <= 1e-6 * size {
+            // The tip is on target and the last full step, which moves along
+            // the solution set toward the reference, changed the actuation by
+            // less than 1e-5 of its size: the minimum-norm choice is settled to
+            // that accuracy (Gauss-Newton converges only linearly along the set;
+            // the tip itself converges quadratically and is at tol).
+            if reached(&e) && alpha == 1.0 && step.norm() <= MIN_NORM_ACCURACY * size {
                 break;
             }
         }

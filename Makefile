@@ -10,10 +10,12 @@ $(PY):
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 
-# Solve the demo robot, print the result and write softspine-demo.png.
+# Solve the demo robot (softspine-demo.png), then track the seed's circle with
+# 30 g at the tip by load-aware inverse kinematics (softspine-track.png).
 demo: $(PY)
 	$(PY) -m pip install -q ".[plot]"
 	$(PY) -m softspine demo --out softspine-demo.png
+	$(PY) -m softspine track --trajectory circle --load 0.03 --out softspine-track.png
 
 # Every test: lint, pytest (Python API, references, bad input) and cargo test.
 test: $(PY)

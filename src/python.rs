@@ -4,6 +4,7 @@
 
 use crate::blocktri::BlockTridiagonal;
 use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot, Strategy};
+use crate::solver::{solve_to_accuracy, Accuracy};
 use crate::{Error, Method, Quat, RodModel, Scene, Settings, Solution, Solver, Value};
 use nalgebra::Vector3;
 use numpy::ndarray::Array2;
@@ -301,6 +302,17 @@ impl PySolution {
     fn message(&self) -> String {
         self.inner.message.clone()
     }
+    /// Accuracy on demand: estimated tip error, m (None for a fixed n).
+    #[getter]
+    fn error_estimate(&self) -> Option<f64> {
+        self.inner.error_estimate
+    }
+    /// Whether ``tip_position`` is Richardson-extrapolated (``refine="richardson"``);
+    /// ``positions[-1]`` is then the last node of the finest solve.
+    #[getter]
+    fn extrapolated(&self) -> bool {
+        self.inner.extrapolated_tip.is_some()
+    }
     fn __repr__(&self) -> String {
         let t = self.inner.tip_position();
         format!(
@@ -345,39 +357,79 @@ fn quaternions_arg(name: &str, q: &Bound<'_, PyAny>) -> PyResult<Vec<Quat>> {
 
 /// Solve the statics of a scene. See ``softspine.solve`` for the documentation.
 #[pyfunction]
-#[pyo3(signature = (scene, n_elements=20, method="newton", initial=None, tol=1e-10, max_iterations=500, check=false))]
+#[pyo3(signature = (scene, n_elements=None, method="newton", initial=None, tol=None, refine=None, residual_tol=1e-10, max_iterations=500, check=false))]
 #[allow(clippy::too_many_arguments)]
 fn solve(
     py: Python<'_>,
     scene: &Bound<'_, PyAny>,
-    n_elements: i64,
+    n_elements: Option<i64>,
     method: &str,
     initial: Option<&Bound<'_, PyAny>>,
-    tol: f64,
+    tol: Option<f64>,
+    refine: Option<&str>,
+    residual_tol: f64,
     max_iterations: i64,
     check: bool,
 ) -> PyResult<PySolution> {
     let scene = scene_arg(scene)?;
-    if n_elements <= 0 {
-        return Err(PyValueError::new_err(format!(
-            "n_elements: must be positive, got {n_elements}"
-        )));
+    if let Some(n) = n_elements {
+        if n <= 0 {
+            return Err(PyValueError::new_err(format!(
+                "n_elements: must be positive, got {n}"
+            )));
+        }
     }
     if max_iterations <= 0 {
         return Err(PyValueError::new_err(format!(
             "max_iterations: must be positive, got {max_iterations}"
         )));
     }
+    let richardson = match refine {
+        None => false,
+        Some("richardson") if tol.is_some() => true,
+        Some("richardson") => {
+            return Err(PyValueError::new_err(
+                "refine: 'richardson' needs tol (accuracy on demand)",
+            ))
+        }
+        Some(other) => {
+            return Err(PyValueError::new_err(format!(
+                "refine: unknown '{other}' (expected 'richardson')"
+            )))
+        }
+    };
+    let sections = scene.sections();
+    let default_n = if tol.is_some() {
+        sections * 10usize.div_ceil(sections)
+    } else {
+        20
+    };
     let settings = Settings {
-        n_elements: n_elements as usize,
+        n_elements: n_elements.map_or(default_n, |n| n as usize),
         method: method.parse::<Method>()?,
-        tol,
+        residual_tol,
         max_iterations: max_iterations as usize,
         ..Settings::default()
     };
-    let initial = initial.map(|q| quaternions_arg("initial", q)).transpose()?;
-    let mut solver = Solver::new(&scene, settings)?;
-    let solution = py.detach(move || solver.solve(initial.as_deref()))?;
+    let solution = match tol {
+        None => {
+            let initial = initial.map(|q| quaternions_arg("initial", q)).transpose()?;
+            let mut solver = Solver::new(&scene, settings)?;
+            py.detach(move || solver.solve(initial.as_deref()))?
+        }
+        Some(tol) => {
+            if initial.is_some() {
+                return Err(PyValueError::new_err(
+                    "initial: not used with tol (the discretisation is chosen by the solver)",
+                ));
+            }
+            let accuracy = Accuracy {
+                richardson,
+                ..Accuracy::new(tol)
+            };
+            py.detach(|| solve_to_accuracy(&scene, settings, &accuracy))?
+        }
+    };
     let solution = if check { solution.check()? } else { solution };
     Ok(PySolution { inner: solution })
 }

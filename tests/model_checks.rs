@@ -130,7 +130,7 @@ fn tip_sensitivity_matches_finite_differences() {
     scene.base_quaternion = Quat::new(0.9, 0.2, -0.3, 0.1).normalized();
     let settings = Settings {
         n_elements: 20,
-        tol: 1e-13,
+        residual_tol: 1e-13,
         ..Settings::default()
     };
     let mut solver = softspine::Solver::new(&scene, settings).unwrap();

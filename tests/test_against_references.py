@@ -48,7 +48,7 @@ def test_rust_and_numpy_reference_agree(seed):
     scene = random_scene(seed)
     sections = len(scene["rest_curvature"])
     n = 6 * sections
-    rust = softspine.solve(scene, n_elements=n, tol=1e-12, check=True)
+    rust = softspine.solve(scene, n_elements=n, residual_tol=1e-12, check=True)
     ref = reference.solve(scene, n_elements=n, tol=1e-13)
     length = scene["length"]
     assert np.abs(rust.positions - ref["positions"]).max() < 1e-10 * length

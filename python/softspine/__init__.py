@@ -37,10 +37,12 @@ __all__ = [
 
 def solve(
     scene: Scene | dict | str | PathLike,
-    n_elements: int = 20,
+    n_elements: int | None = None,
     method: str = "newton",
     initial: Solution | None = None,
-    tol: float = 1e-10,
+    tol: float | None = None,
+    refine: str | None = None,
+    residual_tol: float = 1e-10,
     max_iterations: int = 500,
     check: bool = False,
 ) -> Solution:
@@ -50,27 +52,36 @@ def solve(
     ----------
     scene : Scene, dict, or path of a ``.json`` / ``.toml`` file
         What is solved (see ``softspine.Scene``).
-    n_elements : int
-        Number of elements ``n``, a multiple of the number of sections.
+    n_elements : int, optional
+        Number of elements ``n``, a multiple of the number of sections. Default 20;
+        with ``tol``, the first ``n`` tried (default: the smallest multiple of the
+        sections that is at least 10).
     method : {"newton", "lm"}
         ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
         continuation when a direct solve fails (default). ``"lm"``:
         Levenberg-Marquardt on the same residual (dense, for comparison).
     initial : Solution or array (n+1, 4), optional
-        Warm start, e.g. the solution of a neighbouring scene.
-    tol : float
+        Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
+    tol : float, optional
+        Accuracy on demand: ``n`` doubles until the estimated tip error (from the
+        solves at n and 2n, second order) is below ``tol * L``; the Solution
+        carries ``error_estimate`` (m) and the ``n_elements`` used.
+    refine : {"richardson"}, optional
+        With ``tol``: return the Richardson-extrapolated tip ``(4 r_2n - r_n)/3``
+        as ``tip_position`` (``extrapolated`` is then True).
+    residual_tol : float
         Tolerance on the relative residual (largest torque imbalance over
         ``max(k) / L``).
     max_iterations : int
-        Iteration budget of the solve, load-continuation steps included.
+        Iteration budget of a solve, load-continuation steps included.
     check : bool
         Raise ``SolverError`` instead of returning ``converged=False``.
 
     Returns
     -------
     Solution
-        Positions, quaternions, forces, tip pose, ``converged``, ``iterations``,
-        ``residual_norm``, ``energy`` and ``stable``.
+        Positions, quaternions, forces, tip pose, reactions, ``converged``,
+        ``iterations``, ``residual_norm``, ``energy`` and ``stable``.
     """
     return _solve(
         load_scene(scene),
@@ -78,6 +89,8 @@ def solve(
         method=method,
         initial=initial,
         tol=tol,
+        refine=refine,
+        residual_tol=residual_tol,
         max_iterations=max_iterations,
         check=check,
     )

@@ -67,13 +67,19 @@ class Solution:
     def stable(self) -> bool: ...
     @property
     def message(self) -> str: ...
+    @property
+    def error_estimate(self) -> float | None: ...
+    @property
+    def extrapolated(self) -> bool: ...
 
 def solve(
     scene: Scene | dict[str, Any],
-    n_elements: int = 20,
+    n_elements: int | None = None,
     method: str = "newton",
     initial: Solution | npt.ArrayLike | None = None,
-    tol: float = 1e-10,
+    tol: float | None = None,
+    refine: str | None = None,
+    residual_tol: float = 1e-10,
     max_iterations: int = 500,
     check: bool = False,
 ) -> Solution: ...

@@ -96,7 +96,7 @@ impl InverseSolver {
         let scene = robot.scene(&zero, tip_mass)?;
         let settings = Settings {
             n_elements: robot.n_elements,
-            tol: 1e-12,
+            residual_tol: 1e-12,
             ..Settings::default()
         };
         Ok(InverseSolver {

@@ -2,11 +2,14 @@
 //! driver shared by every local method (a direct attempt from the initial
 //! guess, then load continuation from the straight rod when that fails).
 
+mod adaptive;
 mod constrained;
 mod lm;
 mod newton;
 pub mod paper;
 pub mod pso;
+
+pub use adaptive::{solve_to_accuracy, Accuracy};
 
 use crate::blocktri::{symmetric_part_is_positive_definite, BlockLu, BlockTridiagonal};
 use crate::error::{Error, Result};
@@ -47,7 +50,7 @@ pub struct Settings {
     pub method: Method,
     /// Convergence tolerance on the relative residual: the largest torque
     /// imbalance over `max(k) / L` (default 1e-10).
-    pub tol: f64,
+    pub residual_tol: f64,
     /// Iteration budget of a solve, all load-continuation steps included
     /// (default 500). One direct attempt uses at most 60 of it, a continuation
     /// step at most 25.
@@ -61,7 +64,7 @@ impl Default for Settings {
         Settings {
             n_elements: 20,
             method: Method::Newton,
-            tol: 1e-10,
+            residual_tol: 1e-10,
             max_iterations: 500,
             min_continuation_step: 1e-6,
         }
@@ -73,10 +76,10 @@ impl Settings {
         if self.n_elements == 0 {
             return Err(Error::argument("n_elements", "must be positive"));
         }
-        if !(self.tol.is_finite() && self.tol > 0.0) {
+        if !(self.residual_tol.is_finite() && self.residual_tol > 0.0) {
             return Err(Error::argument(
-                "tol",
-                format!("must be positive and finite, got {}", self.tol),
+                "residual_tol",
+                format!("must be positive and finite, got {}", self.residual_tol),
             ));
         }
         if self.max_iterations == 0 {
@@ -89,7 +92,7 @@ impl Settings {
 /// How a solve ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
-    /// The relative residual is below `tol`.
+    /// The relative residual is below `residual_tol`.
     Converged,
     /// The iteration or continuation budget ran out first.
     NotConverged,
@@ -116,7 +119,7 @@ pub struct Solution {
     pub iterations: usize,
     /// Load-continuation steps taken (0: solved directly).
     pub continuation_steps: usize,
-    /// Relative residual (see [`Settings::tol`]).
+    /// Relative residual (see [`Settings::residual_tol`]).
     pub residual_norm: f64,
     /// Total potential: elastic energy minus the work of the dead forces [J].
     pub energy: f64,
@@ -125,6 +128,12 @@ pub struct Solution {
     pub stable: bool,
     /// A short human-readable account of how the solve ended.
     pub message: String,
+    /// Accuracy on demand: the estimated distance of the tip from the
+    /// continuous rod's [m] (from the solves at n/2 and n, second order).
+    pub error_estimate: Option<f64>,
+    /// Accuracy on demand with Richardson extrapolation: `(4 r_n - r_{n/2}) / 3`,
+    /// returned by [`Solution::tip_position`] in place of the last node.
+    pub extrapolated_tip: Option<Vector3<f64>>,
 }
 
 impl Solution {
@@ -132,8 +141,10 @@ impl Solution {
         self.status == Status::Converged
     }
 
+    /// The tip: the last node, or the Richardson-extrapolated tip when asked for.
     pub fn tip_position(&self) -> Vector3<f64> {
-        self.positions[self.positions.len() - 1]
+        self.extrapolated_tip
+            .unwrap_or(self.positions[self.positions.len() - 1])
     }
 
     pub fn tip_quaternion(&self) -> Quat {
@@ -330,7 +341,7 @@ impl Solver {
                 ));
             }
         }
-        let tol = self.settings.tol;
+        let tol = self.settings.residual_tol;
         let (model, w) = (&self.model, &mut self.work);
         w.kkt
             .reactions
@@ -412,7 +423,7 @@ impl Solver {
     fn finish(&mut self, ending: Ending, iterations: usize, continuation_steps: usize) -> Solution {
         let (model, w) = (&self.model, &mut self.work);
         let residual_norm = residual_norm(model, w);
-        let converged = ending.converged() && residual_norm <= self.settings.tol;
+        let converged = ending.converged() && residual_norm <= self.settings.residual_tol;
         let mut positions = vec![Vector3::zeros(); model.n + 1];
         model.positions(&w.q, &mut positions);
         let stable = converged && (ending == Ending::DirectStable || is_stable(model, w));
@@ -443,6 +454,8 @@ impl Solver {
             energy: model.energy(&w.q),
             stable,
             message,
+            error_estimate: None,
+            extrapolated_tip: None,
         }
     }
 }

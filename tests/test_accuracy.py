@@ -1,0 +1,72 @@
+"""Accuracy on demand: the solver picks n from its own error estimate, and
+Richardson extrapolation gains digits; checked against independent references."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import softspine
+from softspine import shooting
+from softspine.scenes import cantilever
+
+from closed_forms import BISSHOPP_DRUCKER
+
+SCENE_3D = {
+    "length": 0.8,
+    "stiffness": {"kx": 0.6, "ky": 1.4, "kz": 0.5},
+    "rest_curvature": [[2.0, -1.0], [-1.5, 2.5]],
+    "gravity": {"linear_density": 0.1, "vector": [0.0, 0.0, -9.81]},
+    "tip_force": [0.8, -0.5, 0.3],
+    "base_quaternion": [0.8660254037844387, 0.0, 0.5, 0.0],
+}
+
+
+@pytest.mark.parametrize("tol", [1e-3, 1e-4, 1e-5])
+def test_tolerance_is_met_and_the_estimate_is_honest(tol):
+    deflection, shortening, _ = BISSHOPP_DRUCKER[10.0]
+    exact = np.array([deflection, 0.0, 1.0 - shortening])
+    sol = softspine.solve(cantilever(10.0), tol=tol, check=True)
+    error = np.linalg.norm(sol.tip_position - exact)
+    assert error <= tol
+    # The second-order estimate is within 10 % of the true error.
+    assert sol.error_estimate == pytest.approx(error, rel=0.1)
+    assert sol.n_elements % 10 == 0 and sol.positions.shape == (sol.n_elements + 1, 3)
+    assert not sol.extrapolated
+
+
+def test_richardson_gains_two_digits():
+    deflection, shortening, _ = BISSHOPP_DRUCKER[3.0]
+    exact = np.array([deflection, 0.0, 1.0 - shortening])
+    plain = softspine.solve(cantilever(3.0), tol=1e-4)
+    extrapolated = softspine.solve(cantilever(3.0), tol=1e-4, refine="richardson")
+    assert extrapolated.extrapolated and extrapolated.n_elements == plain.n_elements
+    assert np.linalg.norm(extrapolated.tip_position - exact) < 1e-2 * np.linalg.norm(
+        plain.tip_position - exact
+    )
+    # The nodes are those of the finest solve; only the tip is extrapolated.
+    assert np.array_equal(extrapolated.positions, plain.positions)
+
+
+def test_3d_scene_to_accuracy_against_shooting():
+    exact = shooting.solve(SCENE_3D, rtol=1e-12)["tip_position"]
+    sol = softspine.solve(SCENE_3D, tol=1e-5, check=True)
+    assert np.linalg.norm(sol.tip_position - exact) <= 1e-5 * SCENE_3D["length"]
+    assert sol.n_elements % 2 == 0
+
+
+def test_unloaded_straight_rod_costs_nothing():
+    sol = softspine.solve({"length": 1.0, "stiffness": {"kx": 1, "ky": 1, "kz": 1}}, tol=1e-6)
+    assert sol.converged and sol.iterations == 0 and sol.error_estimate == 0.0
+
+
+def test_bad_accuracy_arguments():
+    with pytest.raises(ValueError, match="^refine:"):
+        softspine.solve(cantilever(1.0), refine="richardson")
+    with pytest.raises(ValueError, match="^refine:"):
+        softspine.solve(cantilever(1.0), tol=1e-3, refine="cubic")
+    with pytest.raises(ValueError, match="^initial:"):
+        sol = softspine.solve(cantilever(1.0))
+        softspine.solve(cantilever(1.0), tol=1e-3, initial=sol)
+    with pytest.raises(ValueError, match="^tol:"):
+        softspine.solve(cantilever(1.0), tol=0.0)

@@ -46,14 +46,19 @@ pub fn solve_to_accuracy(
     }
     let length = scene.length;
     let mut n = settings.n_elements;
-    let mut coarse = Solver::new(
+    let mut solver = Solver::new(
         scene,
         Settings {
             n_elements: n,
             ..settings.clone()
         },
-    )?
-    .solve(None)?;
+    )?;
+    let mut coarse = solver.solve(None)?;
+    if solver.model().is_trivial() {
+        // The straight rod is exact at any n: nothing to refine.
+        coarse.error_estimate = Some(0.0);
+        return Ok(coarse);
+    }
     let mut iterations = coarse.iterations;
     loop {
         if !coarse.converged() {

@@ -451,14 +451,26 @@ impl RodModel {
     /// Total potential `Pi` (elastic energy minus the work of the dead forces) [J].
     /// A dead tip moment has no potential in 3D and is not included.
     pub fn energy(&self, q: &[Quat]) -> f64 {
+        self.energy_at(q, 1.0)
+    }
+
+    /// `Pi` at load scale `lambda` (loads and rest curvature scaled).
+    pub fn energy_at(&self, q: &[Quat], lambda: f64) -> f64 {
         let mut total = 0.0;
         for i in 1..=self.n {
             let (a, b) = (q[i - 1], q[i]);
-            let e = (2.0 / self.ds) * (a.conj() * b).v - self.rest_curvature[i - 1];
+            let e = (2.0 / self.ds) * (a.conj() * b).v - lambda * self.rest_curvature[i - 1];
             let elastic = 0.5 * e.dot(&self.stiffness.component_mul(&e));
-            total += self.ds * (elastic - self.mean_force[i - 1].dot(&mean_tangent(a, b)));
+            let work = lambda * self.mean_force[i - 1].dot(&mean_tangent(a, b));
+            total += self.ds * (elastic - work);
         }
         total
+    }
+
+    /// Whether the loads derive from a potential (a dead tip moment does not in
+    /// 3D): then `Pi` is a merit function for the line search.
+    pub fn is_conservative(&self) -> bool {
+        self.tip_moment.norm() == 0.0
     }
 }
 

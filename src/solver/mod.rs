@@ -388,12 +388,13 @@ impl Solver {
         if cont.converged {
             return Ok(self.finish(Ending::Continuation, iterations, steps));
         }
-        // Held points that only a strongly bent (buckled) rod reaches make the
-        // undamped KKT steps fail from near-straight states; Levenberg-Marquardt's
-        // damping gets there (dense, so only as a fallback).
+        // Newton's undamped steps can fail where Levenberg-Marquardt's damping
+        // gets there: held points that only a strongly bent (buckled) rod
+        // reaches, torsion far stiffer than bending. LM is dense, so it is only
+        // a fallback, and only for moderate n.
         if self.settings.method == Method::Newton
-            && model.is_constrained()
             && direct_state.is_none()
+            && 3 * (model.n + model.constraints.len()) <= LM_FALLBACK_UNKNOWNS
         {
             let mut lm = lm::LevenbergMarquardt::new(model);
             w.q.copy_from_slice(&model.initial_guess());
@@ -401,10 +402,15 @@ impl Solver {
                 .reactions
                 .iter_mut()
                 .for_each(|r| *r = Vector3::zeros());
-            let out = lm.run(model, w, 1.0, budget, tol);
+            let direct = lm.run(model, w, 1.0, budget, tol);
+            iterations += direct.iterations;
+            if direct.converged && is_stable(model, w) {
+                return Ok(self.finish(Ending::LmFallback, iterations, steps));
+            }
+            let (out, lm_steps) = continuation(&mut lm, model, w, tol, budget, min_step);
             iterations += out.iterations;
             if out.converged {
-                return Ok(self.finish(Ending::LmFallback, iterations, steps));
+                return Ok(self.finish(Ending::LmFallback, iterations, steps + lm_steps));
             }
         }
         if let Some((q, reactions)) = direct_state {
@@ -529,6 +535,12 @@ fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     }
 }
 
+/// Largest system (unknowns) that a failed Newton solve retries with dense LM.
+const LM_FALLBACK_UNKNOWNS: usize = 600;
+
+/// Continuation steps shorter than this may end on an unstable equilibrium.
+const STABILITY_STEP: f64 = 1e-3;
+
 /// Iteration limits of the direct attempt and of one continuation step.
 const DIRECT_ITERATIONS: usize = 60;
 const STEP_ITERATIONS: usize = 25;
@@ -552,6 +564,9 @@ fn continuation(
         .for_each(|r| *r = Vector3::zeros());
     let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
     let (mut iterations, mut steps) = (0usize, 0usize);
+    // The straight, unloaded rod is stable; the path is followed on the stable
+    // branch as long as there is one.
+    let mut path_stable = true;
     while lambda < 1.0 {
         let target = (lambda + dlambda).min(1.0);
         // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last equilibrium
@@ -588,8 +603,15 @@ fn continuation(
             tol,
         );
         iterations += out.iterations;
-        if out.converged {
+        // A large step that ends on an unstable equilibrium has likely jumped to
+        // another branch near a (perturbed) bifurcation: retry it shorter. Only a
+        // short step may lose stability (a genuine limit, e.g. a perfect column
+        // past its buckling load, or lateral buckling under a dead moment).
+        let jumped =
+            out.converged && path_stable && dlambda > STABILITY_STEP && !is_stable(model, w);
+        if out.converged && !jumped {
             steps += 1;
+            path_stable = path_stable && (dlambda > STABILITY_STEP || is_stable(model, w));
             lambda = target;
             w.saved.copy_from_slice(&w.q);
             w.kkt.reactions_saved.copy_from_slice(&w.kkt.reactions);

@@ -2,10 +2,14 @@
 //!
 //! The step solves `J d = -g` by the O(n) block-tridiagonal factorisation. `J` is
 //! the exact Jacobian of `g`, so `d` is a descent direction of `|g|^2` and the
-//! Armijo backtracking always terminates near a regular solution.
+//! Armijo backtracking always terminates near a regular solution. When the loads
+//! have a potential and `d` descends it, a sufficient decrease of the energy is
+//! accepted too.
 
 use super::{step_limit, sum_squares, LocalOutcome, LocalSolver, Workspace};
 use crate::model::RodModel;
+use crate::quat::Quat;
+use nalgebra::Vector3;
 
 pub(crate) struct Newton;
 
@@ -30,7 +34,6 @@ impl LocalSolver for Newton {
                 iterations,
             };
         }
-        let n = model.n;
         model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
         let mut merit = sum_squares(&w.g);
         for it in 0..max_iter {
@@ -60,15 +63,22 @@ impl LocalSolver for Newton {
                 *s = -g;
             }
             w.lu.solve_in_place(&mut w.step);
+            // With a potential, a Newton step that descends it may be accepted on
+            // the energy as well: stiff modes (torsion 1000 times bending) make the
+            // residual norm a poor guide far from the solution.
+            let slope: f64 = w.g.iter().zip(&w.step).map(|(g, d)| g.dot(d)).sum();
+            let energy =
+                (model.is_conservative() && slope < 0.0).then(|| model.energy_at(&w.q, lambda));
             let mut alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
             loop {
-                w.trial[0] = w.q[0];
-                for j in 1..=n {
-                    w.trial[j] = w.q[j].perturbed(alpha * w.step[j - 1]);
-                }
+                retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
                 model.residual(&w.trial, lambda, &mut w.g_trial);
                 let trial_merit = sum_squares(&w.g_trial);
-                if trial_merit.is_finite() && trial_merit <= (1.0 - 1e-4 * alpha) * merit {
+                let residual_decrease = trial_merit <= (1.0 - 1e-4 * alpha) * merit;
+                let energy_decrease = energy.is_some_and(|e0| {
+                    model.energy_at(&w.trial, lambda) <= e0 + 1e-4 * alpha * slope
+                });
+                if trial_merit.is_finite() && (residual_decrease || energy_decrease) {
                     merit = trial_merit;
                     break;
                 }
@@ -88,5 +98,23 @@ impl LocalSolver for Newton {
             converged,
             iterations: max_iter,
         }
+    }
+}
+
+/// Apply the step `alpha d` to the chain through its relative rotations: element
+/// `i` turns by its linearised increment `d_i - R(c_i)^T d_{i-1}`, and the nodes
+/// are rebuilt from the base. To first order this is `q_j exp(alpha d_j / 2)`,
+/// but a finite step no longer composes the nodes' rotations into spurious
+/// relative twist (a second-order term that a torsion much stiffer than bending,
+/// kz = 1000 kx, turns into a residual that stalls the line search).
+fn retract_along_chain(q: &[Quat], step: &[Vector3<f64>], alpha: f64, out: &mut [Quat]) {
+    out[0] = q[0];
+    let mut previous = Vector3::zeros();
+    for j in 1..q.len() {
+        let relative = q[j - 1].conj() * q[j];
+        let d = alpha * step[j - 1];
+        let increment = d - relative.inverse_rotate(previous);
+        out[j] = (out[j - 1] * relative.perturbed(increment)).normalized();
+        previous = d;
     }
 }

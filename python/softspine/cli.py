@@ -167,6 +167,11 @@ def main(argv: list[str] | None = None) -> int:
     table = sub.add_parser("track-table", help="all trajectories and loads: a Markdown table")
     table.add_argument("--points", type=int, default=60)
     table.set_defaults(func=_table)
+    report = sub.add_parser("report", help="speed against error of every method (docs/report.*)")
+    report.add_argument("--out", default="docs")
+    report.add_argument("--quick", action="store_true")
+    report.set_defaults(func=lambda a: __import__("softspine.report").report.main(
+        ["--out", a.out] + (["--quick"] if a.quick else [])))
     args = parser.parse_args(argv)
     try:
         return args.func(args)

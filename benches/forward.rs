@@ -6,7 +6,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::Vector3;
-use softspine::{solve, Quat, Scene, Settings, Solver, TipCondition};
+use softspine::{solve, Method, Quat, Scene, Settings, Solver, TipCondition};
 use std::hint::black_box;
 
 const SIZES: [usize; 6] = [10, 20, 40, 80, 160, 1000];
@@ -106,10 +106,86 @@ fn held(c: &mut Criterion) {
     group.finish();
 }
 
+/// Every method and tip condition at n = 20, cold.
+fn methods(c: &mut Criterion) {
+    let mut group = c.benchmark_group("methods_n20");
+    let scenes = [
+        ("cantilever_alpha3", cantilever(1.0)),
+        ("robot_3d", robot(1.0)),
+        ("robot_3d_pinned", held_tip(1.0, false, 20)),
+        ("robot_3d_clamped", held_tip(1.0, true, 20)),
+    ];
+    for (name, scene) in scenes {
+        for method in [Method::Newton, Method::LevenbergMarquardt] {
+            let settings = Settings {
+                n_elements: 20,
+                method,
+                ..Settings::default()
+            };
+            let mut solver = Solver::new(&scene, settings).unwrap();
+            assert!(solver.solve(None).unwrap().converged());
+            let label = if method == Method::Newton {
+                "newton"
+            } else {
+                "lm"
+            };
+            group.bench_function(BenchmarkId::new(label, name), |b| {
+                b.iter(|| black_box(solver.solve(None).unwrap()))
+            });
+        }
+    }
+    group.finish();
+}
+
+/// The hard cases of the test suite, cold, Newton.
+fn hard(c: &mut Criterion) {
+    let round = |l: f64| Scene::new(l, 1.0, 1.0, 1.0);
+    let mut roll_up = round(1.0);
+    roll_up.tip_moment = Vector3::new(0.0, 2.0 * std::f64::consts::PI, 0.0);
+    let mut column = round(1.0);
+    column.distributed_force = Vector3::new(0.0, 0.0, -1.3 * 7.837);
+    column.rest_curvature = vec![[0.0, 0.01]];
+    let mut spiral = Scene::new(1.0, 1.0, 1.0, 0.7);
+    spiral.rest_curvature = (0..10)
+        .map(|k| [8.0 * (0.5 * k as f64).cos(), 8.0 * (0.5 * k as f64).sin()])
+        .collect();
+    spiral.distributed_force = Vector3::new(0.0, 0.0, -0.981);
+    let mut stiff_torsion = Scene::new(1.0, 1.0, 2.0, 1000.0);
+    stiff_torsion.rest_curvature = vec![[2.0, -1.0], [0.0, 3.0]];
+    stiff_torsion.tip_force = Vector3::new(1.0, -0.5, 0.2);
+    let mut soft = round(1.0);
+    soft.tip_force = Vector3::new(50.0, 0.0, 0.0);
+    let cases = [
+        ("roll_up_2pi", roll_up.clone(), 20),
+        ("roll_up_2pi", roll_up, 80),
+        ("column_beyond_buckling", column, 20),
+        ("spiral_8rad_gravity", spiral, 20),
+        ("torsion_1000x", stiff_torsion, 20),
+        ("cantilever_alpha50", soft, 20),
+        ("cantilever_alpha3", cantilever(1.0), 2000),
+        ("cantilever_alpha3", cantilever(1.0), 5000),
+    ];
+    let mut group = c.benchmark_group("hard");
+    for (name, scene, n) in cases {
+        let settings = Settings {
+            n_elements: n,
+            ..Settings::default()
+        };
+        let mut solver = Solver::new(&scene, settings).unwrap();
+        assert!(solver.solve(None).unwrap().converged(), "{name}");
+        group.bench_function(BenchmarkId::new(name, n), |b| {
+            b.iter(|| black_box(solver.solve(None).unwrap()))
+        });
+    }
+    group.finish();
+}
+
 fn forward(c: &mut Criterion) {
     bench_scene(c, "cantilever_alpha3", cantilever);
     bench_scene(c, "robot_3d", robot);
     held(c);
+    methods(c);
+    hard(c);
 }
 
 criterion_group! {

@@ -163,15 +163,36 @@ def write_plot(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+START, END = "<!-- report-table -->", "<!-- /report-table -->"
+
+
+def update_readme(readme: Path, table: str) -> bool:
+    """Put the table between the report markers of the README, if it has them."""
+    if not readme.exists():
+        return False
+    text = readme.read_text()
+    if START not in text or END not in text:
+        return False
+    head, rest = text.split(START, 1)
+    _, tail = rest.split(END, 1)
+    block = f"{START}\n<details><summary>The whole table</summary>\n\n{table}\n</details>\n"
+    readme.write_text(head + block + END + tail)
+    return True
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="softspine report", description=__doc__)
     parser.add_argument("--out", default="docs", help="folder for report.md and report.png")
+    parser.add_argument("--readme", default="README.md",
+                        help="README to update (if it has the markers)")
     parser.add_argument("--quick", action="store_true", help="one repetition per timing")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = run(out, quick=args.quick)
     print(f"{len(rows)} rows written to {out / 'report.md'}, plot {out / 'report.png'}")
+    if update_readme(Path(args.readme), (out / "report.md").read_text()):
+        print(f"table updated in {args.readme}")
     return 0
 
 

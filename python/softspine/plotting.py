@@ -31,22 +31,7 @@ def plot_backbones(
         ax.plot(r[:, 0], r[:, 1], r[:, 2], "o", ms=2.5, color=line.get_color())
         ax.plot(*r[-1], "*", ms=12, color=line.get_color())
     ax.plot(0, 0, 0, "ks", ms=8, label="base")
-    pts = np.vstack(all_points)
-    centre = 0.5 * (pts.max(axis=0) + pts.min(axis=0))
-    half = 0.5 * max(np.ptp(pts, axis=0).max(), 1e-9)
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(centre[2] - half, centre[2] + half)
-    ax.set_box_aspect((1, 1, 1))
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    if title:
-        ax.set_title(title)
-    ax.legend(loc="upper left", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _finish(fig, ax, np.vstack(all_points), title, path)
 
 
 def plot_tracking(
@@ -73,9 +58,15 @@ def plot_tracking(
         label = "tips of the geometric IK (load ignored)"
         ax.plot(*g.T, "x", ms=4, color="tab:orange", label=label)
     ax.plot(0, 0, 0, "ks", ms=8, label="base")
-    pts = np.vstack([points, tips, np.zeros((1, 3))])
-    centre = 0.5 * (pts.max(axis=0) + pts.min(axis=0))
-    half = 0.5 * np.ptp(pts, axis=0).max()
+    _finish(fig, ax, np.vstack([points, tips, np.zeros((1, 3))]), title, path)
+
+
+def _finish(fig, ax, points, title, path) -> None:
+    """Equal scales on the three axes (a bent rod must look bent), labels, save."""
+    import matplotlib.pyplot as plt
+
+    centre = 0.5 * (points.max(axis=0) + points.min(axis=0))
+    half = 0.5 * max(np.ptp(points, axis=0).max(), 1e-9)
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
     ax.set_zlim(centre[2] - half, centre[2] + half)

@@ -168,3 +168,15 @@ def test_buckling_needed_to_reach_a_target_on_the_axis():
     assert sol.tip_reaction_force[2] < -20.19
     on_axis = softspine.solve({**base, "tip": {"type": "pinned", "position": [0, 0, 0.9]}})
     assert not on_axis.converged
+
+
+def test_reaction_force_converges_at_second_order():
+    """The pinned tip's reaction, n = 20 ... 160: successive differences fall by 4."""
+    scene = held({"type": "pinned", "position": [0.25, -0.1, -0.75]}, tip_force=None)
+    reactions = [
+        softspine.solve(scene, n_elements=n, check=True).tip_reaction_force
+        for n in (20, 40, 80, 160)
+    ]
+    diffs = [np.linalg.norm(b - a) for a, b in zip(reactions, reactions[1:], strict=False)]
+    orders = np.log2(np.array(diffs[:-1]) / np.array(diffs[1:]))
+    assert np.all((orders > 1.9) & (orders < 2.1)), (orders, diffs)

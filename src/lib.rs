@@ -22,6 +22,7 @@
 pub mod blocktri;
 pub mod error;
 pub mod model;
+pub mod paper_method;
 pub mod quat;
 pub mod robot;
 pub mod scene;

@@ -3,6 +3,7 @@
 //! (a solve that did not converge, when the caller asked with `check=True`).
 
 use crate::blocktri::BlockTridiagonal;
+use crate::paper_method::PaperSettings;
 use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot, Strategy};
 use crate::solver::{solve_to_accuracy, Accuracy};
 use crate::{Error, Method, Quat, RodModel, Scene, Settings, Solution, Solver, Value};
@@ -357,7 +358,7 @@ fn quaternions_arg(name: &str, q: &Bound<'_, PyAny>) -> PyResult<Vec<Quat>> {
 
 /// Solve the statics of a scene. See ``softspine.solve`` for the documentation.
 #[pyfunction]
-#[pyo3(signature = (scene, n_elements=None, method="newton", initial=None, tol=None, refine=None, residual_tol=1e-10, max_iterations=500, check=false))]
+#[pyo3(signature = (scene, n_elements=None, method="newton", initial=None, tol=None, refine=None, residual_tol=1e-10, max_iterations=500, check=false, paper_options=None))]
 #[allow(clippy::too_many_arguments)]
 fn solve(
     py: Python<'_>,
@@ -370,6 +371,7 @@ fn solve(
     residual_tol: f64,
     max_iterations: i64,
     check: bool,
+    paper_options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PySolution> {
     let scene = scene_arg(scene)?;
     if let Some(n) = n_elements {
@@ -409,6 +411,7 @@ fn solve(
         method: method.parse::<Method>()?,
         residual_tol,
         max_iterations: max_iterations as usize,
+        paper: paper_settings(paper_options)?,
         ..Settings::default()
     };
     let solution = match tol {
@@ -432,6 +435,44 @@ fn solve(
     };
     let solution = if check { solution.check()? } else { solution };
     Ok(PySolution { inner: solution })
+}
+
+/// The paper's method settings from a dict (every key optional).
+fn paper_settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<PaperSettings> {
+    let mut p = PaperSettings::default();
+    let Some(options) = options else {
+        return Ok(p);
+    };
+    for (key, value) in options.iter() {
+        let key: String = key.extract()?;
+        let bad = |what: &str| PyValueError::new_err(format!("paper_options.{key}: {what}"));
+        let count = || -> PyResult<usize> {
+            let v: i64 = value.extract().map_err(|_| bad("expected an integer"))?;
+            usize::try_from(v).map_err(|_| bad("must not be negative"))
+        };
+        let real = || -> PyResult<f64> {
+            let v: f64 = value.extract().map_err(|_| bad("expected a number"))?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(bad("must be finite"))
+            }
+        };
+        match key.as_str() {
+            "particles" => p.swarm.particles = count()?.max(1),
+            "iterations" => p.swarm.iterations = count()?,
+            "chi" => p.swarm.chi = real()?,
+            "inertia" => p.swarm.inertia = real()?,
+            "c1" => p.swarm.c1 = real()?,
+            "c2" => p.swarm.c2 = real()?,
+            "seed" => p.swarm.seed = count()? as u64,
+            "gauss_newton_iterations" => p.gauss_newton_iterations = count()?,
+            "lm_iterations" => p.lm_iterations = count()?,
+            "tol" => p.tol = real()?,
+            _ => return Err(bad("unknown option (particles, iterations, chi, inertia, c1, c2, seed, gauss_newton_iterations, lm_iterations, tol)")),
+        }
+    }
+    Ok(p)
 }
 
 fn model_and_state(

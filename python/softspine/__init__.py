@@ -45,6 +45,7 @@ def solve(
     residual_tol: float = 1e-10,
     max_iterations: int = 500,
     check: bool = False,
+    paper_options: dict | None = None,
 ) -> Solution:
     """Solve the statics of ``scene``.
 
@@ -56,10 +57,13 @@ def solve(
         Number of elements ``n``, a multiple of the number of sections. Default 20;
         with ``tol``, the first ``n`` tried (default: the smallest multiple of the
         sections that is at least 10).
-    method : {"newton", "lm"}
+    method : {"newton", "lm", "paper", "paper-literal"}
         ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
         continuation when a direct solve fails (default). ``"lm"``:
         Levenberg-Marquardt on the same residual (dense, for comparison).
+        ``"paper"``: the seed paper's method, particle swarm then LM over the raw
+        quaternions and nodal forces, with the unit-norm rows; ``"paper-literal"``:
+        the published system without them (its |q| drifts: see the README).
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
     tol : float, optional
@@ -76,6 +80,10 @@ def solve(
         Iteration budget of a solve, load-continuation steps included.
     check : bool
         Raise ``SolverError`` instead of returning ``converged=False``.
+    paper_options : dict, optional
+        Settings of the paper's method: ``particles`` (40), ``iterations`` (60),
+        ``chi`` (0.729), ``inertia`` (1.0), ``c1`` (2.05), ``c2`` (2.05), ``seed``
+        (0), ``gauss_newton_iterations`` (20), ``lm_iterations`` (200), ``tol`` (1e-10).
 
     Returns
     -------
@@ -93,4 +101,5 @@ def solve(
         residual_tol=residual_tol,
         max_iterations=max_iterations,
         check=check,
+        paper_options=paper_options,
     )

@@ -82,6 +82,7 @@ def solve(
     residual_tol: float = 1e-10,
     max_iterations: int = 500,
     check: bool = False,
+    paper_options: dict[str, Any] | None = None,
 ) -> Solution: ...
 def residual(
     scene: Scene | dict[str, Any], quaternions: npt.ArrayLike

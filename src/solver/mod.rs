@@ -14,6 +14,7 @@ pub use adaptive::{solve_to_accuracy, Accuracy};
 use crate::blocktri::{symmetric_part_is_positive_definite, BlockLu, BlockTridiagonal};
 use crate::error::{Error, Result};
 use crate::model::RodModel;
+use crate::paper_method::{solve_paper, PaperSettings};
 use crate::quat::Quat;
 use crate::scene::Scene;
 use nalgebra::Vector3;
@@ -26,6 +27,10 @@ pub enum Method {
     Newton,
     /// Levenberg-Marquardt on the same residual, dense normal equations with faer.
     LevenbergMarquardt,
+    /// The seed paper's method: PSO then LM over `[q, F]` with the unit-norm rows.
+    Paper,
+    /// The paper's system as printed, without the unit-norm rows (it collapses).
+    PaperLiteral,
 }
 
 impl std::str::FromStr for Method {
@@ -34,9 +39,11 @@ impl std::str::FromStr for Method {
         match s {
             "newton" => Ok(Method::Newton),
             "lm" => Ok(Method::LevenbergMarquardt),
+            "paper" => Ok(Method::Paper),
+            "paper-literal" => Ok(Method::PaperLiteral),
             other => Err(Error::argument(
                 "method",
-                format!("unknown method '{other}' (expected 'newton' or 'lm')"),
+                format!("unknown method '{other}' (expected 'newton', 'lm', 'paper' or 'paper-literal')"),
             )),
         }
     }
@@ -57,6 +64,8 @@ pub struct Settings {
     pub max_iterations: usize,
     /// Smallest load-continuation step before giving up (default 1e-6).
     pub min_continuation_step: f64,
+    /// Settings of the paper's method (swarm, Gauss-Newton, LM).
+    pub paper: PaperSettings,
 }
 
 impl Default for Settings {
@@ -67,6 +76,7 @@ impl Default for Settings {
             residual_tol: 1e-10,
             max_iterations: 500,
             min_continuation_step: 1e-6,
+            paper: PaperSettings::default(),
         }
     }
 }
@@ -228,6 +238,8 @@ pub struct Solver {
     local: Box<dyn LocalSolver + Send + Sync>,
     /// Why the scene cannot be solved as posed (a held point at full reach).
     full_reach: Option<String>,
+    /// The scene itself, for the paper's method (which builds its own system).
+    scene: Scene,
 }
 
 impl Solver {
@@ -239,7 +251,9 @@ impl Solver {
         let work = Workspace::new(&model);
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
             Method::Newton => Box::new(newton::Newton),
-            Method::LevenbergMarquardt => Box::new(lm::LevenbergMarquardt::new(&model)),
+            Method::LevenbergMarquardt | Method::Paper | Method::PaperLiteral => {
+                Box::new(lm::LevenbergMarquardt::new(&model))
+            }
         };
         Ok(Solver {
             model,
@@ -247,6 +261,7 @@ impl Solver {
             work,
             local,
             full_reach,
+            scene: scene.clone(),
         })
     }
 
@@ -341,6 +356,9 @@ impl Solver {
                 ));
             }
         }
+        if matches!(self.settings.method, Method::Paper | Method::PaperLiteral) {
+            return self.solve_paper();
+        }
         let tol = self.settings.residual_tol;
         let (model, w) = (&self.model, &mut self.work);
         w.kkt
@@ -423,6 +441,65 @@ impl Solver {
             "no convergence: the direct solve and load continuation (stopped after {steps} steps) both failed"
         );
         Ok(self.finish(Ending::Failed(msg), iterations, steps))
+    }
+
+    /// The seed paper's method (see `paper_method`); its answer is reported with
+    /// the model's residual and stability at the renormalised quaternions.
+    fn solve_paper(&mut self) -> Result<Solution> {
+        let literal = self.settings.method == Method::PaperLiteral;
+        if let Some(reason) = &self.full_reach {
+            return Err(Error::argument("tip", reason.clone()));
+        }
+        let out = solve_paper(&self.scene, self.model.n, &self.settings.paper, literal)?;
+        let (model, w) = (&self.model, &mut self.work);
+        for (dst, src) in w.q.iter_mut().zip(&out.quaternions) {
+            *dst = src.normalized();
+        }
+        w.q[0] = model.base;
+        let n = model.n;
+        if let Some(r) = w.kkt.reactions.last_mut() {
+            *r = out.forces[n] - self.scene.tip_force;
+        }
+        evaluate(model, w, 1.0);
+        // The literal system is solved when its rows vanish, but a drifted |q| is
+        // no equilibrium of the rod: never report that as converged.
+        let drifted = out.max_norm_deviation > 1e-8;
+        let converged = out.converged && !drifted;
+        let message = if out.converged && drifted {
+            format!(
+                "not an equilibrium: the literal system's rows vanish (largest {:.1e}) but |q| drifted from 1 by up to {:.3}",
+                out.residual_norm, out.max_norm_deviation
+            )
+        } else {
+            format!(
+                "{}; max | |q| - 1 | = {:.2e}",
+                out.message, out.max_norm_deviation
+            )
+        };
+        let stable = converged && is_stable(model, w);
+        let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
+        Ok(Solution {
+            n_elements: n,
+            quaternions: out.quaternions.clone(),
+            positions: out.positions,
+            forces: out.forces.clone(),
+            tip_reaction_force: tip_held.then(|| out.forces[n] - self.scene.tip_force),
+            tip_reaction_moment: model.clamped_tip.map(|_| w.q[n].rotate(w.kkt.tip_torque)),
+            guide_reactions: Vec::new(),
+            status: if converged {
+                Status::Converged
+            } else {
+                Status::NotConverged
+            },
+            iterations: out.pso_iterations + out.lm_iterations,
+            continuation_steps: 0,
+            residual_norm: out.residual_norm,
+            energy: model.energy(&out.quaternions),
+            stable,
+            message,
+            error_estimate: None,
+            extrapolated_tip: None,
+        })
     }
 
     /// Build the Solution from the workspace (residual and Jacobian at `w.q` are current).

@@ -6,8 +6,6 @@ mod adaptive;
 mod constrained;
 mod lm;
 mod newton;
-pub mod paper;
-pub mod pso;
 
 pub use adaptive::{solve_to_accuracy, Accuracy};
 

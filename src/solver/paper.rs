@@ -1,1 +1,0 @@
-//! The seed paper's method (placeholder; being written).

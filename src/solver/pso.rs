@@ -1,1 +1,0 @@
-//! Particle swarm (placeholder; being written).

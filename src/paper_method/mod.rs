@@ -122,9 +122,8 @@ impl PaperSystem {
     fn unpack(&self, x: &[f64]) -> (Vec<Quat>, Vec<Vector3<f64>>) {
         let n = self.n();
         let mut q = vec![self.model.base; n + 1];
-        for j in 1..=n {
-            let k = 4 * (j - 1);
-            q[j] = Quat::new(x[k], x[k + 1], x[k + 2], x[k + 3]);
+        for (qj, c) in q[1..].iter_mut().zip(x[..4 * n].chunks(4)) {
+            *qj = Quat::new(c[0], c[1], c[2], c[3]);
         }
         let f = (0..=n)
             .map(|j| {

@@ -17,11 +17,13 @@ demo: $(PY)
 	$(PY) -m softspine demo --out softspine-demo.png
 	$(PY) -m softspine track --trajectory circle --load 0.03 --out softspine-track.png
 
-# Every test: lint, pytest (Python API, references, bad input) and cargo test.
+# Every test: lint (ruff, rustfmt, clippy), pytest (Python API, references, bad
+# input, hard cases, properties) and cargo test.
 test: $(PY)
 	$(PY) -m pip install -q ".[test]"
 	$(PY) -m ruff check python tests
 	cargo fmt --all -- --check
+	cargo clippy --all-targets --features python -- -D warnings
 	$(PY) -m pytest -q
 	cargo test
 

@@ -466,12 +466,6 @@ impl RodModel {
         }
         total
     }
-
-    /// Whether the loads derive from a potential (a dead tip moment does not in
-    /// 3D): then `Pi` is a merit function for the line search.
-    pub fn is_conservative(&self) -> bool {
-        self.tip_moment.norm() == 0.0
-    }
 }
 
 /// Spherical interpolation from `a` (t = 0) to `b` (t = 1) along the short arc

@@ -2,9 +2,7 @@
 //!
 //! The step solves `J d = -g` by the O(n) block-tridiagonal factorisation. `J` is
 //! the exact Jacobian of `g`, so `d` is a descent direction of `|g|^2` and the
-//! Armijo backtracking always terminates near a regular solution. When the loads
-//! have a potential and `d` descends it, a sufficient decrease of the energy is
-//! accepted too.
+//! Armijo backtracking always terminates near a regular solution.
 
 use super::{step_limit, sum_squares, LocalOutcome, LocalSolver, Workspace};
 use crate::model::RodModel;
@@ -63,22 +61,12 @@ impl LocalSolver for Newton {
                 *s = -g;
             }
             w.lu.solve_in_place(&mut w.step);
-            // With a potential, a Newton step that descends it may be accepted on
-            // the energy as well: stiff modes (torsion 1000 times bending) make the
-            // residual norm a poor guide far from the solution.
-            let slope: f64 = w.g.iter().zip(&w.step).map(|(g, d)| g.dot(d)).sum();
-            let energy =
-                (model.is_conservative() && slope < 0.0).then(|| model.energy_at(&w.q, lambda));
             let mut alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
             loop {
                 retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
                 model.residual(&w.trial, lambda, &mut w.g_trial);
                 let trial_merit = sum_squares(&w.g_trial);
-                let residual_decrease = trial_merit <= (1.0 - 1e-4 * alpha) * merit;
-                let energy_decrease = energy.is_some_and(|e0| {
-                    model.energy_at(&w.trial, lambda) <= e0 + 1e-4 * alpha * slope
-                });
-                if trial_merit.is_finite() && (residual_decrease || energy_decrease) {
+                if trial_merit.is_finite() && trial_merit <= (1.0 - 1e-4 * alpha) * merit {
                     merit = trial_merit;
                     break;
                 }

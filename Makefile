@@ -27,6 +27,8 @@ test: $(PY)
 	$(PY) -m pytest -q
 	cargo test
 
-# Criterion benchmarks (medians in the README).
+# Criterion benchmarks (medians in the README): forward statics, IK, the paper.
 bench:
 	cargo bench --bench forward
+	cargo bench --bench robot
+	cargo bench --bench paper

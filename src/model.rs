@@ -204,6 +204,19 @@ impl RodModel {
             && self.clamped_tip.is_none_or(|q| q == self.base)
     }
 
+    /// The largest ratio of the distance between consecutive held points (the
+    /// base first) to the rod between them: 1 is full reach.
+    pub fn tightest_reach(&self) -> f64 {
+        let mut from = (0usize, Vector3::zeros());
+        let mut ratio: f64 = 0.0;
+        for c in &self.constraints {
+            let arc = (c.node - from.0) as f64 * self.ds;
+            ratio = ratio.max((c.target - from.1).norm() / arc);
+            from = (c.node, c.target);
+        }
+        ratio
+    }
+
     /// Whether the scene has unknown reactions (held nodes or a clamped tip).
     pub fn is_constrained(&self) -> bool {
         !self.constraints.is_empty() || self.clamped_tip.is_some()

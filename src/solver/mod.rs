@@ -435,9 +435,16 @@ impl Solver {
             evaluate(model, w, 1.0);
             return Ok(self.finish(Ending::DirectUnstable, iterations, steps));
         }
-        let msg = format!(
+        let mut msg = format!(
             "no convergence: the direct solve and load continuation (stopped after {steps} steps) both failed"
         );
+        let reach = model.tightest_reach();
+        if reach > 0.98 {
+            msg.push_str(&format!(
+                "; a held point is at {:.1} % of its reach, which only a very strained rod attains",
+                100.0 * reach
+            ));
+        }
         Ok(self.finish(Ending::Failed(msg), iterations, steps))
     }
 

@@ -52,6 +52,18 @@ def arc_chain_tip(rest_curvature, length, base_rotation=None):
     return r, R
 
 
+def quat_mul(a, b):
+    """Hamilton product of scalar-first quaternions."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    ])
+
+
 def quat_to_matrix(q):
     w, x, y, z = q
     return np.array(

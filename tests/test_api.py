@@ -12,6 +12,8 @@ import softspine
 from softspine import Scene, SolverError
 from softspine.scenes import cantilever, demo_robot_scene
 
+from closed_forms import quat_mul
+
 SCENE_3D = {
     "name": "3D test scene",
     "length": 0.9,
@@ -26,17 +28,6 @@ SCENE_3D = {
 }
 
 
-def quat_mul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
 
 
 def exp_half(theta):

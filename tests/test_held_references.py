@@ -9,7 +9,7 @@ import pytest
 import softspine
 from softspine import shooting, shooting_held
 
-from closed_forms import observed_orders
+from closed_forms import observed_orders, quat_mul
 
 ROD = {
     "length": 0.9,
@@ -20,15 +20,6 @@ ROD = {
 }
 
 
-def quat_mul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ])
 
 
 def held_scenes():

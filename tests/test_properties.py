@@ -10,6 +10,8 @@ from hypothesis import strategies as st
 
 import softspine
 
+from closed_forms import quat_mul
+
 finite = st.floats(allow_nan=False, allow_infinity=False)
 
 
@@ -18,15 +20,6 @@ def unit(v):
     return v / np.linalg.norm(v)
 
 
-def quat_mul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ])
 
 
 def rotation(q):

@@ -20,24 +20,14 @@ import numpy as np
 from scipy.optimize import root
 
 from . import shooting
+from .reference import _conj, _qmul
 from .shooting import _MAX_FRAME_TURN, _SHAPE_SAMPLES, _integrate, _parse
 
 __all__ = ["solve"]
 
 
-def _qmul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ])
 
 
-def _conj(q):
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def _slerp(a, b, t):

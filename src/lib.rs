@@ -17,6 +17,15 @@
 //! assert!(sol.converged() && sol.stable);
 //! // Bisshopp-Drucker: tip deflection 0.6033 L.
 //! assert!((sol.tip_position().x - 0.60325344).abs() < 1e-3);
+//!
+//! // A control loop: one solver (its workspace is allocated once), warm starts.
+//! let mut solver = softspine::Solver::new(&scene, Settings { n_elements: 40, ..Settings::default() }).unwrap();
+//! let mut previous = solver.solve(None).unwrap();
+//! for k in 0..10 {
+//!     solver.set_rest_curvature(&[[0.1 * k as f64, 0.0]]).unwrap(); // new actuation
+//!     previous = solver.solve(Some(&previous.quaternions)).unwrap();
+//!     assert!(previous.converged());
+//! }
 //! ```
 
 pub mod blocktri;
@@ -37,5 +46,7 @@ pub use model::RodModel;
 pub use quat::Quat;
 pub use robot::{IkOptions, IkResult, InverseSolver, Robot, Strategy};
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
-pub use solver::{solve, Method, Settings, Solution, Solver, Status, TipSensitivity};
+pub use solver::{
+    solve, solve_to_accuracy, Accuracy, Method, Settings, Solution, Solver, Status, TipSensitivity,
+};
 pub use value::Value;

@@ -352,15 +352,7 @@ impl Scene {
                     format!("must lie in (0, L] = (0, {}], got {}", self.length, p.s),
                 ));
             }
-            if !on_node(p.s, ds) {
-                return Err(Error::scene(
-                    key,
-                    format!(
-                        "must fall on a node: s = {} is not a multiple of L/n = {ds}",
-                        p.s
-                    ),
-                ));
-            }
+            check_on_node(&key, p.s, ds)?;
         }
         Ok(())
     }
@@ -396,15 +388,7 @@ impl Scene {
                     ),
                 ));
             }
-            if !on_node(g.s, ds) {
-                return Err(Error::scene(
-                    key,
-                    format!(
-                        "must fall on a node: s = {} is not a multiple of L/n = {ds}",
-                        g.s
-                    ),
-                ));
-            }
+            check_on_node(&key, g.s, ds)?;
             if let Some((_, prev, _)) = held.last() {
                 if g.s <= *prev {
                     return Err(Error::scene(key, "guides must be given by increasing s"));
@@ -664,10 +648,17 @@ fn tip(v: &Value) -> Result<TipCondition> {
     }
 }
 
-/// Whether arc length `s` falls on a node of spacing `ds` (up to round-off).
-fn on_node(s: f64, ds: f64) -> bool {
+/// Refuse an arc length `s` that does not fall on a node of spacing `ds`
+/// (up to round-off): loads and guides act at nodes.
+fn check_on_node(key: &str, s: f64, ds: f64) -> Result<()> {
     let node = s / ds;
-    (node - node.round()).abs() <= 1e-9 * node.max(1.0)
+    if (node - node.round()).abs() <= 1e-9 * node.max(1.0) {
+        return Ok(());
+    }
+    Err(Error::scene(
+        key,
+        format!("must fall on a node: s = {s} is not a multiple of L/n = {ds}"),
+    ))
 }
 
 /// A list of `{s, <vector key>}` tables: guides and point loads.

@@ -25,6 +25,16 @@ impl BlockTridiagonal {
         }
     }
 
+    /// [`BlockTridiagonal::zeros`] for a large n: fallible and interruptible.
+    pub fn try_zeros(n: usize) -> crate::Result<Self> {
+        let zeros = |len| crate::interrupt::filled(len, Matrix3::zeros(), "Jacobian");
+        Ok(BlockTridiagonal {
+            diag: zeros(n)?,
+            upper: zeros(n.saturating_sub(1))?,
+            lower: zeros(n.saturating_sub(1))?,
+        })
+    }
+
     pub fn n(&self) -> usize {
         self.diag.len()
     }
@@ -107,12 +117,27 @@ impl BlockLu {
         }
     }
 
+    /// [`BlockLu::new`] for a large n: fallible and interruptible.
+    pub fn try_new(n: usize) -> crate::Result<Self> {
+        let zeros = |len| crate::interrupt::filled(len, Matrix3::zeros(), "factorisation");
+        Ok(BlockLu {
+            inv_pivot: zeros(n)?,
+            coupling: zeros(n.saturating_sub(1))?,
+            lower: zeros(n.saturating_sub(1))?,
+        })
+    }
+
     /// Factor `A + shift I`.
     pub fn factor(&mut self, a: &BlockTridiagonal, shift: f64) -> Result<(), SingularPivot> {
         let n = a.n();
         let scale = a.max_diagonal().max(shift.abs()).max(f64::MIN_POSITIVE);
         let mut pivot = a.diag[0] + Matrix3::identity() * shift;
         for j in 0..n {
+            // A huge n takes long here: an interrupt fails the factorisation,
+            // and the solver's loops stop on the same flag.
+            if j % crate::model::INTERRUPT_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
+                return Err(SingularPivot(j));
+            }
             if j > 0 {
                 pivot =
                     a.diag[j] + Matrix3::identity() * shift - a.lower[j - 1] * self.coupling[j - 1];
@@ -142,15 +167,25 @@ impl BlockLu {
     }
 }
 
-/// Inverse of a 3x3 block, refused when its determinant is negligible against
-/// `scale^3` (the factorisation would amplify round-off without bound).
+/// Inverse of a 3x3 block, refused when the block is numerically singular: its
+/// smallest singular value (bounded below by `1 / |inv|_F`) is negligible
+/// against `scale`, the largest diagonal entry of the matrix. The pivots of a
+/// rod chain legitimately fall to `scale / n` toward a free tip (the discrete
+/// Laplacian), so the test is on one singular value, not on the determinant,
+/// which is the product of three such small values at large n.
 fn invert_checked(m: &Matrix3<f64>, scale: f64) -> Option<Matrix3<f64>> {
-    let det = m.determinant();
-    if !det.is_finite() || det.abs() <= 1e-13 * scale * scale * scale {
+    let inv = m.try_inverse()?;
+    let norm = inv.norm();
+    if !norm.is_finite() || norm * scale >= SINGULAR_PIVOT {
         return None;
     }
-    m.try_inverse()
+    Some(inv)
 }
+
+/// A pivot block whose inverse exceeds `SINGULAR_PIVOT / scale` is singular.
+/// Round-off in a Schur-complement pivot is about `1e-16 scale`; 1e-12 leaves
+/// four digits above it and admits the `scale / n` pivots of n up to 1e11.
+const SINGULAR_PIVOT: f64 = 1e12;
 
 /// Whether the symmetric part of `a` is positive definite, by block Cholesky
 /// (Sylvester's law of inertia: it is iff every Schur-complement pivot is).
@@ -161,6 +196,10 @@ pub fn symmetric_part_is_positive_definite(a: &BlockTridiagonal) -> bool {
     let mut prev_off = Matrix3::zeros();
     let scale = a.max_diagonal().max(f64::MIN_POSITIVE);
     for j in 0..n {
+        // Interrupted: no verdict, and the caller's loops stop on the flag.
+        if j % crate::model::INTERRUPT_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
+            return false;
+        }
         let mut pivot = sym(a.diag[j]);
         if j > 0 {
             pivot -= prev_off.transpose() * prev_inv * prev_off;

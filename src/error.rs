@@ -16,13 +16,20 @@ pub enum Error {
     /// A scene file could not be read or parsed.
     #[error("{0}")]
     Parse(String),
-    /// The solver stopped without reaching the tolerance.
-    #[error("solve did not converge after {iterations} iterations (relative residual {residual:.3e}): {reason}")]
+    /// The solver stopped without an answer (see the status for how).
+    #[error("solve did not converge ({}) after {iterations} iterations (relative residual {residual:.3e}): {reason}", status.name())]
     NotConverged {
+        status: crate::solver::Status,
         iterations: usize,
         residual: f64,
         reason: String,
     },
+    /// The caller's interrupt check asked to stop (Ctrl-C in Python).
+    #[error("interrupted")]
+    Interrupted,
+    /// A buffer of the requested size could not be allocated.
+    #[error("{what}: out of memory allocating {bytes} bytes")]
+    OutOfMemory { what: String, bytes: usize },
 }
 
 impl Error {

@@ -30,6 +30,7 @@
 
 pub mod blocktri;
 pub mod error;
+pub mod interrupt;
 pub mod model;
 pub mod paper_method;
 pub mod quat;

@@ -6,13 +6,18 @@ use crate::blocktri::BlockTridiagonal;
 use crate::paper_method::PaperSettings;
 use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot, Strategy};
 use crate::solver::{solve_to_accuracy, Accuracy};
-use crate::{Error, Method, Quat, RodModel, Scene, Settings, Solution, Solver, Value};
+use crate::value::MAX_DEPTH;
+use crate::{interrupt, Error, Method, Quat, RodModel, Scene, Settings, Solution, Solver, Value};
 use nalgebra::Vector3;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
-use pyo3::exceptions::{PyException, PyValueError};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::{
+    PyException, PyKeyboardInterrupt, PyMemoryError, PyRuntimeError, PyValueError,
+};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple, PyType};
+use std::sync::{Arc, Mutex};
 
 pyo3::create_exception!(
     _core,
@@ -25,57 +30,297 @@ impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
         match e {
             Error::NotConverged { .. } => SolverError::new_err(e.to_string()),
+            Error::Interrupted => PyKeyboardInterrupt::new_err(e.to_string()),
+            Error::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
             _ => PyValueError::new_err(e.to_string()),
         }
     }
 }
 
-/// Python object -> value tree (dicts, lists, tuples, NumPy arrays and scalars).
-fn to_value(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<Value> {
+/// Run `f` without the GIL while Python's signal handlers are polled (see
+/// `crate::interrupt`), so that Ctrl-C stops a long solve within about 20 ms;
+/// the handler's own exception (KeyboardInterrupt) is raised.
+fn detach_interruptible<T: Send>(
+    py: Python<'_>,
+    f: impl FnOnce() -> crate::Result<T> + Send,
+) -> PyResult<T> {
+    let pending: Arc<Mutex<Option<PyErr>>> = Arc::default();
+    let slot = Arc::clone(&pending);
+    let poll = move || {
+        Python::attach(|py| match py.check_signals() {
+            Ok(()) => false,
+            Err(e) => {
+                if let Ok(mut slot) = slot.lock() {
+                    *slot = Some(e);
+                }
+                true
+            }
+        })
+    };
+    match py.detach(move || interrupt::with_check(poll, f)) {
+        Err(Error::Interrupted) => Err(pending
+            .lock()
+            .ok()
+            .and_then(|mut p| p.take())
+            .unwrap_or_else(|| PyKeyboardInterrupt::new_err("interrupted"))),
+        other => other.map_err(PyErr::from),
+    }
+}
+
+/// Where a value sits in the caller's input, for refusals: a chain of steps on
+/// the stack, rendered only for an error. Inside a dict (a scene, a robot) the
+/// key path names the field as the validators do (`tip.position[1]`); inside an
+/// argument the argument's name comes first, so that every refusal starts with
+/// it (`target: at [1]: ...`).
+struct Path<'a> {
+    step: Step<'a>,
+    parent: Option<&'a Path<'a>>,
+    /// Lists, dicts and arrays entered so far.
+    depth: usize,
+}
+
+#[derive(Clone, Copy)]
+enum Step<'a> {
+    Input(&'a str),
+    Argument(&'a str),
+    Key(&'a str),
+    Index(usize),
+    /// An array's `tolist()`: one level deeper at the same place.
+    Same,
+}
+
+impl<'a> Path<'a> {
+    fn input(name: &'a str) -> Self {
+        Path {
+            step: Step::Input(name),
+            parent: None,
+            depth: 0,
+        }
+    }
+
+    fn argument(name: &'a str) -> Self {
+        Path {
+            step: Step::Argument(name),
+            parent: None,
+            depth: 0,
+        }
+    }
+
+    fn child(&'a self, step: Step<'a>) -> Path<'a> {
+        Path {
+            step,
+            parent: Some(self),
+            depth: self.depth + 1,
+        }
+    }
+
+    fn key(&'a self, key: &'a str) -> Path<'a> {
+        self.child(Step::Key(key))
+    }
+
+    fn index(&'a self, i: usize) -> Path<'a> {
+        self.child(Step::Index(i))
+    }
+
+    fn error(&self, reason: impl std::fmt::Display) -> PyErr {
+        let mut steps = Vec::new();
+        let mut node = Some(self);
+        while let Some(p) = node {
+            steps.push(p.step);
+            node = p.parent;
+        }
+        let (mut name, mut argument, mut at) = ("", false, String::new());
+        for step in steps.into_iter().rev() {
+            match step {
+                Step::Input(n) => name = n,
+                Step::Argument(n) => (name, argument) = (n, true),
+                Step::Key(k) if at.is_empty() => at.push_str(k),
+                Step::Key(k) => at.push_str(&format!(".{k}")),
+                Step::Index(i) => at.push_str(&format!("[{i}]")),
+                Step::Same => {}
+            }
+        }
+        PyValueError::new_err(match (at.is_empty(), argument) {
+            (true, _) => format!("{name}: {reason}"),
+            (false, false) => format!("{at}: {reason}"),
+            (false, true) => format!("{name}: at {at}: {reason}"),
+        })
+    }
+}
+
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map_or_else(|_| "?".to_owned(), |n| n.to_string())
+}
+
+fn unsupported(obj: &Bound<'_, PyAny>, path: &Path) -> PyErr {
+    path.error(format!("unsupported value of type {}", type_name(obj)))
+}
+
+/// NumPy's scalar types, looked up once.
+struct NumpyTypes {
+    generic: Py<PyType>,
+    bool_: Py<PyType>,
+    integer: Py<PyType>,
+    floating: Py<PyType>,
+}
+
+fn numpy_types(py: Python<'_>) -> PyResult<&'static NumpyTypes> {
+    static TYPES: PyOnceLock<NumpyTypes> = PyOnceLock::new();
+    TYPES.get_or_try_init(py, || {
+        let np = py.import("numpy")?;
+        let ty = |name: &str| -> PyResult<Py<PyType>> {
+            Ok(np.getattr(name)?.cast_into::<PyType>()?.unbind())
+        };
+        Ok(NumpyTypes {
+            generic: ty("generic")?,
+            bool_: ty("bool_")?,
+            integer: ty("integer")?,
+            floating: ty("floating")?,
+        })
+    })
+}
+
+/// A Python int as a number; one beyond the double range is refused by path.
+fn int_number(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
+    obj.extract::<f64>()
+        .map(Value::Number)
+        .map_err(|_| path.error("integer too large for a double"))
+}
+
+/// A scalar (None, bool, str, int, float or a NumPy scalar) as a value, or None
+/// if `obj` is not one. NumPy scalars are converted explicitly: `tolist()` of a
+/// `longdouble` returns the `longdouble` itself.
+fn scalar(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Option<Value>> {
     if obj.is_none() {
-        return Ok(Value::Null);
+        return Ok(Some(Value::Null));
     }
-    if obj.is_instance_of::<PyBool>() {
-        return Ok(Value::Bool(obj.extract()?));
+    if let Ok(b) = obj.cast::<PyBool>() {
+        return Ok(Some(Value::Bool(b.is_true())));
     }
-    if obj.is_instance_of::<PyString>() {
-        return Ok(Value::String(obj.extract()?));
+    if let Ok(s) = obj.cast::<PyString>() {
+        let text = s.to_cow().map_err(|_| path.error("not valid text"))?;
+        return Ok(Some(Value::String(text.into_owned())));
+    }
+    if obj.is_instance_of::<PyInt>() {
+        return int_number(obj, path).map(Some);
+    }
+    if obj.is_instance_of::<PyFloat>() {
+        return Ok(Some(Value::Number(obj.extract()?)));
+    }
+    let py = obj.py();
+    let np = numpy_types(py)?;
+    if !obj.is_instance(np.generic.bind(py))? {
+        return Ok(None);
+    }
+    if obj.is_instance(np.bool_.bind(py))? {
+        return Ok(Some(Value::Bool(obj.is_truthy()?)));
+    }
+    if obj.is_instance(np.integer.bind(py))? {
+        return int_number(&obj.call_method0("__index__")?, path).map(Some);
+    }
+    if obj.is_instance(np.floating.bind(py))? {
+        let x: f64 = obj.extract()?;
+        // A longdouble beyond the double range becomes inf: refuse it rather
+        // than pass on an infinity the input did not hold.
+        if x.is_infinite() && !obj.eq(x)? {
+            return Err(path.error(format!("{} is out of the range of a double", obj.str()?)));
+        }
+        return Ok(Some(Value::Number(x)));
+    }
+    Err(unsupported(obj, path))
+}
+
+/// Python object -> value tree: dicts, lists, tuples, scalars (NumPy's too) and
+/// arrays (anything with `tolist()`, called once per level). At most
+/// `MAX_DEPTH` levels deep, so that a deep or self-containing input is refused
+/// instead of overflowing the stack.
+fn to_value(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
+    if let Some(v) = scalar(obj, path)? {
+        return Ok(v);
+    }
+    if path.depth >= MAX_DEPTH {
+        return Err(path.error(format!("nested deeper than {MAX_DEPTH} levels")));
     }
     if let Ok(d) = obj.cast::<PyDict>() {
-        let mut entries = Vec::with_capacity(d.len());
-        for (k, v) in d.iter() {
-            let key: String = k
-                .extract()
-                .map_err(|_| PyValueError::new_err(format!("{path}: keys must be strings")))?;
-            let child = if path.is_empty() {
-                key.clone()
-            } else {
-                format!("{path}.{key}")
+        // Items first: converting runs Python code that could change the dict.
+        let items: Vec<_> = d.iter().collect();
+        let mut entries = Vec::with_capacity(items.len());
+        for (k, v) in items {
+            let key = match k.cast::<PyString>() {
+                Ok(s) => s
+                    .to_cow()
+                    .map_err(|_| path.error("keys must be valid text"))?,
+                Err(_) => {
+                    return Err(path.error(format!("keys must be strings, got {}", type_name(&k))))
+                }
             };
-            entries.push((key, to_value(&v, &child)?));
+            let value = to_value(&v, &path.key(&key))?;
+            entries.push((key.into_owned(), value));
         }
         return Ok(Value::Map(entries));
     }
-    if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
-        let items: Vec<Bound<'_, PyAny>> = obj.try_iter()?.collect::<PyResult<_>>()?;
-        return items
+    if let Ok(l) = obj.cast::<PyList>() {
+        return l
             .iter()
-            .map(|x| to_value(x, path))
+            .enumerate()
+            .map(|(i, x)| to_value(&x, &path.index(i)))
             .collect::<PyResult<_>>()
             .map(Value::List);
     }
-    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
-        return Ok(Value::Number(obj.extract()?));
+    if let Ok(t) = obj.cast::<PyTuple>() {
+        return t
+            .iter()
+            .enumerate()
+            .map(|(i, x)| to_value(&x, &path.index(i)))
+            .collect::<PyResult<_>>()
+            .map(Value::List);
     }
     if obj.hasattr("tolist")? {
-        // NumPy arrays and scalars.
-        return to_value(&obj.call_method0("tolist")?, path);
+        let list = obj.call_method0("tolist")?;
+        return to_value(&list, &path.child(Step::Same));
     }
-    let shown = if path.is_empty() { "scene" } else { path };
-    Err(PyValueError::new_err(format!(
-        "{shown}: unsupported value of type {}",
-        obj.get_type().name()?
-    )))
+    Err(unsupported(obj, path))
+}
+
+/// A string argument, refused by name (pyo3's own refusal does not name it).
+fn str_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<String> {
+    let path = Path::argument(name);
+    match obj.cast::<PyString>() {
+        Ok(s) => Ok(s
+            .to_cow()
+            .map_err(|_| path.error("not valid text"))?
+            .into_owned()),
+        Err(_) => Err(path.error(format!("expected a string, got {}", type_name(obj)))),
+    }
+}
+
+/// A count argument: an int or NumPy integer (not a bool or a float) that fits
+/// `usize`, refused by name.
+fn int_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let path = Path::argument(name);
+    let py = obj.py();
+    let integer = !obj.is_instance_of::<PyBool>()
+        && (obj.is_instance_of::<PyInt>() || obj.is_instance(numpy_types(py)?.integer.bind(py))?);
+    if !integer {
+        return Err(path.error(format!("expected an integer, got {}", type_name(obj))));
+    }
+    match obj.extract::<usize>() {
+        Ok(n) => Ok(n),
+        Err(_) if obj.lt(0)? => Err(path.error(format!("must not be negative, got {obj}"))),
+        Err(_) => Err(path.error(format!("too large (at most {})", usize::MAX))),
+    }
+}
+
+/// A finite real argument (int, float, NumPy scalar or 0-d array), refused by name.
+fn float_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let path = Path::argument(name);
+    match to_value(obj, &path)? {
+        Value::Number(x) if x.is_finite() => Ok(x),
+        Value::Number(x) => Err(path.error(format!("must be finite, got {x}"))),
+        _ => Err(path.error(format!("expected a number, got {}", type_name(obj)))),
+    }
 }
 
 fn from_value<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
@@ -130,7 +375,7 @@ impl PyScene {
             )));
         }
         Ok(PyScene {
-            inner: Scene::from_value(&to_value(data, "")?)?,
+            inner: Scene::from_value(&to_value(data, &Path::input("scene"))?)?,
         })
     }
 
@@ -267,14 +512,11 @@ impl PySolution {
     fn converged(&self) -> bool {
         self.inner.converged()
     }
-    /// "converged" or "not_converged".
+    /// How the solve ended: "converged", "not_converged", "tolerance_not_met",
+    /// "underresolved", "numerical_error" or "indeterminate".
     #[getter]
     fn status(&self) -> &'static str {
-        if self.inner.converged() {
-            "converged"
-        } else {
-            "not_converged"
-        }
+        self.inner.status.name()
     }
     #[getter]
     fn iterations(&self) -> usize {
@@ -334,59 +576,74 @@ fn scene_arg(scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
     Ok(PyScene::new(scene)?.inner)
 }
 
+/// Node quaternions: a Solution's, or an array of shape (n+1, 4).
 fn quaternions_arg(name: &str, q: &Bound<'_, PyAny>) -> PyResult<Vec<Quat>> {
     if let Ok(s) = q.cast::<PySolution>() {
         return Ok(s.get().inner.quaternions.clone());
     }
-    let arr: PyReadonlyArray2<f64> = q.extract().map_err(|_| {
-        PyValueError::new_err(format!(
-            "{name}: expected a Solution or a float array of shape (n+1, 4)"
-        ))
-    })?;
-    let a = arr.as_array();
-    if a.ncols() != 4 {
-        return Err(PyValueError::new_err(format!(
-            "{name}: expected shape (n+1, 4), got {:?}",
-            a.shape()
-        )));
-    }
-    Ok(a.rows()
+    Ok(rows_arg::<4>(name, q)?
         .into_iter()
-        .map(|r| Quat::new(r[0], r[1], r[2], r[3]))
+        .map(Quat::from_array)
         .collect())
+}
+
+/// An optional argument that was given (Python's None means "the default").
+fn given<'py>(x: Option<&Bound<'py, PyAny>>) -> Option<Bound<'py, PyAny>> {
+    x.filter(|o| !o.is_none()).cloned()
 }
 
 /// Solve the statics of a scene. See ``softspine.solve`` for the documentation.
 #[pyfunction]
-#[pyo3(signature = (scene, n_elements=None, method="newton", initial=None, tol=None, refine=None, residual_tol=1e-10, max_iterations=500, check=false, paper_options=None))]
+#[pyo3(signature = (scene, n_elements=None, method=None, initial=None, tol=None, refine=None, residual_tol=None, max_iterations=None, check=false, paper_options=None))]
 #[allow(clippy::too_many_arguments)]
 fn solve(
     py: Python<'_>,
     scene: &Bound<'_, PyAny>,
-    n_elements: Option<i64>,
-    method: &str,
+    n_elements: Option<&Bound<'_, PyAny>>,
+    method: Option<&Bound<'_, PyAny>>,
     initial: Option<&Bound<'_, PyAny>>,
-    tol: Option<f64>,
-    refine: Option<&str>,
-    residual_tol: f64,
-    max_iterations: i64,
+    tol: Option<&Bound<'_, PyAny>>,
+    refine: Option<&Bound<'_, PyAny>>,
+    residual_tol: Option<&Bound<'_, PyAny>>,
+    max_iterations: Option<&Bound<'_, PyAny>>,
     check: bool,
-    paper_options: Option<&Bound<'_, PyDict>>,
+    paper_options: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PySolution> {
     let scene = scene_arg(scene)?;
-    if let Some(n) = n_elements {
-        if n <= 0 {
-            return Err(PyValueError::new_err(format!(
-                "n_elements: must be positive, got {n}"
-            )));
-        }
+    let n_elements = given(n_elements)
+        .map(|o| int_arg("n_elements", &o))
+        .transpose()?;
+    let tol = given(tol).map(|o| float_arg("tol", &o)).transpose()?;
+    let refine = given(refine).map(|o| str_arg("refine", &o)).transpose()?;
+    let defaults = Settings::default();
+    let method = match given(method) {
+        None => defaults.method,
+        Some(o) => str_arg("method", &o)?.parse::<Method>()?,
+    };
+    let residual_tol = given(residual_tol)
+        .map(|o| float_arg("residual_tol", &o))
+        .transpose()?
+        .unwrap_or(defaults.residual_tol);
+    let max_iterations = given(max_iterations)
+        .map(|o| int_arg("max_iterations", &o))
+        .transpose()?
+        .unwrap_or(defaults.max_iterations);
+    let paper_options = match given(paper_options) {
+        None => None,
+        Some(o) => Some(o.cast_into::<PyDict>().map_err(|e| {
+            PyValueError::new_err(format!(
+                "paper_options: expected a dict, got {}",
+                e.into_inner()
+                    .get_type()
+                    .name()
+                    .map_or("?".into(), |n| n.to_string())
+            ))
+        })?),
+    };
+    if n_elements == Some(0) {
+        return Err(PyValueError::new_err("n_elements: must be positive, got 0"));
     }
-    if max_iterations <= 0 {
-        return Err(PyValueError::new_err(format!(
-            "max_iterations: must be positive, got {max_iterations}"
-        )));
-    }
-    let richardson = match refine {
+    let richardson = match refine.as_deref() {
         None => false,
         Some("richardson") if tol.is_some() => true,
         Some("richardson") => {
@@ -407,18 +664,20 @@ fn solve(
         20
     };
     let settings = Settings {
-        n_elements: n_elements.map_or(default_n, |n| n as usize),
-        method: method.parse::<Method>()?,
+        n_elements: n_elements.unwrap_or(default_n),
+        method,
         residual_tol,
-        max_iterations: max_iterations as usize,
-        paper: paper_settings(paper_options)?,
-        ..Settings::default()
+        max_iterations,
+        paper: paper_settings(paper_options.as_ref())?,
+        ..defaults
     };
     let solution = match tol {
         None => {
             let initial = initial.map(|q| quaternions_arg("initial", q)).transpose()?;
-            let mut solver = Solver::new(&scene, settings)?;
-            py.detach(move || solver.solve(initial.as_deref()))?
+            // Building the solver allocates O(n): without the GIL too.
+            detach_interruptible(py, || {
+                Solver::new(&scene, settings)?.solve(initial.as_deref())
+            })?
         }
         Some(tol) => {
             if initial.is_some() {
@@ -430,7 +689,7 @@ fn solve(
                 richardson,
                 ..Accuracy::new(tol)
             };
-            py.detach(|| solve_to_accuracy(&scene, settings, &accuracy))?
+            detach_interruptible(py, || solve_to_accuracy(&scene, settings, &accuracy))?
         }
     };
     let solution = if check { solution.check()? } else { solution };
@@ -444,20 +703,17 @@ fn paper_settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<PaperSettings
         return Ok(p);
     };
     for (key, value) in options.iter() {
-        let key: String = key.extract()?;
-        let bad = |what: &str| PyValueError::new_err(format!("paper_options.{key}: {what}"));
-        let count = || -> PyResult<usize> {
-            let v: i64 = value.extract().map_err(|_| bad("expected an integer"))?;
-            usize::try_from(v).map_err(|_| bad("must not be negative"))
-        };
-        let real = || -> PyResult<f64> {
-            let v: f64 = value.extract().map_err(|_| bad("expected a number"))?;
-            if v.is_finite() {
-                Ok(v)
-            } else {
-                Err(bad("must be finite"))
+        let key = match key.cast::<PyString>() {
+            Ok(k) => k.to_cow()?.into_owned(),
+            Err(_) => {
+                return Err(Path::argument("paper_options")
+                    .error(format!("keys must be strings, got {}", type_name(&key))))
             }
         };
+        let name = format!("paper_options.{key}");
+        let bad = |what: &str| PyValueError::new_err(format!("{name}: {what}"));
+        let count = || int_arg(&name, &value);
+        let real = || float_arg(&name, &value);
         match key.as_str() {
             "particles" => p.swarm.particles = count()?.max(1),
             "iterations" => p.swarm.iterations = count()?,
@@ -481,11 +737,18 @@ fn model_and_state(
 ) -> PyResult<(RodModel, Vec<Quat>)> {
     let scene = scene_arg(scene)?;
     let q = quaternions_arg("quaternions", quaternions)?;
-    if q.len() < 2 {
-        return Err(PyValueError::new_err("quaternions: need at least 2 nodes"));
-    }
-    scene.check_elements(q.len() - 1)?;
-    Ok((RodModel::new(&scene, q.len() - 1), q))
+    let n = q.len().saturating_sub(1);
+    // The array's length sets n: a bad n is the array's shape, not an n_elements argument.
+    scene.check_elements(n).map_err(|e| match e {
+        Error::InvalidArgument { .. } => PyValueError::new_err(format!(
+            "quaternions: expected shape (n+1, 4) with n a positive multiple of the number of \
+             sections ({}), got ({}, 4)",
+            scene.sections(),
+            q.len()
+        )),
+        other => other.into(),
+    })?;
+    Ok((RodModel::new(&scene, n), q))
 }
 
 /// The discrete residual, shape (n, 3): body-frame torque imbalance of nodes 1..n
@@ -526,48 +789,102 @@ fn rows_n<'py, const N: usize>(py: Python<'py>, rows: &[[f64; N]]) -> Bound<'py,
     Array2::from_shape_fn((rows.len(), N), |(i, c)| rows[i][c]).into_pyarray(py)
 }
 
+/// An (m, N) float argument. A float64 array of that shape is read as it is;
+/// anything else (lists, other dtypes such as longdouble or object, junk) goes
+/// through `to_value`, converted or refused by the rules of a scene's values.
 fn rows_arg<const N: usize>(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; N]>> {
-    let bad = || PyValueError::new_err(format!("{name}: expected a float array of shape (m, {N})"));
-    let converted = obj
-        .py()
-        .import("numpy")?
-        .call_method1("asarray", (obj, "float64"))
-        .map_err(|_| bad())?;
-    let arr: PyReadonlyArray2<f64> = converted.extract().map_err(|_| bad())?;
-    let a = arr.as_array();
-    if a.ncols() != N {
-        return Err(PyValueError::new_err(format!(
-            "{name}: expected shape (m, {N}), got {:?}",
-            a.shape()
-        )));
-    }
-    let rows: Vec<[f64; N]> = a
-        .rows()
-        .into_iter()
-        .map(|r| std::array::from_fn(|c| r[c]))
-        .collect();
-    if rows.iter().flatten().any(|x| !x.is_finite()) {
-        return Err(PyValueError::new_err(format!("{name}: must be finite")));
+    let path = Path::argument(name);
+    let rows: Vec<[f64; N]> = match obj.extract::<PyReadonlyArray2<f64>>() {
+        Ok(a) if a.as_array().ncols() == N => a
+            .as_array()
+            .rows()
+            .into_iter()
+            .map(|r| std::array::from_fn(|c| r[c]))
+            .collect(),
+        _ => match to_value(obj, &path)? {
+            Value::List(items) => items
+                .iter()
+                .enumerate()
+                .map(|(i, row)| numbers::<N>(row, &path.index(i)))
+                .collect::<PyResult<_>>()?,
+            other => {
+                return Err(path.error(format!(
+                    "expected an array of shape (m, {N}), got {}",
+                    other.kind()
+                )))
+            }
+        },
+    };
+    for (i, row) in rows.iter().enumerate() {
+        for (j, x) in row.iter().enumerate() {
+            if !x.is_finite() {
+                return Err(path
+                    .index(i)
+                    .index(j)
+                    .error(format!("must be finite, got {x}")));
+            }
+        }
     }
     Ok(rows)
 }
 
-fn vec3_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f64>> {
-    let v: Vec<f64> = obj
-        .call_method0("__iter__")
-        .and_then(|_| obj.extract())
-        .or_else(|_| obj.call_method0("tolist").and_then(|l| l.extract()))
-        .map_err(|_| PyValueError::new_err(format!("{name}: expected 3 numbers")))?;
-    if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
-        return Err(PyValueError::new_err(format!(
-            "{name}: expected 3 finite numbers, got {v:?}"
-        )));
+/// The N numbers of a list (finiteness is the caller's check).
+fn numbers<const N: usize>(v: &Value, path: &Path) -> PyResult<[f64; N]> {
+    let items = match v {
+        Value::List(items) if items.len() == N => items,
+        Value::List(items) => {
+            return Err(path.error(format!("expected {N} numbers, got {}", items.len())))
+        }
+        other => return Err(path.error(format!("expected {N} numbers, got {}", other.kind()))),
+    };
+    let mut out = [0.0; N];
+    for (i, item) in items.iter().enumerate() {
+        out[i] = match item {
+            Value::Number(x) => *x,
+            other => {
+                return Err(path
+                    .index(i)
+                    .error(format!("expected a number, got {}", other.kind())))
+            }
+        };
     }
-    Ok(Vector3::new(v[0], v[1], v[2]))
+    Ok(out)
 }
 
-fn strategy_arg(s: &str) -> PyResult<Strategy> {
-    match s {
+/// A 3-vector argument: a row of `rows_arg`'s rules.
+fn vec3_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f64>> {
+    let path = Path::argument(name);
+    let v: [f64; 3] = match obj.extract::<PyReadonlyArray1<f64>>() {
+        Ok(a) if a.as_array().len() == 3 => std::array::from_fn(|i| a.as_array()[i]),
+        _ => numbers::<3>(&to_value(obj, &path)?, &path)?,
+    };
+    for (i, x) in v.iter().enumerate() {
+        if !x.is_finite() {
+            return Err(path.index(i).error(format!("must be finite, got {x}")));
+        }
+    }
+    Ok(Vector3::from(v))
+}
+
+// `#[pyo3(from_py_with = ...)]` takes a function path: one converter a name.
+fn load_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    float_arg("load", obj)
+}
+
+fn tol_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    float_arg("tol", obj)
+}
+
+fn max_iterations_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    int_arg("max_iterations", obj)
+}
+
+fn points_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    int_arg("points", obj)
+}
+
+fn strategy_arg(obj: &Bound<'_, PyAny>) -> PyResult<Strategy> {
+    match str_arg("strategy", obj)?.as_str() {
         "equilibrium" => Ok(Strategy::Equilibrium),
         "geometric" => Ok(Strategy::Geometric),
         other => Err(PyValueError::new_err(format!(
@@ -659,9 +976,12 @@ impl PyIkResult {
 }
 
 /// Inverse kinematics of one robot under one tip mass, warm from its last answer.
-#[pyclass(name = "InverseSolver", module = "softspine._core")]
+///
+/// Safe to share between threads: one solve runs at a time (the warm start is
+/// shared state), and a thread waiting for its turn does not hold the GIL.
+#[pyclass(name = "InverseSolver", module = "softspine._core", frozen)]
 pub struct PyInverseSolver {
-    inner: InverseSolver,
+    inner: Mutex<InverseSolver>,
 }
 
 #[pymethods]
@@ -669,25 +989,35 @@ impl PyInverseSolver {
     /// The actuation whose loaded equilibrium reaches ``target`` (see ``Robot.inverse``).
     #[pyo3(signature = (target, reference=None, direction=None, tol=1e-9, max_iterations=60))]
     fn solve(
-        &mut self,
+        &self,
         py: Python<'_>,
         target: &Bound<'_, PyAny>,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        tol: f64,
-        max_iterations: usize,
+        #[pyo3(from_py_with = tol_arg)] tol: f64,
+        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
     ) -> PyResult<PyIkResult> {
         let target = vec3_arg("target", target)?;
         let reference = reference
             .map(|r| rows_arg::<2>("reference", r))
             .transpose()?;
         let direction = direction.map(|d| vec3_arg("direction", d)).transpose()?;
-        if !(tol.is_finite() && tol > 0.0) {
+        if tol <= 0.0 {
             return Err(PyValueError::new_err("tol: must be positive"));
         }
-        let inner = &mut self.inner;
-        let r = py
-            .detach(|| inner.solve(target, direction, reference.as_deref(), tol, max_iterations))?;
+        // Locked without the GIL; None if a solve panicked holding the lock.
+        let r = detach_interruptible(py, || match self.inner.lock() {
+            Ok(mut solver) => solver
+                .solve(target, direction, reference.as_deref(), tol, max_iterations)
+                .map(Some),
+            Err(_) => Ok(None),
+        })?;
+        let r = r.ok_or_else(|| {
+            PyRuntimeError::new_err(
+                "InverseSolver: an earlier solve failed with a panic and left this solver \
+                 unusable; make a new one with Robot.inverse_solver",
+            )
+        })?;
         Ok(PyIkResult { inner: r })
     }
 }
@@ -699,7 +1029,9 @@ impl PyRobot {
     fn new(data: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
         let inner = match data {
             None => Robot::default(),
-            Some(d) if d.is_instance_of::<PyDict>() => Robot::from_value(&to_value(d, "")?)?,
+            Some(d) if d.is_instance_of::<PyDict>() => {
+                Robot::from_value(&to_value(d, &Path::input("robot"))?)?
+            }
             Some(d) => {
                 return Err(PyValueError::new_err(format!(
                     "robot: expected a dict, got {}",
@@ -761,7 +1093,11 @@ impl PyRobot {
 
     /// The Scene of this robot with an actuation (m, 2) and a tip mass (kg).
     #[pyo3(signature = (rest_curvature, load=0.0))]
-    fn scene(&self, rest_curvature: &Bound<'_, PyAny>, load: f64) -> PyResult<PyScene> {
+    fn scene(
+        &self,
+        rest_curvature: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+    ) -> PyResult<PyScene> {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
         Ok(PyScene {
             inner: self.inner.scene(&k, load)?,
@@ -821,7 +1157,7 @@ impl PyRobot {
         &self,
         py: Python<'_>,
         rest_curvature: &Bound<'_, PyAny>,
-        load: f64,
+        #[pyo3(from_py_with = load_arg)] load: f64,
     ) -> PyResult<PySolution> {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
         let scene = self.inner.scene(&k, load)?;
@@ -829,53 +1165,62 @@ impl PyRobot {
             n_elements: self.inner.n_elements,
             ..Settings::default()
         };
-        let sol = py.detach(|| crate::solve(&scene, settings, None))?;
+        let sol = detach_interruptible(py, || crate::solve(&scene, settings, None))?;
         Ok(PySolution { inner: sol })
     }
 
     /// A reusable inverse solver for one tip mass (warm starts between calls).
     #[pyo3(signature = (load=0.0))]
-    fn inverse_solver(&self, load: f64) -> PyResult<PyInverseSolver> {
+    fn inverse_solver(
+        &self,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+    ) -> PyResult<PyInverseSolver> {
         Ok(PyInverseSolver {
-            inner: InverseSolver::new(&self.inner, load)?,
+            inner: Mutex::new(InverseSolver::new(&self.inner, load)?),
         })
     }
 
     /// Load-aware inverse kinematics of one target.
-    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, strategy="equilibrium", tol=1e-9, max_iterations=60))]
+    #[pyo3(
+        signature = (target, load=0.0, reference=None, direction=None, strategy=Strategy::Equilibrium, tol=1e-9, max_iterations=60),
+        text_signature = "($self, target, load=0.0, reference=None, direction=None, strategy='equilibrium', tol=1e-9, max_iterations=60)"
+    )]
     #[allow(clippy::too_many_arguments)]
     fn inverse(
         &self,
         py: Python<'_>,
         target: &Bound<'_, PyAny>,
-        load: f64,
+        #[pyo3(from_py_with = load_arg)] load: f64,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        strategy: &str,
-        tol: f64,
-        max_iterations: usize,
+        #[pyo3(from_py_with = strategy_arg)] strategy: Strategy,
+        #[pyo3(from_py_with = tol_arg)] tol: f64,
+        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
     ) -> PyResult<PyIkResult> {
         let target = vec3_arg("target", target)?;
         let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
         let robot = &self.inner;
-        let r = py.detach(|| robot.inverse(target, &options))?;
+        let r = detach_interruptible(py, || robot.inverse(target, &options))?;
         Ok(PyIkResult { inner: r })
     }
 
     /// Inverse kinematics of a sequence of targets (N, 3), each warm from the
     /// previous one and closest to its actuation.
-    #[pyo3(signature = (points, load=0.0, reference=None, direction=None, strategy="equilibrium", tol=1e-9, max_iterations=60))]
+    #[pyo3(
+        signature = (points, load=0.0, reference=None, direction=None, strategy=Strategy::Equilibrium, tol=1e-9, max_iterations=60),
+        text_signature = "($self, points, load=0.0, reference=None, direction=None, strategy='equilibrium', tol=1e-9, max_iterations=60)"
+    )]
     #[allow(clippy::too_many_arguments)]
     fn track(
         &self,
         py: Python<'_>,
         points: &Bound<'_, PyAny>,
-        load: f64,
+        #[pyo3(from_py_with = load_arg)] load: f64,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        strategy: &str,
-        tol: f64,
-        max_iterations: usize,
+        #[pyo3(from_py_with = strategy_arg)] strategy: Strategy,
+        #[pyo3(from_py_with = tol_arg)] tol: f64,
+        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
     ) -> PyResult<Vec<PyIkResult>> {
         let pts: Vec<Vector3<f64>> = rows_arg::<3>("points", points)?
             .into_iter()
@@ -883,7 +1228,7 @@ impl PyRobot {
             .collect();
         let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
         let robot = &self.inner;
-        let rs = py.detach(|| robot.track(&pts, &options))?;
+        let rs = detach_interruptible(py, || robot.track(&pts, &options))?;
         Ok(rs.into_iter().map(|inner| PyIkResult { inner }).collect())
     }
 
@@ -901,7 +1246,7 @@ impl PyRobot {
         load: f64,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        strategy: &str,
+        strategy: Strategy,
         tol: f64,
         max_iterations: usize,
     ) -> PyResult<IkOptions> {
@@ -911,7 +1256,7 @@ impl PyRobot {
                 .map(|r| rows_arg::<2>("reference", r))
                 .transpose()?,
             direction: direction.map(|d| vec3_arg("direction", d)).transpose()?,
-            strategy: strategy_arg(strategy)?,
+            strategy,
             tol,
             max_iterations,
         })
@@ -924,13 +1269,14 @@ impl PyRobot {
 #[pyo3(signature = (name, points=60))]
 fn trajectory_points<'py>(
     py: Python<'py>,
-    name: &str,
-    points: usize,
+    name: &Bound<'py, PyAny>,
+    #[pyo3(from_py_with = points_arg)] points: usize,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let name = str_arg("trajectory", name)?;
     if points == 0 {
         return Err(PyValueError::new_err("points: must be positive"));
     }
-    let pts = trajectory::by_name(name, points).ok_or_else(|| {
+    let pts = trajectory::by_name(&name, points).ok_or_else(|| {
         PyValueError::new_err(format!(
             "trajectory: unknown '{name}' (expected pentagram, circle or spiral)"
         ))

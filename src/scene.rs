@@ -148,16 +148,13 @@ impl Scene {
         self.rest_curvature.len().max(1)
     }
 
+    /// Read a scene from JSON text (duplicate keys refused, see [`Value::from_json_str`]).
     pub fn from_json_str(text: &str) -> Result<Self> {
-        let v: serde_json::Value =
-            serde_json::from_str(text).map_err(|e| Error::Parse(format!("invalid JSON: {e}")))?;
-        Scene::from_value(&Value::from(&v))
+        Scene::from_value(&Value::from_json_str(text)?)
     }
 
     pub fn from_toml_str(text: &str) -> Result<Self> {
-        let v: toml::Value =
-            toml::from_str(text).map_err(|e| Error::Parse(format!("invalid TOML: {e}")))?;
-        Scene::from_value(&Value::from(&v))
+        Scene::from_value(&Value::from_toml_str(text)?)
     }
 
     /// Read a `.json` or `.toml` file.
@@ -228,7 +225,7 @@ impl Scene {
             None => Vec::new(),
             Some(v) => point_loads(v)?,
         };
-        Ok(Scene {
+        let scene = Scene {
             name,
             length,
             stiffness_spec,
@@ -241,7 +238,67 @@ impl Scene {
             tip,
             guides,
             point_loads,
-        })
+        };
+        scene.check_derived()?;
+        Ok(scene)
+    }
+
+    /// Refuse a scene whose derived quantities overflow or underflow: the
+    /// stiffness from `E`, `G` and the diameter, and the dimensionless load
+    /// parameters (`|f| L^3 / k`, `|P| L^2 / k`, `|M| L / k`, `L |kappa0|`)
+    /// that the solver works with. Each must be finite, the stiffness nonzero.
+    pub fn check_derived(&self) -> Result<()> {
+        let k = self.stiffness();
+        let stiffness_key = match self.stiffness_spec {
+            Stiffness::Diagonal { .. } => "stiffness",
+            Stiffness::RoundRod { .. } => "stiffness (from E, G and diameter)",
+        };
+        if !k.iter().all(|v| v.is_finite() && *v >= f64::MIN_POSITIVE) {
+            return Err(Error::scene(
+                stiffness_key,
+                format!(
+                    "(kx, ky, kz) = ({:e}, {:e}, {:e}) N m^2 overflows or underflows",
+                    k.x, k.y, k.z
+                ),
+            ));
+        }
+        let l = self.length;
+        let k_min = k.min();
+        let check = |key: &str, what: &str, value: f64| -> Result<()> {
+            if value.is_finite() && (k.max() / l).is_finite() && (k_min / l) > 0.0 {
+                return Ok(());
+            }
+            Err(Error::scene(
+                key,
+                format!("the load parameter {what} = {value:e} overflows (length {l:e} m, smallest stiffness {k_min:e} N m^2)"),
+            ))
+        };
+        let f = self.distributed_force().norm();
+        let force_key = if self.gravity.is_some() {
+            "gravity"
+        } else {
+            "distributed_force"
+        };
+        check(force_key, "|f| L^3 / k", f * l / k_min * l * l)?;
+        check(
+            "tip_force",
+            "|P| L^2 / k",
+            self.tip_force.norm() * l / k_min * l,
+        )?;
+        check(
+            "tip_moment",
+            "|M| L / k",
+            self.tip_moment.norm() * l / k_min,
+        )?;
+        for (i, p) in self.point_loads.iter().enumerate() {
+            let key = format!("point_loads[{i}].force");
+            check(&key, "|F| L^2 / k", p.force.norm() * l / k_min * l)?;
+        }
+        for (i, kappa) in self.rest_curvature.iter().enumerate() {
+            let key = format!("rest_curvature[{i}]");
+            check(&key, "L |kappa0|", kappa[0].hypot(kappa[1]) * l)?;
+        }
+        Ok(())
     }
 
     /// The scene as a value tree (the inverse of [`Scene::from_value`]).

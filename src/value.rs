@@ -1,6 +1,17 @@
 //! A format-neutral tree of scene input (JSON, TOML or a Python dict), so that
 //! one validator names the offending key whatever the source.
 
+use crate::error::{Error, Result};
+use serde::de::{self, DeserializeSeed, MapAccess, SeqAccess, Visitor};
+use std::cell::RefCell;
+use std::collections::HashSet;
+use std::fmt;
+
+/// Deepest nesting of lists and tables accepted from any source (a scene needs
+/// four levels): deeper input is refused by its path instead of exhausting the
+/// stack of a recursive reader.
+pub const MAX_DEPTH: usize = 32;
+
 /// A parsed input value. Numbers stay `f64` so that NaN and infinities reach the
 /// validator (and are refused there by key) instead of failing in a parser.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,21 +36,152 @@ impl Value {
             Value::Map(_) => "a table",
         }
     }
+
+    /// Parse JSON text. A duplicate key is refused (serde_json's own map keeps
+    /// the last value silently), and an error inside the document, such as a
+    /// number out of range, names the key it belongs to.
+    pub fn from_json_str(text: &str) -> Result<Value> {
+        let path = RefCell::new(Vec::new());
+        let mut de = serde_json::Deserializer::from_str(text);
+        let parsed = JsonSeed { path: &path }
+            .deserialize(&mut de)
+            .and_then(|v| de.end().map(|()| v));
+        parsed.map_err(|e| {
+            let reason = format!("invalid JSON: {e}");
+            match path.into_inner() {
+                at if at.is_empty() => Error::Parse(reason),
+                at => Error::scene(render(&at), reason),
+            }
+        })
+    }
+
+    /// Parse TOML text (the format refuses duplicate keys and bounds nesting itself).
+    pub fn from_toml_str(text: &str) -> Result<Value> {
+        let v: toml::Value = toml::from_str(text)
+            .map_err(|e| Error::Parse(format!("invalid TOML: {}", one_line(text, &e))))?;
+        Ok(Value::from(&v))
+    }
 }
 
-impl From<&serde_json::Value> for Value {
-    fn from(v: &serde_json::Value) -> Self {
-        use serde_json::Value as J;
-        match v {
-            J::Null => Value::Null,
-            J::Bool(b) => Value::Bool(*b),
-            J::Number(n) => Value::Number(n.as_f64().unwrap_or(f64::NAN)),
-            J::String(s) => Value::String(s.clone()),
-            J::Array(a) => Value::List(a.iter().map(Value::from).collect()),
-            J::Object(m) => {
-                Value::Map(m.iter().map(|(k, v)| (k.clone(), Value::from(v))).collect())
+/// A TOML error on one line (its `Display` quotes the source over several).
+fn one_line(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().replace('\n', "; ");
+    match e.span() {
+        Some(span) => {
+            let before = &text[..span.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let column = before.chars().rev().take_while(|&c| c != '\n').count() + 1;
+            format!("{message} at line {line} column {column}")
+        }
+        None => message,
+    }
+}
+
+enum Segment {
+    Key(String),
+    Index(usize),
+}
+
+/// `stiffness.kx`, `rest_curvature[1]`: keys as the validator names them.
+fn render(path: &[Segment]) -> String {
+    let mut out = String::new();
+    for segment in path {
+        match segment {
+            Segment::Key(k) if out.is_empty() => out.push_str(k),
+            Segment::Key(k) => {
+                out.push('.');
+                out.push_str(k);
+            }
+            Segment::Index(i) => out.push_str(&format!("[{i}]")),
+        }
+    }
+    out
+}
+
+/// Reads one JSON value, keeping the path of the value being read: a segment is
+/// popped only once its value is read, so after an error the path names the
+/// failing entry.
+#[derive(Clone, Copy)]
+struct JsonSeed<'a> {
+    path: &'a RefCell<Vec<Segment>>,
+}
+
+impl JsonSeed<'_> {
+    fn enter<E: de::Error>(&self) -> std::result::Result<(), E> {
+        if self.path.borrow().len() >= MAX_DEPTH {
+            return Err(E::custom(format!("nested deeper than {MAX_DEPTH} levels")));
+        }
+        Ok(())
+    }
+}
+
+impl<'de> DeserializeSeed<'de> for JsonSeed<'_> {
+    type Value = Value;
+
+    fn deserialize<D: de::Deserializer<'de>>(self, d: D) -> std::result::Result<Value, D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> Visitor<'de> for JsonSeed<'_> {
+    type Value = Value;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a JSON value")
+    }
+
+    fn visit_unit<E>(self) -> std::result::Result<Value, E> {
+        Ok(Value::Null)
+    }
+
+    fn visit_bool<E>(self, b: bool) -> std::result::Result<Value, E> {
+        Ok(Value::Bool(b))
+    }
+
+    fn visit_i64<E>(self, i: i64) -> std::result::Result<Value, E> {
+        Ok(Value::Number(i as f64))
+    }
+
+    fn visit_u64<E>(self, u: u64) -> std::result::Result<Value, E> {
+        Ok(Value::Number(u as f64))
+    }
+
+    fn visit_f64<E>(self, x: f64) -> std::result::Result<Value, E> {
+        Ok(Value::Number(x))
+    }
+
+    fn visit_str<E>(self, s: &str) -> std::result::Result<Value, E> {
+        Ok(Value::String(s.to_owned()))
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<Value, A::Error> {
+        self.enter()?;
+        let mut items = Vec::new();
+        loop {
+            self.path.borrow_mut().push(Segment::Index(items.len()));
+            let item = seq.next_element_seed(self)?;
+            self.path.borrow_mut().pop();
+            match item {
+                Some(v) => items.push(v),
+                None => return Ok(Value::List(items)),
             }
         }
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> std::result::Result<Value, A::Error> {
+        self.enter()?;
+        let mut entries = Vec::new();
+        let mut seen = HashSet::new();
+        while let Some(key) = map.next_key::<String>()? {
+            self.path.borrow_mut().push(Segment::Key(key.clone()));
+            if !seen.insert(key.clone()) {
+                return Err(de::Error::custom("duplicate key"));
+            }
+            let v = map.next_value_seed(self)?;
+            self.path.borrow_mut().pop();
+            entries.push((key, v));
+        }
+        Ok(Value::Map(entries))
     }
 }
 
@@ -55,5 +197,86 @@ impl From<&toml::Value> for Value {
             T::Array(a) => Value::List(a.iter().map(Value::from).collect()),
             T::Table(m) => Value::Map(m.iter().map(|(k, v)| (k.clone(), Value::from(v))).collect()),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refusal(json: &str) -> (String, String) {
+        match Value::from_json_str(json) {
+            Err(Error::InvalidScene { key, reason }) => (key, reason),
+            other => panic!("expected a refusal naming a key, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn duplicate_keys_are_refused_by_path() {
+        let (key, reason) = refusal(r#"{"length": 1, "length": 2}"#);
+        assert_eq!(key, "length");
+        assert!(reason.contains("duplicate key"), "{reason}");
+        let (key, _) = refusal(r#"{"tip": {"position": [0, 0, 1], "position": [1, 0, 0]}}"#);
+        assert_eq!(key, "tip.position");
+        let (key, _) = refusal(r#"{"guides": [{"s": 1}, {"s": 1, "s": 2}]}"#);
+        assert_eq!(key, "guides[1].s");
+    }
+
+    #[test]
+    fn errors_inside_the_document_name_the_entry() {
+        let (key, reason) = refusal(r#"{"stiffness": {"kx": 1e400}}"#);
+        assert_eq!(key, "stiffness.kx");
+        assert!(reason.contains("out of range"), "{reason}");
+        let (key, _) = refusal(r#"{"tip_force": [0, 1, -1e999]}"#);
+        assert_eq!(key, "tip_force[2]");
+        // Syntax errors outside any value have no key.
+        assert!(matches!(
+            Value::from_json_str("{length: 1}"),
+            Err(Error::Parse(_))
+        ));
+        assert!(matches!(Value::from_json_str("{} x"), Err(Error::Parse(_))));
+    }
+
+    #[test]
+    fn nesting_is_bounded() {
+        let ok = format!("{}1{}", "[".repeat(MAX_DEPTH), "]".repeat(MAX_DEPTH));
+        assert!(Value::from_json_str(&ok).is_ok());
+        let deep = format!(
+            "{{\"a\": {}1{}}}",
+            "[".repeat(MAX_DEPTH),
+            "]".repeat(MAX_DEPTH)
+        );
+        let (key, reason) = refusal(&deep);
+        assert!(key.starts_with("a[0]"), "{key}");
+        assert!(reason.contains("nested deeper than 32"), "{reason}");
+        let very_deep = "[".repeat(30_000);
+        assert!(Value::from_json_str(&very_deep).is_err());
+    }
+
+    #[test]
+    fn numbers_are_correctly_rounded() {
+        for x in [
+            0.1,
+            1.0 / 3.0,
+            2.2250738585072014e-308,
+            5e-324,
+            1.7976931348623157e308,
+        ] {
+            let text = serde_json::to_string(&x).unwrap();
+            assert_eq!(Value::from_json_str(&text).unwrap(), Value::Number(x));
+        }
+        // Integers beyond u64 still read as the nearest double.
+        assert_eq!(
+            Value::from_json_str("123456789012345678901234567890").unwrap(),
+            Value::Number(1.2345678901234568e29)
+        );
+    }
+
+    #[test]
+    fn toml_errors_fit_on_one_line() {
+        let e = Value::from_toml_str("length = 1\nlength = 2\n").unwrap_err();
+        let message = e.to_string();
+        assert!(!message.contains('\n'), "{message}");
+        assert!(message.contains("line 2"), "{message}");
     }
 }

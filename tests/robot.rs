@@ -2,7 +2,8 @@
 
 use nalgebra::Vector3;
 use softspine::robot::trajectory;
-use softspine::{solve, IkOptions, Robot, Settings, Strategy};
+use softspine::robot::MAX_SECTIONS;
+use softspine::{solve, Error, IkOptions, Robot, Settings, Strategy, Value};
 
 #[test]
 fn spaces_round_trip() {
@@ -87,4 +88,61 @@ fn unreachable_target_returns_the_closest_tip() {
     // actuation respects the muscles' range.
     assert!(r.tip_miss < 0.5 * (Vector3::new(0.0, 0.0, -1.0) - target).norm());
     assert!(robot.within_bounds(&r.rest_curvature));
+}
+
+/// The key a robot table is refused for.
+fn refused_key(entries: &[(&str, Value)]) -> String {
+    let table = Value::Map(
+        entries
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect(),
+    );
+    match Robot::from_value(&table) {
+        Err(Error::InvalidScene { key, .. }) => key,
+        other => panic!("{entries:?} not refused by key: {other:?}"),
+    }
+}
+
+#[test]
+fn robot_input_is_refused_naming_the_key() {
+    let n = Value::Number;
+    let list = |xs: &[f64]| Value::List(xs.iter().map(|x| Value::Number(*x)).collect());
+    // Derived quantities that underflow or overflow blame the field that sets them.
+    assert_eq!(refused_key(&[("length", n(1e-300))]), "length");
+    assert_eq!(
+        refused_key(&[("muscle_radius", n(1e-300))]),
+        "muscle_radius"
+    );
+    assert_eq!(
+        refused_key(&[("inflation_rate", n(1e-320))]),
+        "inflation_rate"
+    );
+    // Collinear muscles cannot bend a section in every direction.
+    let collinear = list(&[0.0, 180.0, 360.0]);
+    assert_eq!(
+        refused_key(&[("muscle_angles", collinear)]),
+        "muscle_angles"
+    );
+    // Counts are checked before anything is allocated, shown as given.
+    assert_eq!(refused_key(&[("sections", n(1e19))]), "sections");
+    assert_eq!(refused_key(&[("n_elements", n(1e12))]), "n_elements");
+    let err = Robot::from_value(&Value::Map(vec![("sections".into(), n(1e19))])).unwrap_err();
+    assert!(err.to_string().ends_with("got 1e19"), "{err}");
+}
+
+#[test]
+fn robots_built_in_rust_are_checked_too() {
+    let huge = Robot {
+        sections: MAX_SECTIONS + 1,
+        ..Robot::default()
+    };
+    assert!(matches!(huge.validate(), Err(Error::InvalidScene { key, .. }) if key == "sections"));
+    let collinear = Robot {
+        muscle_angles: [0.0, 180.0, 360.0],
+        ..Robot::default()
+    };
+    assert!(collinear
+        .inverse(Vector3::new(0.1, 0.0, -0.9), &IkOptions::default())
+        .is_err());
 }

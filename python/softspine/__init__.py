@@ -38,12 +38,12 @@ __all__ = [
 def solve(
     scene: Scene | dict | str | PathLike,
     n_elements: int | None = None,
-    method: str = "newton",
+    method: str | None = None,
     initial: Solution | None = None,
     tol: float | None = None,
     refine: str | None = None,
-    residual_tol: float = 1e-10,
-    max_iterations: int = 500,
+    residual_tol: float | None = None,
+    max_iterations: int | None = None,
     check: bool = False,
     paper_options: dict | None = None,
 ) -> Solution:
@@ -57,7 +57,7 @@ def solve(
         Number of elements ``n``, a multiple of the number of sections. Default 20;
         with ``tol``, the first ``n`` tried (default: the smallest multiple of the
         sections that is at least 10).
-    method : {"newton", "lm", "paper", "paper-literal"}
+    method : {"newton", "lm", "paper", "paper-literal"}, optional
         ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
         continuation when a direct solve fails (default). ``"lm"``:
         Levenberg-Marquardt on the same residual (dense, for comparison).
@@ -73,13 +73,16 @@ def solve(
     refine : {"richardson"}, optional
         With ``tol``: return the Richardson-extrapolated tip ``(4 r_2n - r_n)/3``
         as ``tip_position`` (``extrapolated`` is then True).
-    residual_tol : float
-        Tolerance on the relative residual (largest torque imbalance over
-        ``max(k) / L``).
-    max_iterations : int
-        Iteration budget of a solve, load-continuation steps included.
+    residual_tol : float, optional
+        Tolerance in [1e-14, 1e-4] (default 1e-10) on the relative residual
+        (the largest torque imbalance of a row over its own stiffness ``k_c / L``)
+        and on the Newton step that certifies it (rad). Never below the
+        residual's round-off floor ``8 eps n``.
+    max_iterations : int, optional
+        Iteration budget of a solve, load-continuation steps included (default 500).
     check : bool
-        Raise ``SolverError`` instead of returning ``converged=False``.
+        Raise ``SolverError`` for any status other than "converged" (e.g.
+        "tolerance_not_met", "underresolved", "numerical_error").
     paper_options : dict, optional
         Settings of the paper's method: ``particles`` (40), ``iterations`` (60),
         ``chi`` (0.729), ``inertia`` (1.0), ``c1`` (2.05), ``c2`` (2.05), ``seed``

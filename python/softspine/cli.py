@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from . import solve
+from . import SolverError, solve
 from .scenes import demo_robot_scene, load_scene
 
 
@@ -175,8 +175,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except ValueError as e:
-        print(f"error: {e}", file=sys.stderr)
+    except (ValueError, OSError, SolverError) as e:
+        # A user error (bad scene or argument, missing file): one line, like argparse.
+        message = " ".join(str(e).split()) or type(e).__name__
+        print(f"{parser.prog}: error: {message}", file=sys.stderr)
         return 2
 
 

@@ -18,7 +18,7 @@ def load_scene(source: Scene | dict | str | PathLike) -> Scene:
         return Scene(source)
     if isinstance(source, (str, PathLike)):
         path = Path(source)
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")  # JSON and TOML are UTF-8 by definition
         if path.suffix == ".json":
             return Scene.from_json(text)
         if path.suffix == ".toml":

@@ -19,6 +19,7 @@
 pub mod pso;
 
 use crate::error::{Error, Result};
+use crate::interrupt;
 use crate::model::RodModel;
 use crate::quat::{tangent_form_apply, Quat};
 use crate::scene::{Scene, TipCondition};
@@ -47,6 +48,49 @@ impl Default for PaperSettings {
             lm_iterations: 200,
             tol: 1e-10,
         }
+    }
+}
+
+impl PaperSettings {
+    /// Refuse settings that cannot run or cannot mean anything, naming the field.
+    pub fn validate(&self) -> Result<()> {
+        crate::solver::check_tolerance("paper_options.tol", self.tol, (1e-14, 1e-4))?;
+        let sw = &self.swarm;
+        if sw.particles == 0 || sw.particles > 100_000 {
+            return Err(Error::argument(
+                "paper_options.particles",
+                format!("must lie in [1, 100000], got {}", sw.particles),
+            ));
+        }
+        for (name, v) in [
+            ("paper_options.chi", sw.chi),
+            ("paper_options.inertia", sw.inertia),
+            ("paper_options.c1", sw.c1),
+            ("paper_options.c2", sw.c2),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::argument(
+                    name,
+                    format!("must be finite and not negative, got {v}"),
+                ));
+            }
+        }
+        for (name, v) in [
+            ("paper_options.iterations", sw.iterations),
+            (
+                "paper_options.gauss_newton_iterations",
+                self.gauss_newton_iterations,
+            ),
+            ("paper_options.lm_iterations", self.lm_iterations),
+        ] {
+            if v > 1_000_000 {
+                return Err(Error::argument(
+                    name,
+                    format!("must be at most 1000000, got {v}"),
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -275,8 +319,15 @@ fn sum(a: Quat, b: Quat) -> Quat {
     }
 }
 
+/// Largest absolute row; infinite if any row is not finite (NaN is never dropped).
 fn max_abs(r: &[f64]) -> f64 {
-    r.iter().fold(0.0, |m, x| m.max(x.abs()))
+    r.iter().fold(0.0, |m, x| {
+        if x.is_finite() {
+            m.max(x.abs())
+        } else {
+            f64::INFINITY
+        }
+    })
 }
 
 /// Solve `scene` by the paper's method (`literal`: without the unit-norm rows).
@@ -310,11 +361,17 @@ pub fn solve_paper(
         &objective,
     );
     for _ in 0..swarm_settings.iterations {
+        if interrupt::requested() {
+            break;
+        }
         swarm.step(swarm_settings, &objective);
     }
     // Phase 2: the swarm with a damped Gauss-Newton step on its global best.
     let mut scratch = vec![0.0; rows];
     for _ in 0..settings.gauss_newton_iterations {
+        if interrupt::requested() {
+            break;
+        }
         swarm.step(swarm_settings, &objective);
         let x = swarm.best.clone();
         if let Some((moved, value)) = gauss_newton_step(&system, &x, swarm.best_value, &mut scratch)
@@ -324,6 +381,7 @@ pub fn solve_paper(
     }
     // Phase 3: Levenberg-Marquardt with the gain-ratio update.
     let (x, lm_iterations) = levenberg_marquardt(&system, swarm.best.clone(), settings);
+    interrupt::check()?;
     system.residual(&x, &mut scratch);
     let residual_norm = max_abs(&scratch);
     let (q, forces) = system.unpack(&x);
@@ -402,7 +460,7 @@ fn levenberg_marquardt(
     let mut mu = 1e-3 * (j.transpose() * &j).diagonal().max();
     let mut trial_r = vec![0.0; rows];
     for it in 0..settings.lm_iterations {
-        if max_abs(&r) <= settings.tol {
+        if max_abs(&r) <= settings.tol || interrupt::requested() {
             return (x, it);
         }
         let rv = DVector::from_column_slice(&r);

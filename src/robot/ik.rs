@@ -5,20 +5,46 @@
 //! Each iteration solves the forward statics (warm), takes the tip's sensitivity
 //! to the curvatures from the factored equilibrium Jacobian (O(n) a column), and
 //! steps by the minimum-norm Gauss-Newton rule
-//! `delta = r + J^T (J J^T)^{-1} (e - J r)`, `r = kappa_ref - kappa`, with a
-//! backtracking line search on the tip error. At a solution, `kappa - kappa_ref`
-//! is orthogonal to the directions that keep the tip in place: the first-order
-//! condition of the minimum-norm choice. A target out of reach ends in
-//! Levenberg-Marquardt on the tip error alone, which finds the closest tip.
+//! `delta = r + J^T (J J^T)^{-1} (e - J r)`, `r = kappa_ref - kappa`, held within
+//! the muscles' length range (see `bounds.rs`), with a backtracking line search
+//! on the tip error. Only stable equilibria are accepted. At a solution,
+//! `kappa - kappa_ref` is orthogonal to the directions that keep the tip in
+//! place: the first-order condition of the minimum-norm choice. A stalled
+//! descent ends in Levenberg-Marquardt on the tip error alone, which finds the
+//! closest tip.
+//!
+//! That fast path starts at the reference. When it misses, the target is tried
+//! again from starts that do not depend on the reference (continuation in the
+//! target from the reference's tip, a constant-curvature arc aimed at the
+//! target, the last answer, the straight robot, a few actuations spread over the
+//! range), each with the same iteration budget, until one reaches it.
 
+use super::bounds::Bounds;
 use super::Robot;
 use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::solver::{Settings, Solution, Solver};
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Vector2, Vector3};
 
 /// Relative accuracy to which the actuation is the one closest to the reference.
 const MIN_NORM_ACCURACY: f64 = 1e-5;
+
+/// Shortest line-search step before the descent counts as stalled.
+const MIN_ALPHA: f64 = 1e-3;
+
+/// A descent counts as stalled after `SLOW_STEPS` steps running that each
+/// shrink the miss by less than `SLOW_GAIN` of itself.
+const SLOW_GAIN: f64 = 0.01;
+const SLOW_STEPS: usize = 4;
+
+/// Actuations spread over the range among the restarts.
+const SPREAD_STARTS: usize = 2;
+
+/// Target tolerance of the intermediate targets of a continuation [relative to L].
+const CONTINUATION_TOL: f64 = 1e-4;
+
+/// Tip miss allowed while a restart's answer slides toward the reference [relative to L].
+const POLISH_SLACK: f64 = 1e-2;
 
 /// How the actuation is found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,7 +68,9 @@ pub struct IkOptions {
     pub strategy: Strategy,
     /// Tip position tolerance [m] (default 1e-9); a direction's tolerance is tol / L.
     pub tol: f64,
-    /// Iteration limit (default 60).
+    /// Iteration limit of one descent (default 60). A missed target is retried
+    /// from at most 6 other starts and then settled on its closest tip, each
+    /// with this limit: at most 8 times it in all.
     pub max_iterations: usize,
 }
 
@@ -59,6 +87,25 @@ impl Default for IkOptions {
     }
 }
 
+/// Why an inverse solve ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IkEnding {
+    /// The tip (and direction) is within the tolerance, on a stable equilibrium.
+    Reached,
+    /// The closest tip found is limited by the robot, not by its muscles:
+    /// farther than the robot is long, or a local minimum of the miss with no
+    /// muscle at a length limit holding it back.
+    OutOfReach,
+    /// Muscles at their length limits hold the closest tip found back.
+    BoundsActive,
+    /// No stable equilibrium was found where the descent had to go.
+    SolverFailure,
+    /// The iteration budget ran out while the miss was still shrinking.
+    IterationLimit,
+    /// The geometric strategy's fit, applied to the loaded robot, misses.
+    LoadIgnored,
+}
+
 /// The actuation found, in every space, with the equilibrium it produces.
 #[derive(Debug, Clone)]
 pub struct IkResult {
@@ -73,21 +120,147 @@ pub struct IkResult {
     pub tip_position: Vector3<f64>,
     /// Distance from the tip to the target [m].
     pub tip_miss: f64,
-    /// Whether the target (and direction) was reached within the tolerance.
+    /// Whether the target (and direction) was reached within the tolerance on
+    /// a stable equilibrium.
     pub reached: bool,
+    pub ending: IkEnding,
     pub message: String,
+    /// Gauss-Newton and Levenberg-Marquardt iterations, all starts included.
     pub iterations: usize,
+    /// Starting actuations tried (1: the fast path from the reference).
+    pub starts: usize,
     /// Wall-clock time of this inverse solve [s].
     pub seconds: f64,
+}
+
+/// What one inverse solve aims at.
+struct Goal {
+    target: Vector3<f64>,
+    direction: Option<Vector3<f64>>,
+    reference: Vec<[f64; 2]>,
+    tol: f64,
+    /// Robot length: weight of the direction rows.
+    length: f64,
+}
+
+impl Goal {
+    /// Tip error (and weighted direction error) of an equilibrium.
+    fn error(&self, sol: &Solution) -> DVector<f64> {
+        let mut e = DVector::zeros(if self.direction.is_some() { 6 } else { 3 });
+        e.rows_mut(0, 3)
+            .copy_from(&(self.target - sol.tip_position()));
+        if let Some(dir) = self.direction {
+            let t = sol.tip_quaternion().tangent();
+            e.rows_mut(3, 3).copy_from(&((dir - t) * self.length));
+        }
+        e
+    }
+
+    /// Direction rows are weighted by L: tol on them is an angle of tol / L.
+    fn reached(&self, e: &DVector<f64>) -> bool {
+        e.rows(0, 3).norm() <= self.tol && (e.len() == 3 || e.rows(3, 3).norm() <= self.tol)
+    }
+
+    /// The goal a fraction `t` of the way from the tip of `from` to this one.
+    fn partway(&self, from: &Solution, t: f64) -> Goal {
+        let direction = self.direction.map(|d| {
+            let d0 = from.tip_quaternion().tangent();
+            let mid = d0 + (d - d0) * t;
+            // Antiparallel directions: turn through a perpendicular.
+            if mid.norm() > 1e-3 {
+                mid.normalize()
+            } else {
+                d0.cross(&Vector3::x())
+                    .try_normalize(1e-6)
+                    .unwrap_or(Vector3::y())
+            }
+        });
+        Goal {
+            target: from.tip_position() + (self.target - from.tip_position()) * t,
+            direction,
+            reference: self.reference.clone(),
+            tol: if t < 1.0 {
+                CONTINUATION_TOL * self.length
+            } else {
+                self.tol
+            },
+            length: self.length,
+        }
+    }
+}
+
+/// What a step is pulled toward besides the target.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pull {
+    /// The reference: the minimum-norm choice.
+    Reference,
+    /// Nothing: the smallest change of the actuation (the reach phase of a restart).
+    Free,
+}
+
+/// An accepted point of a descent: always a converged, stable equilibrium,
+/// except the start of a failed attempt.
+#[derive(Debug, Clone)]
+struct State {
+    kappa: Vec<[f64; 2]>,
+    sol: Solution,
+    e: DVector<f64>,
+}
+
+/// How a descent phase ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PhaseEnd {
+    /// Converged (the target reached, or the closest tip settled).
+    Done,
+    /// No acceptable step; `unusable` if the last trials found no stable equilibrium.
+    Stalled { unusable: bool },
+    /// The iteration budget ran out.
+    Budget,
+}
+
+/// One descent toward the target from one start.
+#[derive(Debug, Clone)]
+struct Attempt {
+    state: State,
+    /// How its last phase ended.
+    phase: PhaseEnd,
+}
+
+impl Attempt {
+    fn reached(&self, goal: &Goal) -> bool {
+        usable(&self.state.sol) && goal.reached(&self.state.e)
+    }
+
+    /// Reached first, then any stable equilibrium, then the smaller miss.
+    fn rank(&self, goal: &Goal) -> (u8, f64) {
+        let tier = if self.reached(goal) {
+            0
+        } else if usable(&self.state.sol) {
+            1
+        } else {
+            2
+        };
+        (tier, self.state.e.norm())
+    }
+}
+
+/// An equilibrium the IK may stand on: converged and stable.
+fn usable(sol: &Solution) -> bool {
+    sol.converged() && sol.stable
 }
 
 /// Inverse kinematics of one robot under one tip mass, reusing its forward
 /// solver and the last answer as the warm start of the next (trajectories).
 pub struct InverseSolver {
     robot: Robot,
+    bounds: Bounds,
     solver: Solver,
     kappa: Vec<[f64; 2]>,
     q: Option<Vec<Quat>>,
+    /// Iterations of the current solve, all starts included.
+    iterations: usize,
+    /// The warm start the current solve was given (the last answer's equilibrium).
+    given_warm: Option<Vec<Quat>>,
 }
 
 impl InverseSolver {
@@ -101,50 +274,44 @@ impl InverseSolver {
         };
         Ok(InverseSolver {
             robot: robot.clone(),
+            bounds: Bounds::new(robot),
             solver: Solver::new(&scene, settings)?,
             kappa: zero,
             q: None,
+            iterations: 0,
+            given_warm: None,
         })
     }
 
-    /// Forward statics at `kappa`, warm from the last state.
+    /// Forward statics at `kappa`, warm from the last accepted state.
     fn forward(&mut self, kappa: &[[f64; 2]]) -> Result<Solution> {
         self.solver.set_rest_curvature(kappa)?;
         let sol = self.solver.solve(self.q.as_deref())?;
-        if !sol.converged() {
-            // A far warm start can fail where the straight rod succeeds.
-            return self.solver.solve(None);
+        if usable(&sol) || self.q.is_none() {
+            return Ok(sol);
         }
-        Ok(sol)
+        // A far warm start can fail where the straight rod succeeds.
+        self.solver.solve(None)
     }
 
-    /// Tip error (and weighted direction error) of an equilibrium.
-    fn error(
-        &self,
-        sol: &Solution,
-        target: &Vector3<f64>,
-        direction: Option<&Vector3<f64>>,
-    ) -> DVector<f64> {
-        let mut e = DVector::zeros(if direction.is_some() { 6 } else { 3 });
-        let d = target - sol.tip_position();
-        e.rows_mut(0, 3).copy_from(&d);
-        if let Some(dir) = direction {
-            let t = sol.tip_quaternion().tangent();
-            e.rows_mut(3, 3).copy_from(&((dir - t) * self.robot.length));
-        }
-        e
+    /// Put the forward solver back at an accepted state (its Jacobian is the
+    /// one the next step needs).
+    fn restore(&mut self, st: &State) -> Result<()> {
+        self.q = Some(st.sol.quaternions.clone());
+        self.forward(&st.kappa).map(|_| ())
     }
 
-    fn jacobian(&mut self, direction: bool) -> Result<DMatrix<f64>> {
-        let sens = self.solver.tip_sensitivity(self.robot.sections)?;
+    /// Tip sensitivity at the forward solver's state (`None` at a bifurcation).
+    fn jacobian(&mut self, goal: &Goal) -> Option<DMatrix<f64>> {
+        let sens = self.solver.tip_sensitivity(self.robot.sections).ok()?;
         let cols = 2 * self.robot.sections;
-        let mut j = DMatrix::zeros(if direction { 6 } else { 3 }, cols);
+        let mut j = DMatrix::zeros(if goal.direction.is_some() { 6 } else { 3 }, cols);
         j.rows_mut(0, 3).copy_from(&sens.position);
-        if direction {
+        if goal.direction.is_some() {
             j.rows_mut(3, 3)
                 .copy_from(&(sens.tangent * self.robot.length));
         }
-        Ok(j)
+        Some(j)
     }
 
     /// The actuation whose loaded equilibrium puts the tip at `target`.
@@ -157,10 +324,43 @@ impl InverseSolver {
         max_iterations: usize,
     ) -> Result<IkResult> {
         let started = std::time::Instant::now();
+        let goal = self.goal(target, direction, reference, tol)?;
+        self.iterations = 0;
+        self.given_warm = self.q.clone();
+        // Start at the reference: the Gauss-Newton path from there to the nearest
+        // solution is short, while sliding along the solution set from elsewhere
+        // converges only linearly (for tracking, the reference is the last answer).
+        let first = self.reach(
+            &goal,
+            goal.reference.clone(),
+            Pull::Reference,
+            max_iterations,
+        )?;
+        let (mut best, starts) = if first.reached(&goal) || self.beyond_length(&goal) {
+            (first, 1)
+        } else {
+            self.retry(&goal, first, max_iterations)?
+        };
+        let ending = self.settle(&goal, &mut best, max_iterations)?;
+        let mut result = self.conclude(&goal, best.state, ending, starts);
+        result.seconds = started.elapsed().as_secs_f64();
+        Ok(result)
+    }
+
+    fn goal(
+        &self,
+        target: Vector3<f64>,
+        direction: Option<Vector3<f64>>,
+        reference: Option<&[[f64; 2]]>,
+        tol: f64,
+    ) -> Result<Goal> {
         let m = self.robot.sections;
         if target.iter().any(|x| !x.is_finite()) {
             return Err(Error::argument("target", "must be finite"));
         }
+        // 1e-12 L is what double precision leaves of a tip; 1e-2 L is a miss.
+        let length = self.robot.length;
+        crate::solver::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
         let direction = match direction {
             Some(d) if d.iter().all(|x| x.is_finite()) && d.norm() > 0.0 => Some(d.normalize()),
             Some(_) => {
@@ -171,139 +371,485 @@ impl InverseSolver {
             }
             None => None,
         };
-        let reference: Vec<[f64; 2]> = match reference {
-            Some(r) if r.len() == m => r.to_vec(),
-            Some(r) => {
+        let reference = match reference {
+            Some(r) if r.len() != m => {
                 return Err(Error::argument(
                     "reference",
                     format!("expected {m} sections, got {}", r.len()),
                 ))
             }
+            Some(r) if r.iter().flatten().any(|k| !k.is_finite()) => {
+                return Err(Error::argument("reference", "must be finite"))
+            }
+            Some(r) => r.to_vec(),
             None => vec![[0.0; 2]; m],
         };
-        // Direction rows are weighted by L: tol on them is an angle of tol / L.
-        let dir_tol = tol;
-        // Start at the reference: the Gauss-Newton path from there to the nearest
-        // solution is short, while sliding along the solution set from elsewhere
-        // converges only linearly (for tracking, the reference is the last answer).
-        let mut kappa = reference.clone();
-        let mut sol = self.forward(&kappa)?;
-        let mut e = self.error(&sol, &target, direction.as_ref());
-        let mut iterations = 0;
-        let mut clamped = false;
-        let reached = |e: &DVector<f64>| {
-            e.rows(0, 3).norm() <= tol && (e.len() == 3 || e.rows(3, 3).norm() <= dir_tol)
-        };
-        // Phase 1: minimum-norm Gauss-Newton with backtracking.
-        let mut stalled = false;
-        while iterations < max_iterations {
-            iterations += 1;
-            let j = self.jacobian(direction.is_some())?;
-            let r = flatten(&reference) - flatten(&kappa);
-            let jjt = &j * j.transpose();
-            let eps = 1e-14 * jjt.trace().max(f64::MIN_POSITIVE);
-            let Some(inv) = (jjt + DMatrix::identity(e.len(), e.len()) * eps).try_inverse() else {
-                stalled = true;
-                break;
+        Ok(Goal {
+            target,
+            direction,
+            reference,
+            tol,
+            length: self.robot.length,
+        })
+    }
+
+    /// An inextensible backbone cannot put its tip farther from the base than its length.
+    fn beyond_length(&self, goal: &Goal) -> bool {
+        goal.target.norm() > self.robot.length + goal.tol
+    }
+
+    /// One descent from `start` by minimum-norm Gauss-Newton within range, in
+    /// at most `budget` iterations (a restart's answer then slides toward the reference).
+    fn reach(
+        &mut self,
+        goal: &Goal,
+        start: Vec<[f64; 2]>,
+        pull: Pull,
+        budget: usize,
+    ) -> Result<Attempt> {
+        let end = self.iterations + budget;
+        let mut st = self.begin(goal, start)?;
+        if !usable(&st.sol) {
+            let phase = PhaseEnd::Stalled { unusable: true };
+            return Ok(Attempt { state: st, phase });
+        }
+        let phase = self.min_norm(goal, &mut st, pull, end)?;
+        if pull == Pull::Free && goal.reached(&st.e) {
+            self.polish(goal, &mut st, end)?;
+        }
+        Ok(Attempt { state: st, phase })
+    }
+
+    /// The equilibrium at a starting actuation (brought within range); the
+    /// warm state of the next solves if it is stable.
+    fn begin(&mut self, goal: &Goal, mut start: Vec<[f64; 2]>) -> Result<State> {
+        self.robot.clamp_to_bounds(&mut start);
+        let sol = self.forward(&start)?;
+        if usable(&sol) {
+            self.q = Some(sol.quaternions.clone());
+        }
+        Ok(State {
+            e: goal.error(&sol),
+            kappa: start,
+            sol,
+        })
+    }
+
+    /// No start reached the target: the closest tip from the best attempt
+    /// (Levenberg-Marquardt on the miss alone, `budget` iterations), and why it misses.
+    fn settle(&mut self, goal: &Goal, best: &mut Attempt, budget: usize) -> Result<IkEnding> {
+        if best.reached(goal) {
+            return Ok(IkEnding::Reached);
+        }
+        if !usable(&best.state.sol) {
+            return Ok(IkEnding::SolverFailure);
+        }
+        let end = self.iterations + budget;
+        self.restore(&best.state)?;
+        best.phase = self.closest_tip(goal, &mut best.state, end)?;
+        if goal.reached(&best.state.e) {
+            self.polish(goal, &mut best.state, end)?;
+            return Ok(IkEnding::Reached);
+        }
+        self.classify(goal, &mut best.state, best.phase)
+    }
+
+    /// Phase 1: minimum-norm Gauss-Newton steps within range, backtracking on the tip error.
+    fn min_norm(
+        &mut self,
+        goal: &Goal,
+        st: &mut State,
+        pull: Pull,
+        end: usize,
+    ) -> Result<PhaseEnd> {
+        let mut slow = 0;
+        while self.iterations < end {
+            self.iterations += 1;
+            let Some(j) = self.jacobian(goal) else {
+                return Ok(PhaseEnd::Stalled { unusable: false });
             };
-            let step = &r + j.transpose() * (inv * (&e - &j * &r));
-            let size = 1.0 + flatten(&kappa).norm();
-            if reached(&e) && step.norm() <= 1e-12 * size {
-                break;
+            let r = match pull {
+                Pull::Reference => flatten(&goal.reference) - flatten(&st.kappa),
+                Pull::Free => DVector::zeros(j.ncols()),
+            };
+            let c = 1e-14 * j.norm_squared().max(f64::MIN_POSITIVE);
+            let Some(step) = self.bounds.step(&st.kappa, &j, &st.e, &r, c) else {
+                return Ok(PhaseEnd::Stalled { unusable: false });
+            };
+            let (norm, size) = (step.step.norm(), 1.0 + flatten(&st.kappa).norm());
+            let was_reached = goal.reached(&st.e);
+            if was_reached && norm <= 1e-12 * size {
+                return Ok(PhaseEnd::Done);
             }
-            let mut alpha = 1.0;
-            let mut accepted = false;
-            while alpha > 1e-3 {
-                let mut trial = unflatten(&(flatten(&kappa) + &step * alpha));
-                let was_clamped = self.robot.clamp_to_bounds(&mut trial);
-                let trial_sol = self.forward(&trial)?;
-                if trial_sol.converged() {
-                    let trial_e = self.error(&trial_sol, &target, direction.as_ref());
-                    // Decrease the error, or keep it within tolerance while moving
-                    // toward the reference (the minimum-norm part of the step).
-                    if trial_e.norm() < (1.0 - 1e-4 * alpha) * e.norm()
-                        || (reached(&trial_e) && reached(&e))
-                    {
-                        kappa = trial;
-                        clamped = was_clamped;
-                        self.q = Some(trial_sol.quaternions.clone());
-                        sol = trial_sol;
-                        e = trial_e;
-                        accepted = true;
-                        break;
-                    }
+            // Decrease the error, or keep it within tolerance while moving
+            // toward the reference (the minimum-norm part of the step).
+            let accept = |old: &DVector<f64>, new: &DVector<f64>, alpha: f64| {
+                new.norm() < (1.0 - 1e-4 * alpha) * old.norm() || (was_reached && goal.reached(new))
+            };
+            let before = st.e.norm();
+            let search = self.line_search(goal, st, &step.step, accept)?;
+            // Creeping: Gauss-Newton toward a reachable target gains fast; slow
+            // gains several steps running mean a limit the closest-tip phase handles.
+            slow = if !was_reached && st.e.norm() > (1.0 - SLOW_GAIN) * before {
+                slow + 1
+            } else {
+                0
+            };
+            if slow >= SLOW_STEPS {
+                return Ok(PhaseEnd::Stalled { unusable: false });
+            }
+            match search {
+                Search::Stalled { unusable } => return Ok(PhaseEnd::Stalled { unusable }),
+                // The tip is on target and the last full step, which moves along
+                // the solution set toward the reference, changed the actuation by
+                // less than 1e-5 of its size: the minimum-norm choice is settled to
+                // that accuracy (Gauss-Newton converges only linearly along the set;
+                // the tip itself converges quadratically and is at tol).
+                Search::Accepted(alpha)
+                    if goal.reached(&st.e) && alpha == 1.0 && norm <= MIN_NORM_ACCURACY * size =>
+                {
+                    return Ok(PhaseEnd::Done)
                 }
-                alpha *= 0.5;
-            }
-            if !accepted {
-                // Re-establish the solver's state at the current point.
-                sol = self.forward(&kappa)?;
-                stalled = true;
-                break;
-            }
-            // The tip is on target and the last full step, which moves along
-            // the solution set toward the reference, changed the actuation by
-            // less than 1e-5 of its size: the minimum-norm choice is settled to
-            // that accuracy (Gauss-Newton converges only linearly along the set;
-            // the tip itself converges quadratically and is at tol).
-            if reached(&e) && alpha == 1.0 && step.norm() <= MIN_NORM_ACCURACY * size {
-                break;
+                Search::Accepted(_) => {}
             }
         }
-        // Phase 2 (out of reach or limited by the muscles): closest tip by LM on the error alone.
-        if !reached(&e) && stalled {
-            let mut mu = 1e-6;
-            while iterations < max_iterations {
-                iterations += 1;
-                let j = self.jacobian(direction.is_some())?;
-                let jtj = j.transpose() * &j;
-                let scale = jtj.trace() / jtj.nrows() as f64;
-                let Some(inv) =
-                    (jtj + DMatrix::identity(2 * m, 2 * m) * (mu * scale)).try_inverse()
-                else {
-                    break;
-                };
-                let step = inv * (j.transpose() * &e);
-                let mut trial = unflatten(&(flatten(&kappa) + step));
-                let was_clamped = self.robot.clamp_to_bounds(&mut trial);
-                let trial_sol = self.forward(&trial)?;
-                let trial_e = self.error(&trial_sol, &target, direction.as_ref());
-                if trial_sol.converged() && trial_e.norm() < e.norm() {
-                    let gain = e.norm() - trial_e.norm();
-                    kappa = trial;
-                    clamped = was_clamped;
-                    self.q = Some(trial_sol.quaternions.clone());
-                    sol = trial_sol;
-                    e = trial_e;
+        Ok(PhaseEnd::Budget)
+    }
+
+    /// Phase 2 (the descent stalled): the closest tip, by Levenberg-Marquardt on
+    /// the error alone within range.
+    fn closest_tip(&mut self, goal: &Goal, st: &mut State, end: usize) -> Result<PhaseEnd> {
+        let mut mu = 1e-6;
+        let mut unusable = false;
+        while self.iterations < end {
+            self.iterations += 1;
+            let Some(j) = self.jacobian(goal) else {
+                return Ok(PhaseEnd::Stalled { unusable });
+            };
+            let scale = j.norm_squared() / j.ncols() as f64;
+            let zero = DVector::zeros(j.ncols());
+            let Some(step) = self.bounds.step(&st.kappa, &j, &st.e, &zero, mu * scale) else {
+                return Ok(PhaseEnd::Stalled { unusable });
+            };
+            let before = st.e.norm();
+            match self.trial(goal, st, &step.step, |old, new| new.norm() < old.norm())? {
+                Trial::Accepted => {
                     mu = (mu / 3.0).max(1e-12);
-                    if gain <= 1e-12 * (1.0 + e.norm()) || reached(&e) {
-                        break;
+                    // Settled: the miss shrinks by less than a millionth a step.
+                    if before - st.e.norm() <= 1e-6 * before || goal.reached(&st.e) {
+                        return Ok(PhaseEnd::Done);
                     }
-                } else {
-                    sol = self.forward(&kappa)?;
+                }
+                rejected => {
+                    unusable = rejected == Trial::Unusable;
+                    self.restore(st)?;
                     mu *= 4.0;
                     if mu > 1e8 {
-                        break;
+                        return Ok(PhaseEnd::Stalled { unusable });
                     }
                 }
             }
         }
-        self.kappa = kappa.clone();
-        self.q = Some(sol.quaternions.clone());
-        let ok = reached(&e);
-        let miss = e.rows(0, 3).norm();
-        let message = if ok {
-            "reached".to_string()
-        } else if clamped {
-            format!("not reached: the muscles' length range limits the actuation; the closest tip found misses by {miss:.3e} m")
-        } else if stalled {
-            format!("not reached: the target is out of reach; the closest tip found misses by {miss:.3e} m")
-        } else {
-            format!("not reached after {iterations} iterations: the tip misses by {miss:.3e} m")
+        Ok(PhaseEnd::Budget)
+    }
+
+    /// Why a descent that did not reach the target ended.
+    fn classify(&mut self, goal: &Goal, st: &mut State, phase: PhaseEnd) -> Result<IkEnding> {
+        if self.beyond_length(goal) {
+            return Ok(IkEnding::OutOfReach);
+        }
+        match phase {
+            PhaseEnd::Budget => return Ok(IkEnding::IterationLimit),
+            PhaseEnd::Stalled { unusable: true } => return Ok(IkEnding::SolverFailure),
+            _ => {}
+        }
+        // Bounds hold the tip back if the undamped step toward the target
+        // runs into them.
+        self.restore(st)?;
+        let Some(j) = self.jacobian(goal) else {
+            return Ok(IkEnding::OutOfReach);
         };
-        let mut result = self.result(kappa, sol, miss, ok, message, iterations);
-        result.seconds = started.elapsed().as_secs_f64();
-        Ok(result)
+        let zero = DVector::zeros(j.ncols());
+        let c = 1e-10 * j.norm_squared() / j.ncols() as f64;
+        let blocked = self
+            .bounds
+            .step(&st.kappa, &j, &st.e, &zero, c)
+            .is_some_and(|s| s.blocking > 0);
+        Ok(if blocked {
+            IkEnding::BoundsActive
+        } else {
+            IkEnding::OutOfReach
+        })
+    }
+
+    /// Backtrack along `step` until `accept(old error, new error, alpha)`.
+    fn line_search(
+        &mut self,
+        goal: &Goal,
+        st: &mut State,
+        step: &DVector<f64>,
+        accept: impl Fn(&DVector<f64>, &DVector<f64>, f64) -> bool,
+    ) -> Result<Search> {
+        let mut alpha = 1.0;
+        let mut last = Trial::Rejected;
+        while alpha > MIN_ALPHA {
+            last = self.trial(goal, st, &(step * alpha), |old, new| {
+                accept(old, new, alpha)
+            })?;
+            if last == Trial::Accepted {
+                return Ok(Search::Accepted(alpha));
+            }
+            alpha *= 0.5;
+        }
+        self.restore(st)?;
+        Ok(Search::Stalled {
+            unusable: last == Trial::Unusable,
+        })
+    }
+
+    /// Solve at `st.kappa + step` and move there if `accept(old error, new error)`.
+    fn trial(
+        &mut self,
+        goal: &Goal,
+        st: &mut State,
+        step: &DVector<f64>,
+        accept: impl Fn(&DVector<f64>, &DVector<f64>) -> bool,
+    ) -> Result<Trial> {
+        let mut kappa = unflatten(&(flatten(&st.kappa) + step));
+        // Rounding only: the bounded step stays within range.
+        self.robot.clamp_to_bounds(&mut kappa);
+        let sol = self.forward(&kappa)?;
+        if !usable(&sol) {
+            return Ok(Trial::Unusable);
+        }
+        let e = goal.error(&sol);
+        if !accept(&st.e, &e) {
+            return Ok(Trial::Rejected);
+        }
+        self.q = Some(sol.quaternions.clone());
+        *st = State { kappa, sol, e };
+        Ok(Trial::Accepted)
+    }
+
+    /// The fast path missed: try the other starts, each with `budget`
+    /// iterations, until one reaches the target. Returns the best attempt and
+    /// the number of starts tried.
+    fn retry(&mut self, goal: &Goal, first: Attempt, budget: usize) -> Result<(Attempt, usize)> {
+        let mut best = first;
+        let mut starts = 1;
+        let others = self.starts(goal).into_iter().map(Start::Actuation);
+        for start in std::iter::once(Start::Continuation).chain(others) {
+            let attempt = match start {
+                Start::Continuation => {
+                    // From the reference's equilibrium, on the branch the fast path started on.
+                    self.q = self.given_warm.clone();
+                    self.continuation(goal, goal.reference.clone(), budget)?
+                }
+                Start::Actuation(kappa) => {
+                    // Cold: the start's own equilibrium, not the last one's branch.
+                    self.q = None;
+                    self.reach(goal, kappa, Pull::Free, budget)?
+                }
+            };
+            starts += 1;
+            if attempt.rank(goal) < best.rank(goal) {
+                best = attempt;
+            }
+            if best.reached(goal) {
+                break;
+            }
+        }
+        Ok((best, starts))
+    }
+
+    /// Continuation in the target: from the tip at `start` toward the target in
+    /// straight steps (halved when one fails), each reached loosely, the last exactly.
+    fn continuation(
+        &mut self,
+        goal: &Goal,
+        start: Vec<[f64; 2]>,
+        budget: usize,
+    ) -> Result<Attempt> {
+        let end = self.iterations + budget;
+        let mut st = self.begin(goal, start)?;
+        if !usable(&st.sol) {
+            let phase = PhaseEnd::Stalled { unusable: true };
+            return Ok(Attempt { state: st, phase });
+        }
+        let origin = st.sol.clone();
+        let (mut done, mut h) = (0.0f64, 0.25f64);
+        let mut phase = PhaseEnd::Stalled { unusable: false };
+        while done < 1.0 && self.iterations < end && h >= 1.0 / 64.0 {
+            let t = (done + h).min(1.0);
+            let sub = goal.partway(&origin, t);
+            let saved = st.clone();
+            st.e = sub.error(&st.sol);
+            let before = self.iterations;
+            phase = self.min_norm(&sub, &mut st, Pull::Free, end)?;
+            if sub.reached(&st.e) {
+                done = t;
+                if self.iterations - before <= 4 {
+                    h *= 2.0;
+                }
+            } else {
+                st = saved;
+                self.restore(&st)?;
+                h *= 0.5;
+            }
+        }
+        st.e = goal.error(&st.sol);
+        if goal.reached(&st.e) {
+            self.polish(goal, &mut st, end)?;
+        }
+        Ok(Attempt { state: st, phase })
+    }
+
+    /// A restart reached the target away from the reference: slide along the
+    /// solution set toward it (the tip may stray by `POLISH_SLACK` L on the
+    /// way), then settle the tip again; keep the reached state if that fails.
+    fn polish(&mut self, goal: &Goal, st: &mut State, end: usize) -> Result<()> {
+        let reached = st.clone();
+        let slack = POLISH_SLACK * goal.length;
+        let distance = |k: &[[f64; 2]]| (flatten(&goal.reference) - flatten(k)).norm();
+        while self.iterations < end {
+            self.iterations += 1;
+            let Some(j) = self.jacobian(goal) else { break };
+            let r = flatten(&goal.reference) - flatten(&st.kappa);
+            let c = 1e-14 * j.norm_squared().max(f64::MIN_POSITIVE);
+            let Some(step) = self.bounds.step(&st.kappa, &j, &st.e, &r, c) else {
+                break;
+            };
+            // Close enough for the strict minimum-norm phase to finish.
+            if step.step.norm() <= 1e-2 * (1.0 + flatten(&st.kappa).norm()) {
+                break;
+            }
+            let d0 = distance(&st.kappa);
+            let accept = |old: &DVector<f64>, new: &DVector<f64>, _alpha: f64| {
+                new.norm() <= slack.max(old.norm())
+            };
+            let search = self.line_search(goal, st, &step.step, accept)?;
+            if matches!(search, Search::Stalled { .. }) || distance(&st.kappa) >= d0 {
+                break;
+            }
+        }
+        self.min_norm(goal, st, Pull::Reference, end)?;
+        if !goal.reached(&st.e) {
+            *st = reached;
+            self.restore(st)?;
+        }
+        Ok(())
+    }
+
+    /// Starting actuations that do not depend on the reference: the arc aimed
+    /// at the target, the last answer, the straight robot, and a few spread over
+    /// the range (fixed, so that results are reproducible).
+    fn starts(&self, goal: &Goal) -> Vec<Vec<[f64; 2]>> {
+        let m = self.robot.sections;
+        let mut out = vec![
+            self.arc_toward(goal.target),
+            self.kappa.clone(),
+            vec![[0.0; 2]; m],
+        ];
+        let reach = self.max_curvature();
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..SPREAD_STARTS {
+            out.push(
+                (0..m)
+                    .map(|_| [reach * uniform(&mut seed), reach * uniform(&mut seed)])
+                    .collect(),
+            );
+        }
+        out.retain(|k| k != &goal.reference);
+        out.dedup();
+        out
+    }
+
+    /// Constant curvature in the plane of the base axis and the target, of the
+    /// arc from the base through the target (weight ignored): the chord of an
+    /// arc turning by `theta` leaves the tangent at `theta / 2`.
+    fn arc_toward(&self, target: Vector3<f64>) -> Vec<[f64; 2]> {
+        let local = self.robot.base_quaternion.inverse_rotate(target);
+        let lateral = Vector2::new(local.x, local.y);
+        let u = lateral.try_normalize(1e-12).unwrap_or(Vector2::x());
+        let kappa = 2.0 * lateral.norm().atan2(local.z) / self.robot.length;
+        // Bending toward u: (kappa_y, -kappa_x) = kappa u.
+        vec![[-kappa * u.y, kappa * u.x]; self.robot.sections]
+    }
+
+    /// Curvature scale of the spread starts: twice the range across the first
+    /// two muscles (the starts are clamped into range).
+    fn max_curvature(&self) -> f64 {
+        let lever = self.robot.lever();
+        let [lo, hi] = self.robot.muscle_length_range;
+        let per = (lever[0][0] - lever[1][0]).hypot(lever[0][1] - lever[1][1]);
+        2.0 * (hi - lo) / per.max(f64::MIN_POSITIVE)
+    }
+
+    /// The answer, its state kept as the warm start of the next solve.
+    fn conclude(&mut self, goal: &Goal, state: State, ending: IkEnding, starts: usize) -> IkResult {
+        self.kappa = state.kappa.clone();
+        self.q = usable(&state.sol).then(|| state.sol.quaternions.clone());
+        let miss = state.e.rows(0, 3).norm();
+        let message = self.message(goal, ending, miss, starts);
+        let mut r = self.result(state.kappa, state.sol, miss, ending, message);
+        r.iterations = self.iterations;
+        r.starts = starts;
+        r
+    }
+
+    fn message(&self, goal: &Goal, ending: IkEnding, miss: f64, starts: usize) -> String {
+        let from = if starts > 1 {
+            format!(" (best of {starts} starting actuations)")
+        } else {
+            String::new()
+        };
+        let length = self.robot.length;
+        match ending {
+            IkEnding::Reached => "reached".to_string(),
+            IkEnding::OutOfReach if self.beyond_length(goal) => format!(
+                "not reached: the target is out of reach, {:.4} m from the base of a {length} m robot; the closest tip found misses by {miss:.3e} m",
+                goal.target.norm()
+            ),
+            IkEnding::OutOfReach => format!(
+                "not reached: the target is out of reach{from}; the closest tip found misses by {miss:.3e} m with no muscle at a length limit"
+            ),
+            IkEnding::BoundsActive => format!(
+                "not reached: the muscles' length range limits the actuation{from}; the closest tip found misses by {miss:.3e} m with muscles at their length limits"
+            ),
+            IkEnding::SolverFailure => format!(
+                "not reached: the forward solver found no stable equilibrium where the descent had to go{from}; the closest tip found misses by {miss:.3e} m"
+            ),
+            IkEnding::LoadIgnored => "not reached: the geometric fit ignores the load".to_string(),
+            IkEnding::IterationLimit => format!(
+                "not reached after {} iterations{from}: the tip misses by {miss:.3e} m and was still closing in (raise max_iterations)",
+                self.iterations
+            ),
+        }
+    }
+
+    /// The seed's way: the weightless robot's answer applied to this (loaded) robot.
+    fn apply_geometric_fit(
+        &mut self,
+        fit: IkResult,
+        target: Vector3<f64>,
+        tol: f64,
+    ) -> Result<IkResult> {
+        let started = std::time::Instant::now();
+        let sol = self.forward(&fit.rest_curvature)?;
+        self.q = usable(&sol).then(|| sol.quaternions.clone());
+        let miss = (sol.tip_position() - target).norm();
+        let ending = if miss <= tol && usable(&sol) {
+            IkEnding::Reached
+        } else {
+            IkEnding::LoadIgnored
+        };
+        let message =
+            format!("geometric fit (load ignored): the loaded tip misses by {miss:.3e} m");
+        let mut r = self.result(fit.rest_curvature, sol, miss, ending, message);
+        r.iterations = fit.iterations;
+        r.starts = fit.starts;
+        r.seconds = fit.seconds + started.elapsed().as_secs_f64();
+        Ok(r)
     }
 
     fn result(
@@ -311,9 +857,8 @@ impl InverseSolver {
         kappa: Vec<[f64; 2]>,
         sol: Solution,
         miss: f64,
-        reached: bool,
+        ending: IkEnding,
         message: String,
-        iterations: usize,
     ) -> IkResult {
         let lengths = self.robot.muscle_lengths(&kappa);
         IkResult {
@@ -323,12 +868,49 @@ impl InverseSolver {
             tip_position: sol.tip_position(),
             solution: sol,
             tip_miss: miss,
-            reached,
+            reached: ending == IkEnding::Reached,
+            ending,
             message,
-            iterations,
+            iterations: 0,
+            starts: 1,
             seconds: 0.0,
         }
     }
+}
+
+/// Where an inverse solve may start after the fast path missed.
+enum Start {
+    /// Continuation in the target from the reference's tip.
+    Continuation,
+    Actuation(Vec<[f64; 2]>),
+}
+
+/// The outcome of a line search.
+enum Search {
+    Accepted(f64),
+    /// No step length was accepted; `unusable` if the last trial found no stable equilibrium.
+    Stalled {
+        unusable: bool,
+    },
+}
+
+/// The outcome of one trial step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Trial {
+    Accepted,
+    Rejected,
+    /// The forward solve found no stable equilibrium there.
+    Unusable,
+}
+
+/// Uniform in [-1, 1) from a splitmix64 sequence.
+fn uniform(state: &mut u64) -> f64 {
+    *state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    2.0 * (z >> 11) as f64 / (1u64 << 53) as f64 - 1.0
 }
 
 fn flatten(k: &[[f64; 2]]) -> DVector<f64> {
@@ -368,7 +950,6 @@ impl Robot {
                     options.max_iterations,
                 )?,
                 Some(geometric) => {
-                    let started = std::time::Instant::now();
                     let fit = geometric.solve(
                         *target,
                         options.direction,
@@ -376,22 +957,7 @@ impl Robot {
                         options.tol,
                         options.max_iterations,
                     )?;
-                    let sol = loaded.forward(&fit.rest_curvature)?;
-                    loaded.q = Some(sol.quaternions.clone());
-                    let miss = (sol.tip_position() - target).norm();
-                    let message = format!(
-                        "geometric fit (load ignored): the loaded tip misses by {miss:.3e} m"
-                    );
-                    let mut r = loaded.result(
-                        fit.rest_curvature,
-                        sol,
-                        miss,
-                        miss <= options.tol,
-                        message,
-                        fit.iterations,
-                    );
-                    r.seconds = started.elapsed().as_secs_f64();
-                    r
+                    loaded.apply_geometric_fit(fit, *target, options.tol)?
                 }
             };
             reference = Some(result.rest_curvature.clone());

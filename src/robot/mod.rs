@@ -15,10 +15,11 @@
 //! mode) does not bend the backbone; it is chosen to centre the lengths in the
 //! muscles' range, which leaves the most room for the next move.
 
+mod bounds;
 mod ik;
 pub mod trajectory;
 
-pub use ik::{IkOptions, IkResult, InverseSolver, Strategy};
+pub use ik::{IkEnding, IkOptions, IkResult, InverseSolver, Strategy};
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
@@ -28,6 +29,17 @@ use nalgebra::{Matrix3, Vector3};
 
 /// Standard gravity [m/s^2].
 pub const STANDARD_GRAVITY: f64 = 9.81;
+
+/// Most sections a robot may have (the IK's dense Jacobian has `2 m` columns).
+pub const MAX_SECTIONS: usize = 10_000;
+
+/// Most elements of a robot's discretisation (about 0.5 GB of solver workspace).
+pub const MAX_ROBOT_ELEMENTS: usize = 1_000_000;
+
+/// Smallest `|det [1, sin phi_i, -cos phi_i]|` of the muscle angles: 2.6 for
+/// three muscles 120 degrees apart, 0 for muscles on one line (which cannot
+/// bend a section in every direction) or two at one angle.
+const MIN_ANGLE_SPREAD: f64 = 1e-6;
 
 /// A multi-section pneumatic continuum robot. `Robot::default()` resembles the
 /// seed's prototype: 1 m, 10 sections, hanging from its base.
@@ -61,6 +73,43 @@ pub struct Robot {
     pub muscle_length_range: [f64; 2],
     /// Elements of the discretisation used by every solve (default 20).
     pub n_elements: usize,
+}
+
+/// Why muscle angles are refused.
+const SPAN_MESSAGE: &str =
+    "the three muscles must sit at distinct angles that span the cross-section's plane (the map from curvature to length changes must have rank 2)";
+
+fn positive(name: &str, x: f64) -> Result<()> {
+    if x.is_finite() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::scene(
+            name,
+            format!("must be positive and finite, got {x}"),
+        ))
+    }
+}
+
+/// A number as given: integers in full, large magnitudes in exponent form.
+fn shown(x: f64) -> String {
+    if x.abs() >= 1e16 {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// A count (sections, elements) read as an integer in `[1, max]`, checked
+/// before anything is allocated for it.
+fn count(key: &str, x: f64, max: usize) -> Result<usize> {
+    if x >= 1.0 && x <= max as f64 && x.fract() == 0.0 {
+        Ok(x as usize)
+    } else {
+        Err(Error::scene(
+            key,
+            format!("must be an integer in [1, {max}], got {}", shown(x)),
+        ))
+    }
 }
 
 impl Default for Robot {
@@ -100,10 +149,21 @@ impl Robot {
     /// `l_s d (sin phi_i, -cos phi_i)`.
     fn lever(&self) -> [[f64; 2]; 3] {
         let ld = self.section_length() * self.muscle_radius;
+        self.unit_lever().map(|[a, b]| [ld * a, ld * b])
+    }
+
+    /// The lever per `l_s d`: `(sin phi_i, -cos phi_i)`.
+    fn unit_lever(&self) -> [[f64; 2]; 3] {
         self.muscle_angles.map(|a| {
             let phi = a.to_radians();
-            [ld * phi.sin(), -ld * phi.cos()]
+            [phi.sin(), -phi.cos()]
         })
+    }
+
+    /// `[1, sin phi_i, -cos phi_i]`: common mode and curvature per `l_s d` to lengths.
+    fn joint_map(&self) -> Matrix3<f64> {
+        let u = self.unit_lever();
+        Matrix3::from_fn(|r, c| if c == 0 { 1.0 } else { u[r][c - 1] })
     }
 
     /// Joint space from rest curvature: the three muscle lengths of each section,
@@ -126,20 +186,18 @@ impl Robot {
     /// Rest curvature from joint space (the common mode of the lengths, which
     /// does not bend an inextensible backbone, drops out).
     pub fn rest_curvature(&self, muscle_lengths: &[[f64; 3]]) -> Result<Vec<[f64; 2]>> {
-        let lever = self.lever();
-        // [1, lever_i] [common, kx, ky]^T = l_i
-        let a = Matrix3::from_fn(|r, c| if c == 0 { 1.0 } else { lever[r][c - 1] });
-        let inv = a.try_inverse().ok_or_else(|| {
-            Error::argument(
-                "muscle_angles",
-                "three muscles on one line cannot bend a section in 2D",
-            )
-        })?;
+        // [1, unit_lever_i] [common, l_s d kx, l_s d ky]^T = l_i, solved
+        // without the scale l_s d, which only divides the answer.
+        let inv = self
+            .joint_map()
+            .try_inverse()
+            .ok_or_else(|| Error::argument("muscle_angles", SPAN_MESSAGE))?;
+        let ld = self.section_length() * self.muscle_radius;
         Ok(muscle_lengths
             .iter()
             .map(|l| {
                 let x = inv * Vector3::from(*l);
-                [x[1], x[2]]
+                [x[1] / ld, x[2] / ld]
             })
             .collect())
     }
@@ -243,32 +301,44 @@ impl Robot {
         }
     }
 
+    /// Refuse a robot that cannot be solved as given, naming the field: a
+    /// field out of range, muscles that do not span the cross-section, or a
+    /// derived quantity that overflows or underflows (listed at `check_derived`).
     pub fn validate(&self) -> Result<()> {
-        let positive = |name: &str, x: f64| -> Result<()> {
-            if x.is_finite() && x > 0.0 {
-                Ok(())
-            } else {
-                Err(Error::scene(
-                    name,
-                    format!("must be positive and finite, got {x}"),
-                ))
-            }
-        };
-        positive("length", self.length)?;
-        positive("muscle_radius", self.muscle_radius)?;
-        positive("muscle_rest_length", self.muscle_rest_length)?;
-        if self.sections == 0 {
-            return Err(Error::scene("sections", "must be at least 1"));
+        self.check_counts()?;
+        self.check_fields()?;
+        self.check_muscle_angles()?;
+        self.check_derived()
+    }
+
+    fn check_counts(&self) -> Result<()> {
+        if !(1..=MAX_SECTIONS).contains(&self.sections) {
+            return Err(Error::scene(
+                "sections",
+                format!(
+                    "must be an integer in [1, {MAX_SECTIONS}], got {}",
+                    self.sections
+                ),
+            ));
         }
-        if self.n_elements == 0 || self.n_elements % self.sections != 0 {
+        if !(1..=MAX_ROBOT_ELEMENTS).contains(&self.n_elements)
+            || self.n_elements % self.sections != 0
+        {
             return Err(Error::scene(
                 "n_elements",
                 format!(
-                    "must be a positive multiple of sections ({}), got {}",
+                    "must be a multiple of sections ({}) in [1, {MAX_ROBOT_ELEMENTS}], got {}",
                     self.sections, self.n_elements
                 ),
             ));
         }
+        Ok(())
+    }
+
+    fn check_fields(&self) -> Result<()> {
+        positive("length", self.length)?;
+        positive("muscle_radius", self.muscle_radius)?;
+        positive("muscle_rest_length", self.muscle_rest_length)?;
         for (name, x) in [
             ("linear_density", self.linear_density),
             ("disk_mass", self.disk_mass),
@@ -293,10 +363,11 @@ impl Robot {
                 format!("must be [min, max] with 0 < min < max, got [{lo}, {hi}]"),
             ));
         }
-        if self.muscle_angles.iter().any(|a| !a.is_finite())
-            || self.gravity.iter().any(|g| !g.is_finite())
-        {
+        if self.muscle_angles.iter().any(|a| !a.is_finite()) {
             return Err(Error::scene("muscle_angles", "must be finite"));
+        }
+        if self.gravity.iter().any(|g| !g.is_finite()) {
+            return Err(Error::scene("gravity", "must be finite"));
         }
         if let Stiffness::RoundRod { e, g, diameter } = self.stiffness {
             positive("stiffness.E", e)?;
@@ -308,7 +379,98 @@ impl Robot {
             positive("stiffness.ky", ky)?;
             positive("stiffness.kz", kz)?;
         }
-        self.rest_curvature(&[[0.0; 3]]).map(|_| ())
+        Ok(())
+    }
+
+    /// The muscles must span the cross-section's plane: the 2 x 3 map from
+    /// curvature to length changes has rank 2 and, with the common mode, is
+    /// invertible (three distinct angles, not on one line).
+    fn check_muscle_angles(&self) -> Result<()> {
+        let det = self.joint_map().determinant();
+        if det.abs() >= MIN_ANGLE_SPREAD {
+            return Ok(());
+        }
+        let [a, b, c] = self.muscle_angles;
+        Err(Error::scene(
+            "muscle_angles",
+            format!("{SPAN_MESSAGE}, got [{a}, {b}, {c}]"),
+        ))
+    }
+
+    /// Quantities derived from the fields must be finite normal numbers (no
+    /// overflow, no underflow to zero or to the subnormal range), each blamed on
+    /// the field that sets it: the section and element lengths and the
+    /// element length squared (`length`), the length squared (`length`: moment
+    /// arms), the lever `l_s d` and its square (`muscle_radius`), the muscle
+    /// rest length (`muscle_rest_length`), the range's
+    /// span and curvature range `span / (l_s d)` (`muscle_length_range`), the
+    /// inflation times at the range's ends (`inflation_rate`), the weights and
+    /// their moment (`linear_density`, `disk_mass`).
+    fn check_derived(&self) -> Result<()> {
+        let ls = self.section_length();
+        let ds = self.length / self.n_elements as f64;
+        let ld = ls * self.muscle_radius;
+        let [lo, hi] = self.muscle_length_range;
+        let rest = self.muscle_rest_length;
+        let g = self.gravity.norm();
+        let weight = self.linear_density * g;
+        let disks = self.disk_mass * g;
+        // (key, quantity, value, whether an exact zero is what the fields say)
+        let quantities = [
+            ("length", "section length", ls, false),
+            ("length", "element length", ds, false),
+            ("length", "element length squared", ds * ds, false),
+            ("length", "length squared", self.length * self.length, false),
+            ("muscle_radius", "lever l_s d", ld, false),
+            ("muscle_radius", "lever squared", ld * ld, false),
+            ("muscle_rest_length", "rest length", rest, false),
+            ("muscle_length_range", "span max - min", hi - lo, false),
+            (
+                "muscle_length_range",
+                "curvature range span / (l_s d)",
+                (hi - lo) / ld,
+                false,
+            ),
+            (
+                "inflation_rate",
+                "inflation time at the shortest length",
+                (lo - rest) / self.inflation_rate,
+                lo == rest,
+            ),
+            (
+                "inflation_rate",
+                "inflation time at the longest length",
+                (hi - rest) / self.inflation_rate,
+                hi == rest,
+            ),
+            (
+                "linear_density",
+                "weight",
+                weight * self.length,
+                weight == 0.0,
+            ),
+            (
+                "linear_density",
+                "weight's moment",
+                weight * self.length * self.length,
+                weight == 0.0,
+            ),
+            (
+                "disk_mass",
+                "disks' weight",
+                disks * self.sections as f64,
+                disks == 0.0,
+            ),
+        ];
+        for (key, what, x, zero) in quantities {
+            if !(x.is_normal() || (zero && x == 0.0)) {
+                return Err(Error::scene(
+                    key,
+                    format!("{what} = {x:e} is beyond double precision (overflow or underflow); rescale the robot"),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Read a robot from a value tree: every field optional, defaults as `Robot::default()`.
@@ -323,100 +485,104 @@ impl Robot {
             }
         };
         let mut r = Robot::default();
-        let mut rest_length_given = false;
-        let mut range_given = false;
         for (key, value) in entries {
-            let num = |v: &Value| -> Result<f64> {
-                match v {
-                    Value::Number(x) if x.is_finite() => Ok(*x),
-                    Value::Number(x) => Err(Error::scene(
-                        key.as_str(),
-                        format!("must be finite, got {x}"),
-                    )),
-                    other => Err(Error::scene(
-                        key.as_str(),
-                        format!("expected a number, got {}", other.kind()),
-                    )),
-                }
-            };
-            let list = |v: &Value, len: usize| -> Result<Vec<f64>> {
-                match v {
-                    Value::List(items) if items.len() == len => items.iter().map(num).collect(),
-                    _ => Err(Error::scene(
-                        key.as_str(),
-                        format!("expected a list of {len} numbers"),
-                    )),
-                }
-            };
-            match key.as_str() {
-                "length" => r.length = num(value)?,
-                "stiffness" => {
-                    let probe = Value::Map(vec![
-                        ("length".into(), Value::Number(1.0)),
-                        ("stiffness".into(), value.clone()),
-                    ]);
-                    r.stiffness = Scene::from_value(&probe)?.stiffness_spec;
-                }
-                "linear_density" => r.linear_density = num(value)?,
-                "sections" => {
-                    let x = num(value)?;
-                    if x < 1.0 || x.fract() != 0.0 {
-                        return Err(Error::scene("sections", format!("must be a positive integer, got {x}")));
-                    }
-                    r.sections = x as usize;
-                }
-                "muscle_radius" => r.muscle_radius = num(value)?,
-                "muscle_angles" => {
-                    let a = list(value, 3)?;
-                    r.muscle_angles = [a[0], a[1], a[2]];
-                }
-                "disk_mass" => r.disk_mass = num(value)?,
-                "gravity" => r.gravity = Vector3::from_vec(list(value, 3)?),
-                "base_quaternion" => {
-                    let q = list(value, 4)?;
-                    let q = Quat::new(q[0], q[1], q[2], q[3]);
-                    if (q.norm() - 1.0).abs() > 1e-6 {
-                        return Err(Error::scene("base_quaternion", "must be a unit quaternion [w, x, y, z]"));
-                    }
-                    r.base_quaternion = q.normalized();
-                }
-                "muscle_rest_length" => {
-                    r.muscle_rest_length = num(value)?;
-                    rest_length_given = true;
-                }
-                "inflation_rate" => r.inflation_rate = num(value)?,
-                "muscle_length_range" => {
-                    let a = list(value, 2)?;
-                    r.muscle_length_range = [a[0], a[1]];
-                    range_given = true;
-                }
-                "n_elements" => {
-                    let x = num(value)?;
-                    if x < 1.0 || x.fract() != 0.0 {
-                        return Err(Error::scene("n_elements", format!("must be a positive integer, got {x}")));
-                    }
-                    r.n_elements = x as usize;
-                }
-                other => {
-                    return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, muscle_rest_length, inflation_rate, muscle_length_range, n_elements)"))
-                }
-            }
+            r.read_field(key, value)?;
         }
+        let given = |name: &str| entries.iter().any(|(k, _)| k == name);
         // Defaults that follow the section length.
-        let rest = r.section_length();
-        if !rest_length_given {
-            r.muscle_rest_length = rest;
+        if !given("muscle_rest_length") {
+            r.muscle_rest_length = r.section_length();
         }
-        if !range_given {
+        if !given("muscle_length_range") {
             r.muscle_length_range = [0.8 * r.muscle_rest_length, 1.05 * r.muscle_rest_length];
         }
-        if r.sections > 0
-            && r.n_elements % r.sections != 0
-            && !entries.iter().any(|(k, _)| k == "n_elements")
-        {
+        if r.n_elements % r.sections != 0 && !given("n_elements") {
             r.n_elements = 2 * r.sections;
         }
-        r.validate()?;
+        // A field defaulted from another is blamed on the one given.
+        let rest_key = if given("muscle_rest_length") {
+            "muscle_rest_length"
+        } else {
+            "length"
+        };
+        let range_key = if given("muscle_length_range") {
+            "muscle_length_range"
+        } else {
+            rest_key
+        };
+        r.validate().map_err(|e| match e {
+            Error::InvalidScene { key, reason } if key == "muscle_rest_length" => {
+                Error::scene(rest_key, reason)
+            }
+            Error::InvalidScene { key, reason } if key == "muscle_length_range" => {
+                Error::scene(range_key, reason)
+            }
+            other => other,
+        })?;
         Ok(r)
+    }
+
+    /// Set one field from the value tree (counts checked before anything is sized by them).
+    fn read_field(&mut self, key: &str, value: &Value) -> Result<()> {
+        let num = |v: &Value| -> Result<f64> {
+            match v {
+                Value::Number(x) if x.is_finite() => Ok(*x),
+                Value::Number(x) => Err(Error::scene(key, format!("must be finite, got {x}"))),
+                other => Err(Error::scene(
+                    key,
+                    format!("expected a number, got {}", other.kind()),
+                )),
+            }
+        };
+        let list = |v: &Value, len: usize| -> Result<Vec<f64>> {
+            match v {
+                Value::List(items) if items.len() == len => items.iter().map(num).collect(),
+                _ => Err(Error::scene(
+                    key,
+                    format!("expected a list of {len} numbers"),
+                )),
+            }
+        };
+        match key {
+            "length" => self.length = num(value)?,
+            "stiffness" => {
+                let probe = Value::Map(vec![
+                    ("length".into(), Value::Number(1.0)),
+                    ("stiffness".into(), value.clone()),
+                ]);
+                self.stiffness = Scene::from_value(&probe)?.stiffness_spec;
+            }
+            "linear_density" => self.linear_density = num(value)?,
+            "sections" => self.sections = count(key, num(value)?, MAX_SECTIONS)?,
+            "muscle_radius" => self.muscle_radius = num(value)?,
+            "muscle_angles" => {
+                let a = list(value, 3)?;
+                self.muscle_angles = [a[0], a[1], a[2]];
+            }
+            "disk_mass" => self.disk_mass = num(value)?,
+            "gravity" => self.gravity = Vector3::from_vec(list(value, 3)?),
+            "base_quaternion" => {
+                let q = list(value, 4)?;
+                let q = Quat::new(q[0], q[1], q[2], q[3]);
+                if (q.norm() - 1.0).abs() > 1e-6 {
+                    return Err(Error::scene(
+                        key,
+                        "must be a unit quaternion [w, x, y, z]",
+                    ));
+                }
+                self.base_quaternion = q.normalized();
+            }
+            "muscle_rest_length" => self.muscle_rest_length = num(value)?,
+            "inflation_rate" => self.inflation_rate = num(value)?,
+            "muscle_length_range" => {
+                let a = list(value, 2)?;
+                self.muscle_length_range = [a[0], a[1]];
+            }
+            "n_elements" => self.n_elements = count(key, num(value)?, MAX_ROBOT_ELEMENTS)?,
+            other => {
+                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, muscle_rest_length, inflation_rate, muscle_length_range, n_elements)"))
+            }
+        }
+        Ok(())
     }
 }

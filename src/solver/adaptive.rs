@@ -4,9 +4,9 @@
 //! below the tolerance. Richardson extrapolation `(4 r_2n - r_n) / 3` removes
 //! the leading error term and typically gains two to four digits.
 
-use super::{Settings, Solution, Solver};
+use super::{check_tolerance, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
-use crate::model::slerp;
+use crate::model::{element_turn, slerp};
 use crate::quat::Quat;
 use crate::scene::Scene;
 
@@ -31,21 +31,56 @@ impl Accuracy {
     }
 }
 
+/// Range of the relative tip tolerance: 1e-12 L is about what double
+/// precision leaves of a tip at the largest n; above 0.1 L is no accuracy.
+pub const ACCURACY_TOL_RANGE: (f64, f64) = (1e-12, 1e-1);
+
+/// Largest turning of one element [rad] at which the error estimate from the
+/// solves at n and 2n is trusted (the error is then in its asymptotic,
+/// second-order regime); coarser solves only lead to finer ones.
+pub const ASYMPTOTIC_TURN: f64 = 0.25;
+
+impl Accuracy {
+    pub fn validate(&self) -> Result<()> {
+        check_tolerance("tol", self.tol, ACCURACY_TOL_RANGE)?;
+        if self.max_elements == 0 || self.max_elements > MAX_ELEMENTS {
+            return Err(Error::argument(
+                "max_elements",
+                format!("must lie in [1, {MAX_ELEMENTS}], got {}", self.max_elements),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The first n of accuracy on demand: at least `requested`, a multiple of the
+/// sections, and fine enough that no element turns by more than
+/// [`ASYMPTOTIC_TURN`] at rest (a coiled rod needs many elements before any
+/// estimate means anything).
+pub fn starting_elements(scene: &Scene, requested: usize) -> usize {
+    let m = scene.sections();
+    let rest_turn = scene
+        .rest_curvature
+        .iter()
+        .map(|k| k[0].hypot(k[1]))
+        .fold(0.0, f64::max)
+        * scene.length;
+    let resolving = (rest_turn / ASYMPTOTIC_TURN)
+        .ceil()
+        .min(MAX_ELEMENTS as f64) as usize;
+    requested.max(resolving).max(1).div_ceil(m) * m
+}
+
 /// Solve `scene` to a tip accuracy of `accuracy.tol * L`, starting at
-/// `settings.n_elements` (a multiple of the sections) and doubling.
+/// [`starting_elements`] and doubling.
 pub fn solve_to_accuracy(
     scene: &Scene,
     settings: Settings,
     accuracy: &Accuracy,
 ) -> Result<Solution> {
-    if !(accuracy.tol.is_finite() && accuracy.tol > 0.0) {
-        return Err(Error::argument(
-            "tol",
-            format!("must be positive and finite, got {}", accuracy.tol),
-        ));
-    }
+    accuracy.validate()?;
     let length = scene.length;
-    let mut n = settings.n_elements;
+    let mut n = starting_elements(scene, settings.n_elements);
     let mut solver = Solver::new(
         scene,
         Settings {
@@ -60,11 +95,25 @@ pub fn solve_to_accuracy(
         return Ok(coarse);
     }
     let mut iterations = coarse.iterations;
+    // An underresolved equilibrium is no answer yet, but a finer n may resolve it.
+    let usable = |s: &Solution| s.converged() || s.status == Status::Underresolved;
     loop {
-        if !coarse.converged() {
+        if !usable(&coarse) {
             coarse.iterations = iterations;
             return Ok(coarse);
         }
+        if 2 * n > accuracy.max_elements {
+            coarse.iterations = iterations;
+            if coarse.converged() {
+                coarse.status = Status::ToleranceNotMet;
+                coarse.message = format!(
+                    "tolerance not met: no error estimate, the first resolving n = {n} leaves no finer n within max_elements {}",
+                    accuracy.max_elements
+                );
+            }
+            return Ok(coarse);
+        }
+        crate::interrupt::check()?;
         let warm = refine(&coarse.quaternions);
         let mut fine = Solver::new(
             scene,
@@ -75,23 +124,27 @@ pub fn solve_to_accuracy(
         )?
         .solve(Some(&warm))?;
         iterations += fine.iterations;
-        if !fine.converged() {
+        if !usable(&fine) {
             fine.iterations = iterations;
             return Ok(fine);
         }
         let (r_n, r_2n) = (coarse.tip_position(), fine.tip_position());
         let estimate = (r_2n - r_n).norm() / 3.0;
-        if estimate <= accuracy.tol * length || 4 * n > accuracy.max_elements {
+        let asymptotic = coarse.converged() && max_turn(scene, &coarse) <= ASYMPTOTIC_TURN;
+        let met = asymptotic && estimate <= accuracy.tol * length;
+        if met || 4 * n > accuracy.max_elements {
             fine.iterations = iterations;
-            fine.error_estimate = Some(estimate);
-            if accuracy.richardson {
+            fine.error_estimate = asymptotic.then_some(estimate);
+            if accuracy.richardson && asymptotic {
                 fine.extrapolated_tip = Some((4.0 * r_2n - r_n) / 3.0);
             }
-            if estimate > accuracy.tol * length {
+            if !met && fine.converged() {
+                fine.status = Status::ToleranceNotMet;
                 fine.message = format!(
-                    "{}; tolerance not met: {} elements reached the limit, error estimate {estimate:.2e} m",
-                    fine.message,
-                    2 * n
+                    "tolerance not met: {} elements reached the limit (max_elements {}), error estimate {estimate:.2e} m > tol * L = {:.2e} m",
+                    2 * n,
+                    accuracy.max_elements,
+                    accuracy.tol * length
                 );
             }
             return Ok(fine);
@@ -99,6 +152,20 @@ pub fn solve_to_accuracy(
         coarse = fine;
         n *= 2;
     }
+}
+
+/// Largest element turning of a solution [rad], rest turning included.
+fn max_turn(scene: &Scene, sol: &Solution) -> f64 {
+    let ds = scene.length / sol.n_elements as f64;
+    let rest = scene
+        .rest_curvature
+        .iter()
+        .map(|k| ds * k[0].hypot(k[1]))
+        .fold(0.0, f64::max);
+    sol.quaternions
+        .windows(2)
+        .map(|p| element_turn(p[0], p[1]))
+        .fold(rest, f64::max)
 }
 
 /// The nodes of a twice finer discretisation: every node kept, a midpoint

@@ -18,6 +18,7 @@
 
 use super::{step_limit, Workspace};
 use crate::blocktri::{BlockLu, BlockTridiagonal};
+use crate::interrupt;
 use crate::model::RodModel;
 use nalgebra::{DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
 
@@ -62,10 +63,11 @@ impl KktWorkspace {
     }
 }
 
-/// Scale that turns a position error [m] into a torque [N m] comparable with
-/// the residual: `max(k) / L^2`, so that `tol` bounds `|h| / L`.
+/// Weight of a held point's position rows in the scaled merit, `1 / L`: the
+/// torque rows count over their own scales (see `RodModel::residual_norm`), so
+/// `tol` bounds `|h| / L` alike.
 pub(crate) fn position_weight(model: &RodModel) -> f64 {
-    model.residual_scale / model.length
+    1.0 / model.length
 }
 
 /// Residual (and Jacobian) at `w.q` with the reactions `w.kkt.reactions`;
@@ -101,14 +103,20 @@ pub(crate) fn evaluate(
 
 fn merit(model: &RodModel, g: &[Vector3<f64>], h: &[Vector3<f64>]) -> f64 {
     let wt = position_weight(model);
-    g.iter().map(|x| x.norm_squared()).sum::<f64>()
-        + wt * wt * h.iter().map(|x| x.norm_squared()).sum::<f64>()
+    model.merit(g) + wt * wt * h.iter().map(|x| x.norm_squared()).sum::<f64>()
 }
 
 /// Dimensionless residual: torque rows and weighted constraint rows together.
 pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
-    let h = w.kkt.h.iter().map(|x| x.amax()).fold(0.0, f64::max) * position_weight(model);
-    model.residual_norm(&w.g).max(h / model.residual_scale)
+    let mut h = 0.0f64;
+    for x in &w.kkt.h {
+        let r = x.amax() * position_weight(model);
+        if !r.is_finite() {
+            return f64::INFINITY;
+        }
+        h = h.max(r);
+    }
+    model.residual_norm(&w.g).max(h)
 }
 
 /// Fill `D_c` at `w.q` (zero on a clamped tip node, which does not move).
@@ -200,12 +208,17 @@ pub(crate) fn newton(
         w.q[n] = tip;
     }
     let mut merit_now = evaluate(model, w, lambda, true);
-    for it in 0..max_iter {
-        if residual_norm(model, w) <= tol {
-            return (true, it);
+    // One pass more than the budget: the last one only certifies.
+    for it in 0..=max_iter {
+        let norm = residual_norm(model, w);
+        if !norm.is_finite() || interrupt::requested() {
+            return (false, it);
         }
         load_constraint_jacobian(model, w);
-        let scale = w.jac.max_diagonal().max(model.residual_scale * model.ds);
+        let scale = w
+            .jac
+            .max_diagonal()
+            .max(model.residual_scale.max() * model.ds);
         let mut shift = 0.0;
         let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
         let solved = loop {
@@ -223,6 +236,12 @@ pub(crate) fn newton(
         };
         w.lu = lu;
         if !solved {
+            return (false, it);
+        }
+        if super::newton::certified(norm, &w.step, tol) {
+            return (true, it);
+        }
+        if it == max_iter {
             return (false, it);
         }
         for (i, d) in w.kkt.reaction_step.iter_mut().enumerate() {
@@ -246,7 +265,9 @@ pub(crate) fn newton(
                 *r = r0 + alpha * d;
             }
             let trial_merit = evaluate(model, w, lambda, false);
-            if trial_merit.is_finite() && trial_merit <= (1.0 - 1e-4 * alpha) * merit_now {
+            // At the round-off floor the merit is noise: see `newton.rs`.
+            let decreased = trial_merit <= (1.0 - 1e-4 * alpha) * merit_now;
+            if trial_merit.is_finite() && (decreased || residual_norm(model, w) <= tol) {
                 merit_now = evaluate(model, w, lambda, true);
                 break;
             }
@@ -259,7 +280,7 @@ pub(crate) fn newton(
             }
         }
     }
-    (residual_norm(model, w) <= tol, max_iter)
+    unreachable!("the loop returns at its last pass")
 }
 
 /// Stability of a constrained equilibrium: the reduced Hessian `Z^T A Z` on the

@@ -8,7 +8,8 @@
 //! is the whole KKT matrix `[[A, -D^T], [W D, 0]]`.
 
 use super::constrained::{self, load_constraint_jacobian, position_weight};
-use super::{step_limit, sum_squares, LocalOutcome, LocalSolver, Workspace};
+use super::{step_limit, LocalOutcome, LocalSolver, Workspace};
+use crate::interrupt;
 use crate::model::RodModel;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::{
@@ -56,7 +57,10 @@ impl LevenbergMarquardt {
         let n = model.n;
         let merit = evaluate(model, w, lambda, true);
         self.jac.fill(0.0);
-        w.jac.for_each_entry(|r, c, v| self.jac[(r, c)] = v);
+        // Torque rows over their own scales, as in the residual norm and merit.
+        let row_scale = model.residual_scale;
+        w.jac
+            .for_each_entry(|r, c, v| self.jac[(r, c)] = v / row_scale[r % 3]);
         if model.is_constrained() {
             load_constraint_jacobian(model, w);
             let wt = position_weight(model);
@@ -65,7 +69,7 @@ impl LevenbergMarquardt {
                     for a in 0..3 {
                         for b in 0..3 {
                             // g depends on R through -D^T R; h on theta through D.
-                            self.jac[(3 * j + b, 3 * (n + ci) + a)] = -block[(a, b)];
+                            self.jac[(3 * j + b, 3 * (n + ci) + a)] = -block[(a, b)] / row_scale[b];
                             self.jac[(3 * (n + ci) + a, 3 * j + b)] = wt * block[(a, b)];
                         }
                     }
@@ -89,7 +93,7 @@ impl LevenbergMarquardt {
         let wt = position_weight(model);
         for (j, g) in w.g.iter().enumerate() {
             for r in 0..3 {
-                self.residual[(3 * j + r, 0)] = g[r];
+                self.residual[(3 * j + r, 0)] = g[r] / model.residual_scale[r];
             }
         }
         for (c, h) in w.kkt.h.iter().enumerate() {
@@ -110,7 +114,7 @@ fn evaluate(model: &RodModel, w: &mut Workspace, lambda: f64, with_jacobian: boo
         } else {
             model.residual(&w.q, lambda, &mut w.g);
         }
-        sum_squares(&w.g)
+        model.merit(&w.g)
     }
 }
 
@@ -141,9 +145,10 @@ impl LocalSolver for LevenbergMarquardt {
         let max_diag = (0..dim).map(|i| self.normal[(i, i)]).fold(0.0, f64::max);
         let mut mu = 1e-6 * max_diag.max(f64::MIN_POSITIVE);
         for it in 0..max_iter {
-            if norm(model, w) <= tol {
+            let residual = norm(model, w);
+            if residual <= tol || !residual.is_finite() || interrupt::requested() {
                 return LocalOutcome {
-                    converged: true,
+                    converged: residual <= tol,
                     iterations: it,
                 };
             }

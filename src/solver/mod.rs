@@ -11,6 +11,7 @@ pub use adaptive::{solve_to_accuracy, Accuracy};
 
 use crate::blocktri::{symmetric_part_is_positive_definite, BlockLu, BlockTridiagonal};
 use crate::error::{Error, Result};
+use crate::interrupt;
 use crate::model::RodModel;
 use crate::paper_method::{solve_paper, PaperSettings};
 use crate::quat::Quat;
@@ -54,7 +55,10 @@ pub struct Settings {
     pub n_elements: usize,
     pub method: Method,
     /// Convergence tolerance on the relative residual: the largest torque
-    /// imbalance over `max(k) / L` (default 1e-10).
+    /// imbalance of a row over its own scale `k_c / L` (default 1e-10, within
+    /// [`RESIDUAL_TOL_RANGE`]). The tolerance in effect is never below the
+    /// round-off floor of the residual, `8 eps n` (see
+    /// [`RodModel::effective_tol`]), so that it cannot be defeated at large n.
     pub residual_tol: f64,
     /// Iteration budget of a solve, all load-continuation steps included
     /// (default 500). One direct attempt uses at most 60 of it, a continuation
@@ -79,32 +83,108 @@ impl Default for Settings {
     }
 }
 
+/// Largest `n_elements` of the O(n) Newton solver: about 0.5 KB a node of
+/// workspace, so 4 000 000 elements take about 2 GB.
+pub const MAX_ELEMENTS: usize = 4_000_000;
+
+/// Largest `n_elements` of the dense methods (`lm`: matrices of `(3n)^2`
+/// entries and O(n^3) work an iteration).
+pub const MAX_DENSE_ELEMENTS: usize = 1_000;
+
+/// Largest `n_elements` of the paper's method (dense, over `[q, F]`, and a
+/// swarm of particles in `7n` dimensions).
+pub const MAX_PAPER_ELEMENTS: usize = 400;
+
+/// Range of `residual_tol`: below 1e-14 is below what double precision
+/// resolves; above 1e-4 a "converged" state is visibly off equilibrium.
+pub const RESIDUAL_TOL_RANGE: (f64, f64) = (1e-14, 1e-4);
+
+/// Refuse a tolerance outside `[min, max]` (or not finite), naming it.
+pub(crate) fn check_tolerance(name: &str, value: f64, (min, max): (f64, f64)) -> Result<()> {
+    if value.is_finite() && (min..=max).contains(&value) {
+        return Ok(());
+    }
+    Err(Error::argument(
+        name,
+        format!("must lie in [{min:e}, {max:e}], got {value:e}"),
+    ))
+}
+
 impl Settings {
     pub fn validate(&self) -> Result<()> {
-        if self.n_elements == 0 {
-            return Err(Error::argument("n_elements", "must be positive"));
-        }
-        if !(self.residual_tol.is_finite() && self.residual_tol > 0.0) {
+        let limit = match self.method {
+            Method::Newton => MAX_ELEMENTS,
+            Method::LevenbergMarquardt => MAX_DENSE_ELEMENTS,
+            Method::Paper | Method::PaperLiteral => MAX_PAPER_ELEMENTS,
+        };
+        if self.n_elements == 0 || self.n_elements > limit {
             return Err(Error::argument(
-                "residual_tol",
-                format!("must be positive and finite, got {}", self.residual_tol),
+                "n_elements",
+                format!(
+                    "must lie in [1, {limit}] for method {:?}, got {}",
+                    self.method, self.n_elements
+                ),
             ));
         }
+        check_tolerance("residual_tol", self.residual_tol, RESIDUAL_TOL_RANGE)?;
         if self.max_iterations == 0 {
             return Err(Error::argument("max_iterations", "must be positive"));
+        }
+        if !(self.min_continuation_step > 0.0 && self.min_continuation_step < 1.0) {
+            return Err(Error::argument(
+                "min_continuation_step",
+                format!("must lie in (0, 1), got {}", self.min_continuation_step),
+            ));
+        }
+        if matches!(self.method, Method::Paper | Method::PaperLiteral) {
+            self.paper.validate()?;
         }
         Ok(())
     }
 }
 
-/// How a solve ended.
+/// How a solve ended. Only `Converged` is an answer; every other ending
+/// carries the best state reached, its residual and a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
-    /// The relative residual is below `residual_tol`.
+    /// The relative residual is below `residual_tol`, the state is finite and
+    /// every element turns within what the scheme resolves.
     Converged,
-    /// The iteration or continuation budget ran out first.
+    /// The iteration or continuation budget ran out, or the line search stalled.
     NotConverged,
+    /// Accuracy on demand stopped at its largest `n` with the error estimate
+    /// above the tolerance (the state is a converged equilibrium at that `n`).
+    ToleranceNotMet,
+    /// An equilibrium of the discrete system whose elements turn by more than
+    /// [`MAX_RESOLVED_TURN`]: the discrete rod cannot follow the shape (a
+    /// coiled rod folds onto itself); solve with more elements.
+    Underresolved,
+    /// The state or the residual is not finite (an overflow).
+    NumericalError,
+    /// Not attempted: the scene has no well-defined answer (a held point at
+    /// exactly full reach, whose reaction is indeterminate).
+    Indeterminate,
 }
+
+impl Status {
+    /// The snake_case name used by the Python API and in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Converged => "converged",
+            Status::NotConverged => "not_converged",
+            Status::ToleranceNotMet => "tolerance_not_met",
+            Status::Underresolved => "underresolved",
+            Status::NumericalError => "numerical_error",
+            Status::Indeterminate => "indeterminate",
+        }
+    }
+}
+
+/// Largest turning of one element [rad] that the scheme resolves. The discrete
+/// curvature `2 sin(theta/2) / ds` then underestimates the element's turning
+/// by at most 4 %, and the rest curvature stays representable (`ds |kappa0| < 2`
+/// is a hard limit of the formula).
+pub const MAX_RESOLVED_TURN: f64 = 1.0;
 
 /// An equilibrium (or the best state reached) with its status.
 #[derive(Debug, Clone)]
@@ -165,6 +245,7 @@ impl Solution {
             Ok(self)
         } else {
             Err(Error::NotConverged {
+                status: self.status,
                 iterations: self.iterations,
                 residual: self.residual_norm,
                 reason: self.message,
@@ -190,20 +271,23 @@ pub(crate) struct Workspace {
 }
 
 impl Workspace {
-    fn new(model: &RodModel) -> Self {
+    /// Allocated fallibly and between interrupt polls (about 0.5 KB a node).
+    fn new(model: &RodModel) -> Result<Self> {
         let n = model.n;
-        Workspace {
-            q: model.straight(),
-            trial: model.straight(),
-            saved: model.straight(),
-            g: vec![Vector3::zeros(); n],
-            g_trial: vec![Vector3::zeros(); n],
-            step: vec![Vector3::zeros(); n],
-            scratch: vec![Vector3::zeros(); n],
-            jac: BlockTridiagonal::zeros(n),
-            lu: BlockLu::new(n),
+        let nodes = || interrupt::filled(n + 1, model.base, "workspace");
+        let vectors = || interrupt::filled(n, Vector3::zeros(), "workspace");
+        Ok(Workspace {
+            q: nodes()?,
+            trial: nodes()?,
+            saved: nodes()?,
+            g: vectors()?,
+            g_trial: vectors()?,
+            step: vectors()?,
+            scratch: vectors()?,
+            jac: BlockTridiagonal::try_zeros(n)?,
+            lu: BlockLu::try_new(n)?,
             kkt: constrained::KktWorkspace::new(model),
-        }
+        })
     }
 }
 
@@ -243,10 +327,11 @@ pub struct Solver {
 impl Solver {
     pub fn new(scene: &Scene, settings: Settings) -> Result<Self> {
         settings.validate()?;
+        scene.check_derived()?;
         scene.check_elements(settings.n_elements)?;
         let full_reach = scene.check_constraints(settings.n_elements)?;
         let model = RodModel::new(scene, settings.n_elements);
-        let work = Workspace::new(&model);
+        let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
             Method::Newton => Box::new(newton::Newton),
             Method::LevenbergMarquardt | Method::Paper | Method::PaperLiteral => {
@@ -303,6 +388,7 @@ impl Solver {
         model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
         if w.lu.factor(&w.jac, 0.0).is_err() {
             return Err(Error::NotConverged {
+                status: Status::NotConverged,
                 iterations: 0,
                 residual: model.residual_norm(&w.g),
                 reason: "singular Jacobian: the equilibrium is at a bifurcation".into(),
@@ -337,6 +423,13 @@ impl Solver {
     /// the tip orientation). Errors only on invalid `initial`; otherwise the
     /// Solution's status says how the solve ended.
     pub fn solve(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
+        let solution = self.solve_uninterrupted(initial);
+        // An interrupt winds every loop down; its partial state is no answer.
+        interrupt::check()?;
+        solution
+    }
+
+    fn solve_uninterrupted(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
         let n = self.model.n;
         if let Some(q) = initial {
             if q.len() != n + 1 {
@@ -357,7 +450,7 @@ impl Solver {
         if matches!(self.settings.method, Method::Paper | Method::PaperLiteral) {
             return self.solve_paper();
         }
-        let tol = self.settings.residual_tol;
+        let tol = self.model.effective_tol(self.settings.residual_tol);
         let (model, w) = (&self.model, &mut self.work);
         w.kkt
             .reactions
@@ -481,7 +574,22 @@ impl Solver {
                 out.message, out.max_norm_deviation
             )
         };
-        let stable = converged && is_stable(model, w);
+        // The method's verdict covers its own residual (the paper's rows).
+        let verdict = if converged {
+            Ok(())
+        } else {
+            Err(Status::NotConverged)
+        };
+        let (status, note) = judge(
+            model,
+            &out.quaternions,
+            &out.positions,
+            out.residual_norm,
+            verdict,
+            f64::INFINITY,
+        );
+        let message = note.unwrap_or(message);
+        let stable = status == Status::Converged && is_stable(model, w);
         let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
         Ok(Solution {
             n_elements: n,
@@ -491,11 +599,7 @@ impl Solver {
             tip_reaction_force: tip_held.then(|| out.forces[n] - self.scene.tip_force),
             tip_reaction_moment: model.clamped_tip.map(|_| w.q[n].rotate(w.kkt.tip_torque)),
             guide_reactions: Vec::new(),
-            status: if converged {
-                Status::Converged
-            } else {
-                Status::NotConverged
-            },
+            status,
             iterations: out.pso_iterations + out.lm_iterations,
             continuation_steps: 0,
             residual_norm: out.residual_norm,
@@ -511,13 +615,29 @@ impl Solver {
     fn finish(&mut self, ending: Ending, iterations: usize, continuation_steps: usize) -> Solution {
         let (model, w) = (&self.model, &mut self.work);
         let residual_norm = residual_norm(model, w);
-        let converged = ending.converged() && residual_norm <= self.settings.residual_tol;
         let mut positions = vec![Vector3::zeros(); model.n + 1];
         model.positions(&w.q, &mut positions);
+        let solved = match ending {
+            Ending::Refused(_) => Err(Status::Indeterminate),
+            Ending::Failed(_) => Err(Status::NotConverged),
+            _ => Ok(()),
+        };
+        let (status, note) = judge(
+            model,
+            &w.q,
+            &positions,
+            residual_norm,
+            solved,
+            model.effective_tol(self.settings.residual_tol),
+        );
+        let converged = status == Status::Converged;
         let stable = converged && (ending == Ending::DirectStable || is_stable(model, w));
         let mut message = ending.message();
         if converged && !stable && ending != Ending::DirectUnstable {
             message.push_str(" (unstable equilibrium)");
+        }
+        if let Some(note) = note {
+            message = note;
         }
         let reactions = &w.kkt.reactions;
         let tip_held = model.constraints.last().is_some_and(|c| c.node == model.n);
@@ -531,11 +651,7 @@ impl Solver {
             tip_reaction_force: tip_held.then(|| reactions[guides]),
             tip_reaction_moment: model.clamped_tip.map(|_| tip_q.rotate(w.kkt.tip_torque)),
             guide_reactions: reactions[..guides].to_vec(),
-            status: if converged {
-                Status::Converged
-            } else {
-                Status::NotConverged
-            },
+            status,
             iterations,
             continuation_steps,
             residual_norm,
@@ -546,6 +662,48 @@ impl Solver {
             extrapolated_tip: None,
         }
     }
+}
+
+/// The one judgement of every method's end state: `solved` is the method's own
+/// verdict (`Err` with the status of its failure). A converged answer must
+/// also be finite, meet the residual tolerance and be resolved by the scheme.
+/// Returns the status and, where the judgement overrules the method, the
+/// message that says why.
+fn judge(
+    model: &RodModel,
+    q: &[Quat],
+    positions: &[Vector3<f64>],
+    residual_norm: f64,
+    solved: std::result::Result<(), Status>,
+    tol: f64,
+) -> (Status, Option<String>) {
+    let finite = residual_norm.is_finite()
+        && q.iter().all(|x| x.to_array().iter().all(|v| v.is_finite()))
+        && positions.iter().all(|p| p.iter().all(|v| v.is_finite()));
+    if !finite {
+        return (
+            Status::NumericalError,
+            Some("numerical error: the state or the residual is not finite (overflow)".into()),
+        );
+    }
+    if let Err(status) = solved {
+        return (status, None);
+    }
+    if residual_norm > tol {
+        return (Status::NotConverged, None);
+    }
+    let turn = model.max_element_turn(q).max(model.max_rest_turn());
+    if turn > MAX_RESOLVED_TURN {
+        let needed = (model.n as f64 * turn / MAX_RESOLVED_TURN).ceil();
+        return (
+            Status::Underresolved,
+            Some(format!(
+                "underresolved: an element turns by {turn:.2} rad, more than the {MAX_RESOLVED_TURN} rad \
+                 the scheme resolves; use at least {needed} elements (or tol= for accuracy on demand)"
+            )),
+        );
+    }
+    (Status::Converged, None)
 }
 
 /// Derivatives of the tip of an equilibrium with respect to the actuation.
@@ -576,10 +734,6 @@ enum Ending {
 }
 
 impl Ending {
-    fn converged(&self) -> bool {
-        !matches!(self, Ending::Refused(_) | Ending::Failed(_))
-    }
-
     fn message(&self) -> String {
         match self {
             Ending::Exact => "straight rod: exact without iteration".into(),
@@ -649,7 +803,7 @@ fn continuation(
     // The straight, unloaded rod is stable; the path is followed on the stable
     // branch as long as there is one.
     let mut path_stable = true;
-    while lambda < 1.0 {
+    while lambda < 1.0 && !interrupt::requested() {
         let target = (lambda + dlambda).min(1.0);
         // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last equilibrium
         // (free scenes; a constrained step starts from the last equilibrium).
@@ -716,10 +870,11 @@ fn continuation(
             }
         }
     }
-    // w.q is the equilibrium at lambda = 1; w.g and w.jac are current.
+    // w.q is the equilibrium at lambda = 1 (unless interrupted); w.g and
+    // w.jac are current.
     (
         LocalOutcome {
-            converged: true,
+            converged: lambda >= 1.0,
             iterations,
         },
         steps,
@@ -749,8 +904,4 @@ pub(crate) fn step_limit(step: &[Vector3<f64>], max_node: f64, max_element: f64)
         prev = *d;
     }
     limit
-}
-
-pub(crate) fn sum_squares(g: &[Vector3<f64>]) -> f64 {
-    g.iter().map(|x| x.norm_squared()).sum()
 }

@@ -1,0 +1,286 @@
+//! The muscles' length range as linear constraints on the curvature, and the
+//! bounded least-squares step of the inverse kinematics.
+//!
+//! A section's curvature `k` is within range when no two of its muscles differ
+//! in length by more than the range's span (the common mode centres the three
+//! in the range): `(lever_i - lever_j) . k <= span` for the six ordered pairs,
+//! a hexagon in the `(kappa_x, kappa_y)` plane. The step
+//!
+//! ```text
+//! minimise |x - r|^2 + |J x - e|^2 / c   subject to   kappa + x within range
+//! ```
+//!
+//! is the minimum-norm Gauss-Newton step (`r = kappa_ref - kappa`) as `c -> 0`
+//! and a Levenberg-Marquardt step for `r = 0` and `c = mu`. It is solved by a
+//! primal active-set method from `x = 0` (feasible), with `H^{-1}` applied by
+//! the Woodbury identity, so a step costs O(m) a working-set row and a step
+//! that stays within range costs one pass over the constraints.
+
+use super::Robot;
+use nalgebra::{DMatrix, DVector};
+
+/// Rounds of the active-set method before it settles for its current
+/// (feasible, improved) point.
+const MAX_ROUNDS: usize = 60;
+
+/// The six constraint rows shared by every section and the span they bound.
+#[derive(Debug, Clone)]
+pub(super) struct Bounds {
+    rows: [[f64; 2]; 6],
+    span: f64,
+}
+
+/// A constraint: row `r` of section `s`.
+type Row = (usize, usize);
+
+/// A bounded step and how many constraints hold it back.
+pub(super) struct BoundedStep {
+    pub step: DVector<f64>,
+    /// Working-set rows at the end (constraints that limit the step).
+    pub blocking: usize,
+}
+
+impl Bounds {
+    pub fn new(robot: &Robot) -> Self {
+        let lever = robot.lever();
+        let pairs = [(0, 1), (1, 2), (2, 0), (1, 0), (2, 1), (0, 2)];
+        Bounds {
+            rows: pairs.map(|(i, j)| [lever[i][0] - lever[j][0], lever[i][1] - lever[j][1]]),
+            span: robot.muscle_length_range[1] - robot.muscle_length_range[0],
+        }
+    }
+
+    fn dot(&self, (s, r): Row, v: &DVector<f64>) -> f64 {
+        self.rows[r][0] * v[2 * s] + self.rows[r][1] * v[2 * s + 1]
+    }
+
+    /// Room left by row `(s, r)` at `kappa` (never negative: `kappa` is within range).
+    fn slack(&self, kappa: &[[f64; 2]], (s, r): Row) -> f64 {
+        let k = kappa[s];
+        (self.span - self.rows[r][0] * k[0] - self.rows[r][1] * k[1]).max(0.0)
+    }
+
+    fn dense(&self, (s, r): Row, len: usize) -> DVector<f64> {
+        let mut a = DVector::zeros(len);
+        a[2 * s] = self.rows[r][0];
+        a[2 * s + 1] = self.rows[r][1];
+        a
+    }
+
+    /// The step defined in the module docs, from `kappa` (within range).
+    /// `None` if `c I + J J^T` is singular.
+    pub fn step(
+        &self,
+        kappa: &[[f64; 2]],
+        j: &DMatrix<f64>,
+        e: &DVector<f64>,
+        r: &DVector<f64>,
+        c: f64,
+    ) -> Option<BoundedStep> {
+        let rows = j.nrows();
+        let g = (j * j.transpose() + DMatrix::identity(rows, rows) * c).cholesky()?;
+        // H^{-1} v = v - J^T (c I + J J^T)^{-1} J v
+        let h_inv = |v: &DVector<f64>| v - j.transpose() * g.solve(&(j * v));
+        // The unconstrained minimiser, in the form that stays exact as c -> 0.
+        let free = r + j.transpose() * g.solve(&(e - j * r));
+        let mut qp = ActiveSet {
+            bounds: self,
+            kappa,
+            free,
+            h_inv: &h_inv,
+            work: Vec::new(),
+            x: DVector::zeros(r.len()),
+        };
+        Some(qp.solve())
+    }
+}
+
+/// The primal active-set method on one step (see the module docs).
+struct ActiveSet<'a> {
+    bounds: &'a Bounds,
+    kappa: &'a [[f64; 2]],
+    free: DVector<f64>,
+    h_inv: &'a dyn Fn(&DVector<f64>) -> DVector<f64>,
+    /// Working set: constraints held with equality.
+    work: Vec<Row>,
+    /// Current (feasible) point.
+    x: DVector<f64>,
+}
+
+impl ActiveSet<'_> {
+    fn solve(&mut self) -> BoundedStep {
+        for _ in 0..MAX_ROUNDS {
+            let Some((target, nu)) = self.equality_minimiser() else {
+                break;
+            };
+            let d = self.hold(&target - &self.x);
+            if d.norm() <= 1e-12 * (1.0 + self.x.norm()) {
+                // The multiplier of row i is -nu_i; drop the most negative.
+                let worst = nu
+                    .iter()
+                    .enumerate()
+                    .max_by(|a, b| a.1.total_cmp(b.1))
+                    .filter(|(_, v)| **v > 1e-12 * nu.amax());
+                match worst {
+                    Some((i, _)) => {
+                        self.work.remove(i);
+                        continue;
+                    }
+                    None => break,
+                }
+            }
+            let (alpha, blocking) = self.ratio_test(&self.x, &d, true);
+            self.x += d * alpha;
+            if let Some(row) = blocking {
+                self.work.push(row);
+            } else if self.work.is_empty() {
+                break; // the unconstrained minimiser is within range
+            }
+        }
+        self.fit_within();
+        BoundedStep {
+            step: std::mem::replace(&mut self.x, DVector::zeros(0)),
+            blocking: self.work.len(),
+        }
+    }
+
+    /// `d` without its components that would move the working rows off their
+    /// bounds. The minimiser keeps them there only to its rounding, which an
+    /// ill-conditioned system (more rows at a bound than the target leaves
+    /// free) makes large.
+    fn hold(&self, d: DVector<f64>) -> DVector<f64> {
+        let w = self.work.len();
+        if w == 0 {
+            return d;
+        }
+        let rows = &self.bounds.rows;
+        let gram = DMatrix::from_fn(w, w, |i, k| {
+            let ((si, ri), (sk, rk)) = (self.work[i], self.work[k]);
+            if si == sk {
+                rows[ri][0] * rows[rk][0] + rows[ri][1] * rows[rk][1]
+            } else {
+                0.0
+            }
+        });
+        let rates = DVector::from_fn(w, |i, _| self.bounds.dot(self.work[i], &d));
+        let Some(y) = gram.lu().solve(&rates) else {
+            return d;
+        };
+        let mut held = d;
+        for (&(s, r), v) in self.work.iter().zip(y.iter()) {
+            held[2 * s] -= rows[r][0] * v;
+            held[2 * s + 1] -= rows[r][1] * v;
+        }
+        held
+    }
+
+    /// The last guard against rounding: shorten the step until it is within range.
+    fn fit_within(&mut self) {
+        let zero = DVector::zeros(self.x.len());
+        let (t, _) = self.ratio_test(&zero, &self.x, false);
+        self.x *= t;
+    }
+
+    /// The minimiser with the working set held as equalities, and its
+    /// multipliers with the sign flipped (`None` if the rows are dependent).
+    fn equality_minimiser(&self) -> Option<(DVector<f64>, DVector<f64>)> {
+        if self.work.is_empty() {
+            return Some((self.free.clone(), DVector::zeros(0)));
+        }
+        let len = self.free.len();
+        let w = self.work.len();
+        let h_a: Vec<DVector<f64>> = self
+            .work
+            .iter()
+            .map(|&row| (self.h_inv)(&self.bounds.dense(row, len)))
+            .collect();
+        let m = DMatrix::from_fn(w, w, |i, k| self.bounds.dot(self.work[i], &h_a[k]));
+        let rhs = DVector::from_fn(w, |i, _| {
+            let row = self.work[i];
+            self.bounds.slack(self.kappa, row) - self.bounds.dot(row, &self.free)
+        });
+        let nu = m.lu().solve(&rhs)?;
+        let mut target = self.free.clone();
+        for (col, v) in h_a.iter().zip(nu.iter()) {
+            target += col * *v;
+        }
+        Some((target, nu))
+    }
+
+    /// Longest move from `from` along `d` (at most 1) that stays within range,
+    /// and the row that stops it (working rows skipped if `skip_work`).
+    fn ratio_test(
+        &self,
+        from: &DVector<f64>,
+        d: &DVector<f64>,
+        skip_work: bool,
+    ) -> (f64, Option<Row>) {
+        // Rates at rounding level would add rows dependent on the working set.
+        let widest = self
+            .bounds
+            .rows
+            .iter()
+            .map(|r| r[0].hypot(r[1]))
+            .fold(0.0, f64::max);
+        let tiny = 1e-12 * d.norm() * widest;
+        let mut best = (1.0, None);
+        for s in 0..self.kappa.len() {
+            for r in 0..6 {
+                let row = (s, r);
+                let rate = self.bounds.dot(row, d);
+                if rate <= tiny || (skip_work && self.work.contains(&row)) {
+                    continue;
+                }
+                let room = self.bounds.slack(self.kappa, row) - self.bounds.dot(row, from);
+                let t = room.max(0.0) / rate;
+                if t < best.0 {
+                    best = (t, Some(row));
+                }
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn within(robot: &Robot, kappa: &[[f64; 2]], x: &DVector<f64>) -> bool {
+        let moved: Vec<[f64; 2]> = kappa
+            .iter()
+            .enumerate()
+            .map(|(s, k)| [k[0] + x[2 * s], k[1] + x[2 * s + 1]])
+            .collect();
+        robot.within_bounds(&moved)
+    }
+
+    #[test]
+    fn a_step_within_range_is_the_free_step_and_one_beyond_is_held_at_the_bounds() {
+        let robot = Robot {
+            sections: 2,
+            n_elements: 4,
+            ..Robot::default()
+        };
+        let bounds = Bounds::new(&robot);
+        let kappa = [[0.5, -0.2], [0.0, 0.8]];
+        assert!(robot.within_bounds(&kappa));
+        let j = DMatrix::from_row_slice(
+            3,
+            4,
+            &[1.0, 0.2, 0.5, 0.0, 0.0, 1.0, 0.3, 0.4, 0.1, 0.0, 1.0, 0.7],
+        );
+        let r = DVector::zeros(4);
+        let small = DVector::from_column_slice(&[0.1, 0.0, -0.1]);
+        let free = bounds.step(&kappa, &j, &small, &r, 1e-14).unwrap();
+        assert_eq!(free.blocking, 0);
+        assert!((&j * &free.step - &small).norm() < 1e-9);
+        // Far beyond what the range allows: the step stops on its boundary and
+        // still lowers the miss.
+        let large = small * 200.0;
+        let held = bounds.step(&kappa, &j, &large, &r, 1e-14).unwrap();
+        assert!(held.blocking > 0);
+        assert!(within(&robot, &kappa, &held.step));
+        assert!((&j * &held.step - &large).norm() < large.norm());
+    }
+}

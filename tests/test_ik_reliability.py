@@ -1,0 +1,166 @@
+"""Load-aware IK reaches what the forward model reaches within the muscles'
+range, never answers with an unstable equilibrium, and says truly why it
+misses; robots whose input cannot be solved are refused naming the key.
+
+The reached fractions are printed (``pytest -s``)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from softspine import Robot
+
+TILTED = {"base_quaternion": [0.92388, 0.38268, 0, 0], "sections": 5, "n_elements": 20}
+# Upright: the base tangent +z, against gravity (the default robot hangs).
+UPRIGHT = {"sections": 3, "n_elements": 21, "base_quaternion": [1, 0, 0, 0]}
+
+
+def in_range_actuations(robot, count, seed):
+    """Actuations with every muscle length uniform in the muscles' range."""
+    rng = np.random.default_rng(seed)
+    lo, hi = robot.muscle_length_range
+    shape = (robot.sections, 3)
+    return [robot.rest_curvature(rng.uniform(lo, hi, size=shape)) for _ in range(count)]
+
+
+def reach(robot, load, count, seed=0):
+    """Forward-solve in-range actuations, ask the IK for each stable tip; the
+    misses (result, true actuation) and the number of tips asked."""
+    misses, total = [], 0
+    for kappa in in_range_actuations(robot, count, seed):
+        fw = robot.forward(kappa, load=load)
+        if not (fw.converged and fw.stable):
+            continue
+        total += 1
+        r = robot.inverse(fw.tip_position, load=load)
+        # An unstable equilibrium is never an answer.
+        assert r.solution.stable or not r.reached, r.message
+        if r.reached:
+            assert r.tip_miss <= 1e-9
+            assert robot.within_bounds(r.rest_curvature)
+        else:
+            misses.append((r, kappa))
+    return misses, total
+
+
+@pytest.mark.parametrize(
+    "data,load",
+    [(TILTED, 0.03), (UPRIGHT, 0.08)],
+    ids=["tilted-5-sections-30g", "upright-3-sections-80g"],
+)
+def test_reaches_every_tip_the_forward_model_reaches(data, load):
+    robot = Robot(data)
+    misses, total = reach(robot, load, 135)
+    print(f"\n{data} with {load * 1e3:.0f} g: reached {total - len(misses)}/{total}")
+    assert not misses, [r.message for r, _ in misses]
+
+
+def test_past_buckling_the_straight_reference_is_no_answer():
+    """With 200 g the upright straight robot is an unstable equilibrium: the
+    IK must start elsewhere, and answer only with stable equilibria."""
+    robot = Robot(UPRIGHT)
+    assert not robot.forward(np.zeros((3, 2)), load=0.2).stable
+    misses, total = reach(robot, 0.2, 30, seed=1)
+    print(f"\nupright with 200 g: reached {total - len(misses)}/{total}")
+    assert total >= 25 and not misses, [r.message for r, _ in misses]
+
+
+def test_the_true_actuation_as_reference_is_reached_in_one_iteration():
+    robot = Robot(TILTED)
+    for kappa in in_range_actuations(robot, 5, 2):
+        tip = robot.forward(kappa, load=0.03).tip_position
+        r = robot.inverse(tip, load=0.03, reference=kappa)
+        assert r.reached and r.iterations == 1, r.message
+
+
+def test_a_target_farther_than_the_robot_is_long_is_out_of_reach():
+    r = Robot().inverse([1.0, 0.0, -1.0], load=0.03)
+    assert not r.reached
+    assert "out of reach" in r.message and "length range" not in r.message, r.message
+
+
+def test_a_target_the_muscles_cannot_bend_to_says_so():
+    """Within the backbone's length, but beyond what a 2.5 % contraction range bends."""
+    robot = Robot({"muscle_length_range": [0.098, 0.1005]})
+    r = robot.inverse([0.5, 0.0, -0.5], load=0.03)
+    assert not r.reached and r.solution.stable
+    assert "length range limits" in r.message, r.message
+    assert robot.within_bounds(r.rest_curvature)
+
+
+def test_running_out_of_iterations_says_so():
+    r = Robot(UPRIGHT).inverse([0.3, 0.2, -0.3], load=0.08, max_iterations=1)
+    assert not r.reached
+    assert "max_iterations" in r.message, r.message
+
+
+# --- robot input -------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "data,key",
+    [
+        ({"length": 1e-300}, "length"),
+        ({"length": 1e300}, "length"),
+        ({"muscle_radius": 1e-300}, "muscle_radius"),
+        ({"muscle_radius": 1e300}, "muscle_radius"),
+        ({"inflation_rate": 1e-320}, "inflation_rate"),
+        ({"muscle_length_range": [1e-320, 1e-319]}, "muscle_length_range"),
+        ({"muscle_rest_length": 1e-310}, "muscle_rest_length"),
+        ({"linear_density": 1e308}, "linear_density"),
+        ({"disk_mass": 1e308}, "disk_mass"),
+        ({"muscle_angles": [0, 180, 360]}, "muscle_angles"),
+        ({"muscle_angles": [10, 10, 100]}, "muscle_angles"),
+        ({"sections": 2.5}, "sections"),
+        ({"sections": 10_001}, "sections"),
+        ({"n_elements": 2_000_000}, "n_elements"),
+    ],
+)
+def test_robot_input_is_refused_naming_the_key(data, key):
+    with pytest.raises(ValueError, match=f"^{key}:"):
+        Robot(data)
+
+
+def test_the_largest_counts_are_accepted():
+    assert Robot({"sections": 10_000}).n_elements == 20_000
+    assert Robot({"sections": 1, "n_elements": 1_000_000}).n_elements == 1_000_000
+
+
+def run_isolated(code):
+    """Run code in a fresh interpreter: an abort fails one test, not pytest."""
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+@pytest.mark.parametrize(
+    "data,key,shown",
+    [
+        ('{"sections": 1e19}', "sections", "1e19"),
+        ("{'sections': 10**19}", "sections", "1e19"),
+        ('{"sections": 1e12}', "sections", "1000000000000"),
+        ('{"n_elements": 1e12}', "n_elements", "1000000000000"),
+    ],
+)
+def test_huge_counts_are_refused_before_allocating(data, key, shown):
+    out = run_isolated(
+        f"""
+        from softspine import Robot
+        try:
+            Robot({data}).inverse([0.1, 0.0, -0.9], load=0.03)
+        except ValueError as e:
+            print(e)
+        """
+    )
+    assert out.returncode == 0, out.stderr
+    message = out.stdout.strip()
+    assert message.startswith(f"{key}:"), message
+    assert message.endswith(f"got {shown}"), message

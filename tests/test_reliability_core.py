@@ -1,0 +1,272 @@
+"""Trust at every input, the solver's side: nothing wrong marked converged
+(overflow, anisotropy, coiled rods, tolerances, large n), every size bounded,
+Ctrl-C honoured. Each test reproduces a failure of the solver before the fix."""
+
+from __future__ import annotations
+
+import math
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+import softspine
+from softspine import SolverError
+
+from closed_forms import BISSHOPP_DRUCKER
+
+ROUND = {"kx": 1.0, "ky": 1.0, "kz": 1.0}
+
+
+def cantilever_force(stiffness, force):
+    return {"length": 1.0, "stiffness": stiffness, "tip_force": force}
+
+
+# --- 1. NaN and overflow ---------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "scene,key",
+    [
+        (
+            {
+                "length": 1,
+                "stiffness": {"kx": 0.2, "ky": 0.3, "kz": 0.7},
+                "tip_moment": [0, 1e308, 0],
+            },
+            "tip_moment",
+        ),
+        (
+            {
+                "length": 1e200,
+                "stiffness": {"kx": 0.2, "ky": 0.3, "kz": 0.7},
+                "gravity": {"linear_density": 1.0, "vector": [0, 0, -9.81]},
+            },
+            "gravity",
+        ),
+        ({"length": 1, "stiffness": {"E": 1e300, "G": 1e300, "diameter": 1e100}}, "stiffness"),
+        ({"length": 1, "stiffness": {"E": 2e9, "G": 8e8, "diameter": 1e-100}}, "stiffness"),
+        (
+            {"length": 10, "stiffness": ROUND, "rest_curvature": [[1e308, 1e308]]},
+            "rest_curvature[0]",
+        ),
+    ],
+)
+def test_overflowing_derived_quantities_are_refused_by_key(scene, key):
+    with pytest.raises(ValueError, match="^" + key.replace("[", r"\[").replace("]", r"\]")):
+        softspine.solve(scene)
+
+
+def test_huge_finite_loads_end_honestly():
+    """A load parameter of 1e12 is finite: whatever the solve does, a converged
+    answer is finite and a failure says so."""
+    sol = softspine.solve(cantilever_force(ROUND, [1e12, 0, 0]), max_iterations=50)
+    assert np.all(np.isfinite(sol.positions)) or not sol.converged
+    if sol.converged:
+        assert np.isfinite(sol.residual_norm) and sol.residual_norm <= 1e-10
+
+
+# --- 2. Anisotropy -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("ratio", [1e2, 1e4, 1e6, 1e8, 1e10])
+def test_stiff_torsion_does_not_hide_bending(ratio):
+    """kz = ratio kx: a planar tip force twists nothing, so the tip is the
+    isotropic rod's (it was the straight rod, converged after 0 iterations)."""
+    iso = softspine.solve(cantilever_force(ROUND, [3, 0, 0]), check=True)
+    aniso = softspine.solve(
+        cantilever_force({"kx": 1, "ky": 1, "kz": ratio}, [3, 0, 0]), check=True
+    )
+    assert np.abs(aniso.positions - iso.positions).max() < 1e-9
+
+
+@pytest.mark.parametrize("ratio", [1e2, 1e4, 1e6, 1e8])
+def test_ribbon_bends_about_its_soft_axis_as_a_round_rod(ratio):
+    """ky = ratio kx: a force along y bends about the soft x axis only."""
+    iso = softspine.solve(cantilever_force(ROUND, [0, 3, 0]), check=True)
+    ribbon = softspine.solve(
+        cantilever_force({"kx": 1, "ky": ratio, "kz": 1}, [0, 3, 0]), check=True
+    )
+    assert np.abs(ribbon.positions - iso.positions).max() < 1e-9
+
+
+# --- 3. Coiled rods ----------------------------------------------------------
+
+
+COIL = {"length": 1.0, "stiffness": ROUND, "rest_curvature": [[0.0, 41.0]]}
+COIL_TIP = np.array([(1 - math.cos(41.0)) / 41.0, 0.0, math.sin(41.0) / 41.0])
+
+
+def test_an_element_turning_too_far_is_underresolved_not_converged():
+    sol = softspine.solve(COIL, n_elements=20)
+    assert sol.status == "underresolved" and not sol.converged and not sol.stable
+    assert "underresolved" in sol.message
+    with pytest.raises(SolverError, match="underresolved"):
+        softspine.solve(COIL, n_elements=20, check=True)
+
+
+def test_accuracy_on_demand_resolves_a_coil_first():
+    sol = softspine.solve(COIL, tol=1e-3, check=True)
+    error = np.linalg.norm(sol.tip_position - COIL_TIP)
+    assert error < 1e-3
+    assert sol.error_estimate is not None and 0.3 * error < sol.error_estimate < 3 * error
+
+
+# --- 4. Tolerances -----------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "kwargs,name",
+    [
+        ({"residual_tol": 0.2}, "residual_tol"),
+        ({"residual_tol": 0.0}, "residual_tol"),
+        ({"residual_tol": 1e-20}, "residual_tol"),
+        ({"tol": 1e300}, "tol"),
+        ({"tol": 0.0}, "tol"),
+        ({"method": "paper", "paper_options": {"tol": 0}}, "paper_options.tol"),
+        ({"method": "paper", "paper_options": {"tol": 1.0}}, "paper_options.tol"),
+    ],
+)
+def test_nonsense_tolerances_are_refused(kwargs, name):
+    with pytest.raises(ValueError, match="^" + name):
+        softspine.solve(cantilever_force(ROUND, [3, 0, 0]), **kwargs)
+
+
+def test_ik_tolerance_is_bounded():
+    robot = softspine.Robot()
+    with pytest.raises(ValueError, match="^tol"):
+        robot.inverse([0.1, 0.0, -0.9], tol=1e300)
+
+
+def test_a_tolerance_not_met_has_its_own_status():
+    """tol = 1e-12 L is beyond the largest n of accuracy on demand."""
+    scene = cantilever_force(ROUND, [10, 0, 0])
+    sol = softspine.solve(scene, tol=1e-12)
+    assert sol.status == "tolerance_not_met" and not sol.converged
+    assert sol.error_estimate > 1e-12
+    with pytest.raises(SolverError, match="tolerance_not_met"):
+        softspine.solve(scene, tol=1e-12, check=True)
+
+
+# --- 8. Sizes ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"n_elements": 10**9},
+        {"n_elements": 2**62},
+        {"n_elements": 20000, "method": "lm"},
+        {"n_elements": 2000, "method": "paper"},
+    ],
+)
+def test_sizes_beyond_the_limits_are_refused_before_allocating(kwargs):
+    code = textwrap.dedent(
+        f"""
+        import softspine
+        try:
+            softspine.solve({{"length": 1, "stiffness": {{"kx": 1, "ky": 1, "kz": 1}},
+                             "tip_force": [1, 0, 0]}}, **{kwargs!r})
+        except ValueError as e:
+            print("ValueError", e)
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("ValueError n_elements: must lie in"), out.stdout
+
+
+# --- 9. Interrupts -------------------------------------------------------------
+
+
+LONG_SOLVES = {
+    "newton": 'softspine.solve(scene, n_elements=2_000_000, max_iterations=500)',
+    "lm": 'softspine.solve(scene, n_elements=600, method="lm", max_iterations=100000)',
+    "paper": 'softspine.solve(scene, n_elements=40, method="paper", '
+    'paper_options={"iterations": 1000000, "particles": 200})',
+}
+
+
+@pytest.mark.parametrize("method", sorted(LONG_SOLVES))
+def test_ctrl_c_interrupts_a_long_solve(method):
+    code = textwrap.dedent(
+        f"""
+        import sys, time, softspine
+        scene = {{"length": 1, "stiffness": {{"kx": 1, "ky": 1, "kz": 300}},
+                  "gravity": {{"linear_density": 1, "vector": [2, 1, -9]}},
+                  "rest_curvature": [[1, 0.5], [0.5, -1]], "tip_force": [3, 0, 1]}}
+        print("ready", flush=True)
+        try:
+            {LONG_SOLVES[method]}
+            print("finished")
+        except KeyboardInterrupt:
+            print("interrupted", time.perf_counter(), flush=True)
+        """
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert proc.stdout.readline().strip() == "ready"
+    time.sleep(1.0)
+    sent = time.perf_counter()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert out.startswith("interrupted"), (out, err)
+    latency = float(out.split()[1]) - sent
+    # The poll runs every 20 ms; a loaded CI machine gets a generous margin.
+    assert latency < 1.5, latency
+
+
+# --- 11. Scale -----------------------------------------------------------------
+
+
+def test_newton_converges_alike_from_n_1000_to_256000():
+    """The iteration count must not grow with n, and the tip converges at order 2."""
+    exact = np.array([BISSHOPP_DRUCKER[3.0][0], 0, 1 - BISSHOPP_DRUCKER[3.0][1]])
+    iterations = []
+    for n in (1000, 16000, 256000):
+        sol = softspine.solve(cantilever_force(ROUND, [3, 0, 0]), n_elements=n, check=True)
+        iterations.append(sol.iterations)
+        # The reference has eight digits.
+        assert np.linalg.norm(sol.tip_position - exact) < 1.0 / n**2 + 1e-8
+    assert max(iterations) <= min(iterations) + 1, iterations
+
+
+def test_stiff_torsion_converges_at_fine_n():
+    scene = {
+        "length": 1,
+        "stiffness": {"kx": 1, "ky": 1, "kz": 300},
+        "gravity": {"linear_density": 1, "vector": [2, 1, 0]},
+        "rest_curvature": [[1, 0.5], [0.5, -1]],
+    }
+    tips = [softspine.solve(scene, n_elements=n, check=True).tip_position for n in (80, 320, 10240)]
+    assert np.linalg.norm(tips[2] - tips[1]) < np.linalg.norm(tips[1] - tips[0])
+
+
+def random_scene(rng):
+    k = rng.uniform(0.2, 2.0, 3)
+    return {
+        "length": 1.0,
+        "stiffness": {"kx": k[0], "ky": k[1], "kz": k[2]},
+        "rest_curvature": rng.uniform(-3, 3, (int(rng.integers(1, 4)), 2)).tolist(),
+        "gravity": {"linear_density": rng.uniform(0, 0.3), "vector": [0, 0, -9.81]},
+        "tip_force": rng.uniform(-1.5, 1.5, 3).tolist(),
+        "tip_moment": rng.uniform(-0.5, 0.5, 3).tolist(),
+    }
+
+
+def test_scenes_converged_at_n_converge_at_128_n():
+    rng = np.random.default_rng(11)
+    for _ in range(12):
+        scene = random_scene(rng)
+        m = len(scene["rest_curvature"])
+        coarse = softspine.solve(scene, n_elements=12 * m)
+        if not coarse.converged:
+            continue
+        fine = softspine.solve(scene, n_elements=128 * 12 * m)
+        assert fine.converged, (scene, fine.message)
+        assert np.linalg.norm(fine.tip_position - coarse.tip_position) < 0.05

@@ -1,0 +1,459 @@
+"""Input reliability: NumPy scalars of every kind, deep or self-containing input,
+numbers beyond a double, duplicate JSON keys, exact JSON numbers, refusals that
+name the field or argument, the command line's user errors, and an InverseSolver
+shared between threads.
+
+Inputs that used to crash the process run in a subprocess, so that a crash fails
+one test instead of killing pytest."""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+import re
+import struct
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+import softspine
+from softspine import Robot, Scene, trajectories
+from softspine._core import residual
+
+GOOD = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}}
+
+PRELUDE = f"""
+import numpy as np
+import softspine
+from softspine import Robot, Scene
+from softspine._core import residual
+GOOD = {GOOD!r}
+deep = []
+for _ in range(30_000):
+    deep = [deep]
+"""
+
+
+def run(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-c", PRELUDE + code], capture_output=True, text=True, timeout=300
+    )
+
+
+def exception_line(stderr: str) -> str:
+    """The line of the traceback that names the exception (notes may follow it)."""
+    lines = [ln for ln in stderr.splitlines() if re.match(r"^\w+(Error|Exception): ", ln)]
+    return lines[-1] if lines else ""
+
+
+# --- Inputs that crashed the process (segfault): now accepted ---------------------
+
+
+@pytest.mark.parametrize(
+    "code,printed",
+    [
+        ("print(Scene({**GOOD, 'length': np.longdouble('0.5')}).length)", "0.5"),
+        ("print(Scene({**GOOD, 'length': np.array(np.longdouble(2))}).length)", "2.0"),
+        (
+            "s = Scene({**GOOD, 'tip_force': np.array([1, 2, 3], dtype=np.longdouble)})\n"
+            "print(s.to_dict()['tip_force'])",
+            "[1.0, 2.0, 3.0]",
+        ),
+        (
+            "s = Scene({**GOOD, 'length': np.float32(0.5), 'tip_force': [np.int64(1), 0, 0]})\n"
+            "print(s.length, s.to_dict()['tip_force'])",
+            "0.5 [1.0, 0.0, 0.0]",
+        ),
+        ("print(Robot({'length': np.longdouble('0.8')}).length)", "0.8"),
+        (
+            "k = Robot().muscle_lengths(np.zeros((10, 2), dtype=np.longdouble))\n"
+            "print(k.shape)",
+            "(10, 3)",
+        ),
+        (
+            "r = Robot().inverse(np.array([0.1, 0.0, -0.9], dtype=np.longdouble))\n"
+            "print(r.reached)",
+            "True",
+        ),
+        (
+            "q = np.zeros((21, 4), dtype=np.longdouble)\nq[:, 0] = 1\n"
+            "print(residual(GOOD, q).shape)",
+            "(20, 3)",
+        ),
+    ],
+)
+def test_longdouble_and_numpy_scalars_are_read(code, printed):
+    p = run(code)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert p.stdout.strip() == printed
+
+
+# --- Inputs that crashed the process: now refused, naming the field ---------------
+
+NESTED = r"(\[0\])+: nested deeper than 32 levels"
+
+
+@pytest.mark.parametrize(
+    "code,message",
+    [
+        (
+            "Scene({**GOOD, 'length': np.longdouble('1e400')})",
+            r"ValueError: length: 1e\+400 is out of the range of a double",
+        ),
+        (
+            "Robot({'disk_mass': np.longdouble('-1e4000')})",
+            r"ValueError: disk_mass: -1e\+4000 is out of the range of a double",
+        ),
+        (
+            "Robot().inverse(np.array(['0.1', '1e400', '-0.9'], dtype=np.longdouble))",
+            r"ValueError: target: at \[1\]: 1e\+400 is out of the range of a double",
+        ),
+        ("Scene({**GOOD, 'tip_force': deep})", r"ValueError: tip_force" + NESTED),
+        ("Robot({'gravity': deep})", r"ValueError: gravity" + NESTED),
+        ("Robot().muscle_lengths(deep)", r"ValueError: rest_curvature: at " + NESTED),
+        ("Robot().inverse(deep)", r"ValueError: target: at " + NESTED),
+        ("residual(GOOD, deep)", r"ValueError: quaternions: at " + NESTED),
+        (
+            "loop = [0.0, 0.0]\nloop.append(loop)\nScene({**GOOD, 'tip_force': loop})",
+            r"ValueError: tip_force(\[2\])+: nested deeper than 32 levels",
+        ),
+        (
+            "scene = dict(GOOD)\nscene['tip'] = scene\nScene(scene)",
+            r"ValueError: tip(\.tip)+\.stiffness: nested deeper than 32 levels",
+        ),
+        (
+            "a = np.empty(2, dtype=object)\na[0] = a\na[1] = 1.0\nRobot().inverse(a)",
+            r"ValueError: target: at " + NESTED,
+        ),
+        (
+            "Scene({**GOOD, 'tip_force': np.array([1.0, None, 'x'], dtype=object)})",
+            r"ValueError: tip_force\[1\]: expected a number, got null",
+        ),
+        (
+            "Robot().inverse(np.array([0.1, None, -0.9], dtype=object))",
+            r"ValueError: target: at \[1\]: expected a number, got null",
+        ),
+        (
+            "Robot().muscle_lengths([[0, 0]] * 9 + [[0, [1]]])",
+            r"ValueError: rest_curvature: at \[9\]\[1\]: expected a number, got a list",
+        ),
+        (
+            "Scene({**GOOD, 'length': np.complex128(1)})",
+            r"ValueError: length: unsupported value of type complex128",
+        ),
+    ],
+)
+def test_crashing_inputs_are_refused_by_field(code, message):
+    p = run(code)
+    assert p.returncode == 1, (p.returncode, p.stderr[-3000:])
+    assert re.fullmatch(message, exception_line(p.stderr)), p.stderr[-3000:]
+
+
+# --- Numbers beyond a double or an integer type ------------------------------------
+
+HUGE = 10**400
+
+
+@pytest.mark.parametrize(
+    "scene,key",
+    [
+        ({**GOOD, "length": HUGE}, "length"),
+        ({**GOOD, "stiffness": {"kx": 1, "ky": HUGE, "kz": 1}}, "stiffness.ky"),
+        ({**GOOD, "tip_force": [0, HUGE, 0]}, r"tip_force\[1\]"),
+        ({**GOOD, "length": np.array([HUGE], dtype=object)[0]}, "length"),
+    ],
+)
+def test_huge_integers_in_a_scene_name_the_key(scene, key):
+    with pytest.raises(ValueError, match=f"^{key}: integer too large for a double"):
+        Scene(scene)
+
+
+@pytest.mark.parametrize("key", ["length", "sections", "n_elements", "disk_mass"])
+def test_huge_integers_in_a_robot_name_the_key(key):
+    with pytest.raises(ValueError, match=f"^{key}: integer too large for a double"):
+        Robot({key: HUGE})
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return Robot()
+
+
+TARGET = [0.1, 0.0, -0.9]
+ZERO = np.zeros((10, 2))
+
+
+@pytest.mark.parametrize(
+    "call,message",
+    [
+        (lambda r: r.inverse(TARGET, load=HUGE), "load: integer too large"),
+        (lambda r: r.inverse(TARGET, load=None), "load: expected a number, got NoneType"),
+        (lambda r: r.inverse(TARGET, load="heavy"), "load: expected a number, got str"),
+        (lambda r: r.forward(ZERO, load=HUGE), "load: integer too large"),
+        (lambda r: r.scene(ZERO, load=math.inf), "load: must be finite, got inf"),
+        (lambda r: r.inverse_solver(load=HUGE), "load: integer too large"),
+        (lambda r: r.track([TARGET], load=HUGE), "load: integer too large"),
+        (lambda r: r.inverse(TARGET, tol=HUGE), "tol: integer too large"),
+        (lambda r: r.inverse(TARGET, max_iterations=HUGE), "max_iterations: too large"),
+        (lambda r: r.inverse(TARGET, max_iterations=-1), "max_iterations: must not be negative"),
+        (lambda r: r.inverse(TARGET, max_iterations=2.5), "max_iterations: expected an integer"),
+        (lambda r: r.inverse(TARGET, max_iterations=True), "max_iterations: expected an integer"),
+        (lambda r: r.inverse(TARGET, strategy=None), "strategy: expected a string, got NoneType"),
+        (lambda r: r.track([TARGET], strategy=3), "strategy: expected a string, got int"),
+        (lambda r: r.inverse_solver().solve(TARGET, tol=None), "tol: expected a number"),
+        (lambda r: r.inverse_solver().solve(TARGET, tol=0.0), "tol: must be positive"),
+        (
+            lambda r: r.inverse_solver().solve(TARGET, max_iterations=HUGE),
+            "max_iterations: too large",
+        ),
+        (lambda r: trajectories.circle(HUGE), "points: too large"),
+        (lambda r: trajectories.circle(-3), "points: must not be negative, got -3"),
+        (lambda r: trajectories.by_name(None), "trajectory: expected a string, got NoneType"),
+    ],
+)
+def test_bad_robot_arguments_name_the_argument(robot, call, message):
+    with pytest.raises(ValueError, match="^" + re.escape(message)):
+        call(robot)
+
+
+def test_numpy_scalars_as_arguments(robot):
+    a = robot.inverse(TARGET, load=np.float32(0.03), max_iterations=np.int64(60))
+    b = robot.inverse(TARGET, load=0.03, max_iterations=60)
+    assert a.reached and b.reached
+    np.testing.assert_allclose(a.rest_curvature, b.rest_curvature, atol=1e-7)
+    assert robot.inverse(TARGET, load=np.longdouble("0.03"), tol=np.array(1e-9)).reached
+
+
+@pytest.mark.parametrize(
+    "options,message",
+    [
+        ({"particles": HUGE}, "paper_options.particles: too large"),
+        ({"seed": -1}, "paper_options.seed: must not be negative"),
+        ({"chi": HUGE}, "paper_options.chi: integer too large"),
+        ({"tol": None}, "paper_options.tol: expected a number"),
+        ({1: 2}, "paper_options: keys must be strings, got int"),
+    ],
+)
+def test_paper_options_name_the_option(options, message):
+    with pytest.raises(ValueError, match="^" + re.escape(message)):
+        softspine.solve(GOOD, method="paper", paper_options=options)
+
+
+@pytest.mark.parametrize(
+    "data,message",
+    [
+        ({**GOOD, 1: 2}, "scene: keys must be strings, got int"),
+        (
+            {**GOOD, "stiffness": {"kx": 1, ("ky",): 1}},
+            "stiffness: keys must be strings, got tuple",
+        ),
+        (
+            {**GOOD, "guides": [{"s": 0.5, None: 1}]},
+            "guides[0]: keys must be strings, got NoneType",
+        ),
+    ],
+)
+def test_non_string_keys_name_the_path(data, message):
+    with pytest.raises(ValueError, match="^" + re.escape(message)):
+        Scene(data)
+
+
+def test_non_string_robot_keys_name_the_robot():
+    with pytest.raises(ValueError, match=r"^robot: keys must be strings, got float"):
+        Robot({0.5: 1})
+
+
+# --- Array arguments: the argument, the element and the expected shape -------------
+
+
+def test_residual_blames_the_array_not_n_elements():
+    scene = {**GOOD, "rest_curvature": [[1, 0], [0, 1], [1, 1]]}
+    for rows in (8, 1, 0):
+        q = np.zeros((rows, 4))
+        q[:, 0] = 1
+        expected = (
+            r"^quaternions: expected shape \(n\+1, 4\) with n a positive multiple of the "
+            rf"number of sections \(3\), got \({rows}, 4\)"
+        )
+        with pytest.raises(ValueError, match=expected):
+            residual(scene, q)
+    q = np.zeros((7, 4))
+    q[:, 0] = 1
+    assert residual(scene, q).shape == (6, 3)
+
+
+def test_array_elements_are_named(robot):
+    with pytest.raises(ValueError, match=r"^target: at \[1\]: must be finite, got NaN"):
+        robot.inverse([0.1, math.nan, -0.9])
+    with pytest.raises(ValueError, match=r"^target: expected 3 numbers, got 2"):
+        robot.inverse(np.array([0.1, 0.2]))
+    with pytest.raises(ValueError, match=r"^reference: at \[2\]\[0\]: must be finite, got inf"):
+        k = np.zeros((10, 2))
+        k[2, 0] = np.inf
+        robot.inverse(TARGET, reference=k)
+    with pytest.raises(ValueError, match=r"^rest_curvature: at \[0\]: expected 2 numbers, got 3"):
+        robot.muscle_lengths(np.zeros((10, 3)))
+    with pytest.raises(ValueError, match=r"^points: at \[0\]\[2\]: integer too large"):
+        robot.track([[0.1, 0.0, HUGE]])
+
+
+# --- JSON: duplicate keys, numbers out of range, exact numbers ---------------------
+
+
+@pytest.mark.parametrize(
+    "text,key",
+    [
+        ('{"length": 1, "length": 2, "stiffness": {"kx": 1, "ky": 1, "kz": 1}}', "length"),
+        ('{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1, "kx": 2}}', "stiffness.kx"),
+        (
+            '{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1},'
+            ' "guides": [{"s": 0.5, "position": [0, 0, 0.4], "s": 0.25}]}',
+            r"guides\[0\]\.s",
+        ),
+    ],
+)
+def test_duplicate_json_keys_are_refused(text, key, tmp_path):
+    with pytest.raises(ValueError, match=f"^{key}: invalid JSON: duplicate key at line 1"):
+        Scene.from_json(text)
+    path = tmp_path / "scene.json"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=f"^{key}: invalid JSON: duplicate key"):
+        softspine.solve(path)
+
+
+def test_json_numbers_out_of_range_name_the_key():
+    text = '{"length": 1, "stiffness": {"kx": 1, "ky": 1e400, "kz": 1}}'
+    with pytest.raises(ValueError, match=r"^stiffness\.ky: invalid JSON: number out of range"):
+        Scene.from_json(text)
+
+
+def test_json_nesting_is_bounded_like_a_dict():
+    text = '{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1}, "tip_force": %s0%s}'
+    with pytest.raises(ValueError, match=r"^tip_force(\[0\])+: invalid JSON: nested deeper"):
+        Scene.from_json(text % ("[" * 40, "]" * 40))
+    with pytest.raises(ValueError, match="invalid JSON"):
+        Scene.from_json(text % ("[" * 30_000, "]" * 30_000))
+
+
+def random_doubles(count: int, seed: int) -> list[float]:
+    """Finite doubles spread over every exponent (random bit patterns)."""
+    rng = random.Random(seed)
+    out: list[float] = []
+    while len(out) < count:
+        x = struct.unpack("<d", rng.getrandbits(64).to_bytes(8, "little"))[0]
+        if math.isfinite(x):
+            out.append(x)
+    return out
+
+
+def test_json_numbers_read_back_exactly():
+    xs = random_doubles(10_000, seed=11)
+    scene = {**GOOD, "rest_curvature": [xs[i : i + 2] for i in range(0, len(xs), 2)]}
+    back = Scene.from_json(json.dumps(scene)).to_dict()
+    read = [x for row in back["rest_curvature"] for x in row]
+    wrong = sum(a != b for a, b in zip(read, xs, strict=True))
+    assert wrong == 0, f"{wrong} of {len(xs)} doubles changed"
+
+
+def test_toml_errors_fit_on_one_line():
+    with pytest.raises(ValueError) as info:
+        Scene.from_toml("length = 1\nlength = 2\n")
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("invalid TOML:"), message
+    assert "line 2" in message
+
+
+# --- Command line: one line on stderr and exit code 2 for a user error -------------
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["demo", "--scene", "no/such/scene.json"], "no/such/scene.json"),
+        (["demo", "--scene", "."], "Is a directory"),
+        (["demo", "--n-elements", "0"], "n_elements"),
+        (["track", "--points", "-3"], "points: must not be negative, got -3"),
+        (["track", "--points", "0"], "points: must be positive"),
+        (["track", "--load", "-1"], "load"),
+    ],
+)
+def test_cli_user_errors_are_one_line(args, needle, tmp_path):
+    p = subprocess.run(
+        [sys.executable, "-m", "softspine", *args, "--out", str(tmp_path / "x.png")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert p.returncode == 2, p.stderr[-3000:]
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("softspine: error: "), p.stderr[-3000:]
+    assert needle in lines[0]
+
+
+def test_cli_bad_scene_file_is_one_line(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"length": 1, "length": -1, "stiffness": {"kx": 1, "ky": 1, "kz": 1}}')
+    p = subprocess.run(
+        [sys.executable, "-m", "softspine", "demo", "--scene", str(bad)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert p.returncode == 2
+    assert p.stderr.strip() == (
+        "softspine: error: length: invalid JSON: duplicate key at line 1 column 22"
+    )
+
+
+# --- One InverseSolver shared between threads --------------------------------------
+
+
+def test_inverse_solver_shared_between_threads():
+    robot = Robot()
+    targets = trajectories.circle(24)
+    alone = robot.inverse_solver(0.03)
+    expected = [alone.solve(p) for p in targets]
+    shared = robot.inverse_solver(0.03)
+    results: list = [None] * len(targets)
+    errors: list[BaseException] = []
+
+    def work(k: int) -> None:
+        try:
+            for i in range(k, len(targets), 4):
+                results[i] = shared.solve(targets[i])
+        except BaseException as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    for got, want in zip(results, expected, strict=True):
+        assert got.reached and want.reached
+        np.testing.assert_allclose(got.rest_curvature, want.rest_curvature, atol=1e-4)
+        np.testing.assert_allclose(got.tip_position, want.tip_position, atol=1e-8)
+
+
+# --- solve()'s own arguments --
+
+@pytest.mark.parametrize(
+    "kwargs,message",
+    [
+        ({"n_elements": HUGE}, "n_elements: too large"),
+        ({"max_iterations": HUGE}, "max_iterations: too large"),
+        ({"tol": HUGE}, "tol: integer too large"),
+        ({"residual_tol": HUGE}, "residual_tol: integer too large"),
+        ({"method": 3}, "method: expected a string, got int"),
+        ({"method": "nope"}, "method: unknown method"),
+        ({"refine": 3, "tol": 1e-3}, "refine: expected a string, got int"),
+    ],
+)
+def test_bad_solve_arguments_name_the_argument(kwargs, message):
+    with pytest.raises(ValueError, match="^" + re.escape(message)):
+        softspine.solve(GOOD, **kwargs)

@@ -8,7 +8,9 @@
 //! update, so it is exact and can be checked by finite differences.
 //!
 //! Every load and the rest curvature are scaled by `lambda`, the load
-//! continuation parameter: `lambda = 0` is the straight, unloaded rod, whose
+//! continuation parameter: `lambda = 0` is the unloaded rod in its rest shape
+//! (a chain of arcs, exact), so that continuation follows the loading of the
+//! rod from rest, as an experiment would; the rest curvature is not scaled.
 //! equilibrium is exact, and `lambda = 1` is the scene.
 
 use crate::blocktri::BlockTridiagonal;
@@ -26,15 +28,15 @@ pub struct PointConstraint {
     pub node: usize,
     /// Prescribed position [m].
     pub target: Vector3<f64>,
-    /// Where the straight rod puts the node: the start of the load path.
-    pub straight: Vector3<f64>,
+    /// Where the unloaded rest shape puts the node: the start of the load path.
+    pub rest: Vector3<f64>,
 }
 
 impl PointConstraint {
-    /// The target at load scale `lambda`, moved linearly from the straight rod.
+    /// The target at load scale `lambda`, moved linearly from the rest shape.
     /// Both ends are within reach, and so is every point between (convexity).
     pub fn target_at(&self, lambda: f64) -> Vector3<f64> {
-        self.straight + lambda * (self.target - self.straight)
+        self.rest + lambda * (self.target - self.rest)
     }
 }
 
@@ -58,8 +60,10 @@ pub struct RodModel {
     pub tip_moment: Vector3<f64>,
     /// Held nodes, by increasing node (guides, then a pinned or clamped tip).
     pub constraints: Vec<PointConstraint>,
-    /// Orientation of a clamped tip, on the base's side of the quaternion sphere.
+    /// Orientation of a clamped tip, on the rest tip's side of the quaternion sphere.
     pub clamped_tip: Option<Quat>,
+    /// Tip orientation of the unloaded rest shape.
+    pub rest_tip: Quat,
     /// Moment scale of each body-frame torque row, `k_c / L` [N m]: a residual
     /// row over its own stiffness is the angle-like error that row leaves, so
     /// a stiffness ratio of 1e10 neither hides a soft row's imbalance nor
@@ -114,7 +118,6 @@ impl RodModel {
             .collect();
         let stiffness = scene.stiffness();
         let base = scene.base_quaternion;
-        let straight_at = |node: usize| base.tangent() * (node as f64 * ds);
         let mut constraints: Vec<PointConstraint> = scene
             .guides
             .iter()
@@ -123,7 +126,7 @@ impl RodModel {
                 PointConstraint {
                     node,
                     target: g.position,
-                    straight: straight_at(node),
+                    rest: Vector3::zeros(),
                 }
             })
             .collect();
@@ -133,23 +136,16 @@ impl RodModel {
             TipCondition::Clamped {
                 position,
                 quaternion,
-            } => {
-                let q = if quaternion.dot(base) < 0.0 {
-                    -*quaternion
-                } else {
-                    *quaternion
-                };
-                (Some(*position), Some(q))
-            }
+            } => (Some(*position), Some(*quaternion)),
         };
         if let Some(target) = tip_target {
             constraints.push(PointConstraint {
                 node: n,
                 target,
-                straight: straight_at(n),
+                rest: Vector3::zeros(),
             });
         }
-        RodModel {
+        let mut model = RodModel {
             n,
             length,
             ds,
@@ -162,7 +158,44 @@ impl RodModel {
             tip_moment: scene.tip_moment,
             constraints,
             clamped_tip,
+            rest_tip: base,
             residual_scale: stiffness / length,
+        };
+        model.refresh_rest();
+        model
+    }
+
+    /// The unloaded rod in its rest shape: each element turns by exactly its
+    /// rest curvature, `(2/ds) vec(conj(q_{i-1}) q_i) = kappa0_i`, so the
+    /// elastic energy and the residual vanish (the load path starts exactly).
+    pub fn rest_shape(&self) -> Vec<Quat> {
+        let mut q = Vec::with_capacity(self.n + 1);
+        q.push(self.base);
+        for (i, k) in self.rest_curvature.iter().enumerate() {
+            let v = 0.5 * self.ds * k;
+            // Beyond ds |kappa0| = 2 no element reaches its rest curvature (the
+            // solve reports it underresolved); the nearest is a half turn.
+            let w = (1.0 - v.norm_squared()).max(0.0).sqrt();
+            q.push((q[i] * Quat::new(w, v.x, v.y, v.z)).normalized());
+        }
+        q
+    }
+
+    /// Recompute what depends on the rest shape: where it puts the held
+    /// nodes (the load path's start) and its tip orientation (a clamped tip's
+    /// start, whose quaternion is taken on the same side of the sphere).
+    fn refresh_rest(&mut self) {
+        let rest = self.rest_shape();
+        let mut positions = vec![Vector3::zeros(); self.n + 1];
+        self.positions(&rest, &mut positions);
+        for c in &mut self.constraints {
+            c.rest = positions[c.node];
+        }
+        self.rest_tip = rest[self.n];
+        if let Some(q) = self.clamped_tip.as_mut() {
+            if q.dot(self.rest_tip) < 0.0 {
+                *q = -*q;
+            }
         }
     }
 
@@ -176,6 +209,7 @@ impl RodModel {
                 .get(i * m / self.n)
                 .map_or(Vector3::zeros(), |s| Vector3::new(s[0], s[1], 0.0));
         }
+        self.refresh_rest();
     }
 
     /// `d g / d kappa_c` of one section's rest curvature component `c` (0: x, 1: y),
@@ -201,13 +235,12 @@ impl RodModel {
         }
     }
 
-    /// True when nothing bends the rod: the straight rod is the exact equilibrium.
+    /// True when nothing loads the rod: the rest shape is the exact equilibrium.
     pub fn is_trivial(&self) -> bool {
-        self.rest_curvature.iter().all(|k| k.norm() == 0.0)
-            && self.mean_force.iter().all(|f| f.norm() == 0.0)
+        self.mean_force.iter().all(|f| f.norm() == 0.0)
             && self.tip_moment.norm() == 0.0
-            && self.constraints.iter().all(|c| c.target == c.straight)
-            && self.clamped_tip.is_none_or(|q| q == self.base)
+            && self.constraints.iter().all(|c| c.target == c.rest)
+            && self.clamped_tip.is_none_or(|q| q == self.rest_tip)
     }
 
     /// The largest ratio of the distance between consecutive held points (the
@@ -228,17 +261,18 @@ impl RodModel {
         !self.constraints.is_empty() || self.clamped_tip.is_some()
     }
 
-    /// Orientation of a clamped tip at load scale `lambda` (slerp from the base).
+    /// Orientation of a clamped tip at load scale `lambda` (slerp from the
+    /// rest shape's tip).
     pub fn clamped_tip_at(&self, lambda: f64) -> Option<Quat> {
         self.clamped_tip
-            .map(|target| slerp(self.base, target, lambda))
+            .map(|target| slerp(self.rest_tip, target, lambda))
     }
 
-    /// The initial guess of a solve without one: the straight rod, or for a
+    /// The initial guess of a solve without one: the rest shape, or for a
     /// clamped tip the rod turning uniformly from the base to the tip orientation.
     pub fn initial_guess(&self) -> Vec<Quat> {
         match self.clamped_tip {
-            None => self.straight(),
+            None => self.rest_shape(),
             Some(target) => (0..=self.n)
                 .map(|j| slerp(self.base, target, j as f64 / self.n as f64))
                 .collect(),
@@ -315,7 +349,7 @@ impl RodModel {
             let (a, b) = (q[i - 1], q[i]);
             let c = a.conj() * b;
             let (c0, cv) = (c.w, c.v);
-            let e = (2.0 / ds) * cv - lambda * self.rest_curvature[i - 1];
+            let e = (2.0 / ds) * cv - self.rest_curvature[i - 1];
             let w = k.component_mul(&e); // bending/twisting moment, body frame
             let amat = Matrix3::identity() * c0 + skew(&cv);
             let ga = -(amat * w);
@@ -528,7 +562,7 @@ impl RodModel {
         let mut total = 0.0;
         for i in 1..=self.n {
             let (a, b) = (q[i - 1], q[i]);
-            let e = (2.0 / self.ds) * (a.conj() * b).v - lambda * self.rest_curvature[i - 1];
+            let e = (2.0 / self.ds) * (a.conj() * b).v - self.rest_curvature[i - 1];
             let elastic = 0.5 * e.dot(&self.stiffness.component_mul(&e));
             let work = lambda * self.mean_force[i - 1].dot(&mean_tangent(a, b));
             total += self.ds * (elastic - work);

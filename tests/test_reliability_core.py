@@ -270,3 +270,43 @@ def test_scenes_converged_at_n_converge_at_128_n():
         fine = softspine.solve(scene, n_elements=128 * 12 * m)
         assert fine.converged, (scene, fine.message)
         assert np.linalg.norm(fine.tip_position - coarse.tip_position) < 0.05
+
+
+# --- 6. The branch: loading from the rest shape ---------------------------------
+
+
+def test_an_unloaded_curved_rod_is_its_rest_shape_without_iterating():
+    scene = {"length": 1.0, "stiffness": ROUND, "rest_curvature": [[0.0, 3.0], [2.0, -1.0]]}
+    sol = softspine.solve(scene, n_elements=40)
+    assert sol.converged and sol.iterations == 0 and sol.stable
+    assert sol.residual_norm < 1e-12
+
+
+def scale_loads(scene, t):
+    out = dict(scene)
+    out["gravity"] = {**scene["gravity"], "linear_density": t * scene["gravity"]["linear_density"]}
+    out["tip_force"] = [t * x for x in scene["tip_force"]]
+    return out
+
+
+def test_the_answer_is_the_rod_loaded_from_rest():
+    """What a loading experiment gives: ramp the loads in small warm steps from
+    the rest shape. The solver's answer (direct, or continuation when needed)
+    must be that equilibrium, not another stable one."""
+    rng = np.random.default_rng(5)
+    for _ in range(8):
+        scene = {
+            "length": 1.0,
+            "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 0.7},
+            "rest_curvature": rng.uniform(-6, 6, (2, 2)).tolist(),
+            "gravity": {"linear_density": rng.uniform(0.5, 2.0), "vector": [0, 0, -9.81]},
+            "tip_force": rng.uniform(-3, 3, 3).tolist(),
+        }
+        sol = softspine.solve(scene, n_elements=40)
+        if not (sol.converged and sol.stable):
+            continue
+        ramp = softspine.solve(scale_loads(scene, 0.0), n_elements=40)
+        for t in np.linspace(0.02, 1.0, 50):
+            ramp = softspine.solve(scale_loads(scene, t), n_elements=40, initial=ramp)
+        if ramp.converged and ramp.stable:
+            assert np.abs(sol.positions - ramp.positions).max() < 1e-8, scene

@@ -89,8 +89,12 @@ pub fn solve_to_accuracy(
         },
     )?;
     let mut coarse = solver.solve(None)?;
-    if solver.model().is_trivial() {
-        // The straight rod is exact at any n: nothing to refine.
+    let straight = scene
+        .rest_curvature
+        .iter()
+        .all(|k| k[0] == 0.0 && k[1] == 0.0);
+    if straight && solver.model().is_trivial() {
+        // The unloaded straight rod is exact at any n: nothing to refine.
         coarse.error_estimate = Some(0.0);
         return Ok(coarse);
     }

@@ -1,6 +1,6 @@
 //! Solvers of the discrete equilibrium: settings, the result type, and the
 //! driver shared by every local method (a direct attempt from the initial
-//! guess, then load continuation from the straight rod when that fails).
+//! guess, then load continuation from the rest shape when that fails).
 
 mod adaptive;
 mod constrained;
@@ -463,8 +463,8 @@ impl Solver {
             return Ok(self.finish(ending, 0, 0));
         }
         if initial.is_none() && model.is_trivial() {
-            // Nothing bends the rod: the straight rod is exact, no iteration needed.
-            w.q.copy_from_slice(&model.straight());
+            // Nothing loads the rod: the rest shape is exact, no iteration needed.
+            w.q.copy_from_slice(&model.rest_shape());
             evaluate(model, w, 1.0);
             return Ok(self.finish(Ending::Exact, 0, 0));
         }
@@ -486,7 +486,7 @@ impl Solver {
             return Ok(self.finish(Ending::DirectStable, iterations, 0));
         }
         // The direct attempt failed or found an unstable equilibrium: follow the
-        // load path from the straight rod, which stays on the stable branch.
+        // load path from the rest shape, which stays on the stable branch.
         let direct_state = direct
             .converged
             .then(|| (w.q.clone(), w.kkt.reactions.clone()));
@@ -494,7 +494,11 @@ impl Solver {
         let min_step = self.settings.min_continuation_step;
         let (cont, steps) = continuation(self.local.as_mut(), model, w, tol, remaining, min_step);
         iterations += cont.iterations;
-        if cont.converged {
+        // Continuation is there to find the stable branch; when it ends on an
+        // unstable equilibrium too, the direct answer (the caller's warm
+        // start's neighbourhood) stands.
+        let stable_path = cont.converged && (direct_state.is_none() || is_stable(model, w));
+        if stable_path {
             return Ok(self.finish(Ending::Continuation, iterations, steps));
         }
         // Newton's undamped steps can fail where Levenberg-Marquardt's damping
@@ -718,11 +722,11 @@ pub struct TipSensitivity {
 /// How a solve ended (the Solution's message says it in words).
 #[derive(Debug, Clone, PartialEq)]
 enum Ending {
-    /// Nothing bends the rod: the straight rod, without iterating.
+    /// Nothing loads the rod: the rest shape, without iterating.
     Exact,
     /// The direct solve converged to an equilibrium already tested stable.
     DirectStable,
-    /// Load continuation from the straight rod converged.
+    /// Load continuation from the rest shape converged.
     Continuation,
     /// Levenberg-Marquardt converged after Newton failed (held points).
     LmFallback,
@@ -736,7 +740,7 @@ enum Ending {
 impl Ending {
     fn message(&self) -> String {
         match self {
-            Ending::Exact => "straight rod: exact without iteration".into(),
+            Ending::Exact => "unloaded: the rest shape, exact without iteration".into(),
             Ending::DirectStable => "converged".into(),
             Ending::Continuation => "converged by load continuation".into(),
             Ending::LmFallback => "converged (Levenberg-Marquardt fallback)".into(),
@@ -781,7 +785,7 @@ const STABILITY_STEP: f64 = 1e-3;
 const DIRECT_ITERATIONS: usize = 60;
 const STEP_ITERATIONS: usize = 25;
 
-/// Follow `lambda` from 0 (straight rod, exact) to 1 with a tangent predictor
+/// Follow `lambda` from 0 (the unloaded rest shape, exact) to 1 with a tangent predictor
 /// and an adaptive step, within `budget` iterations. Returns the outcome at
 /// `lambda = 1` and the steps taken.
 fn continuation(
@@ -793,14 +797,14 @@ fn continuation(
     min_step: f64,
 ) -> (LocalOutcome, usize) {
     let n = model.n;
-    w.saved.copy_from_slice(&model.straight());
+    w.saved.copy_from_slice(&model.rest_shape());
     w.kkt
         .reactions_saved
         .iter_mut()
         .for_each(|r| *r = Vector3::zeros());
     let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
     let (mut iterations, mut steps) = (0usize, 0usize);
-    // The straight, unloaded rod is stable; the path is followed on the stable
+    // The unloaded rest shape is stable; the path is followed on the stable
     // branch as long as there is one.
     let mut path_stable = true;
     while lambda < 1.0 && !interrupt::requested() {

@@ -472,10 +472,11 @@ impl Scene {
                     ),
                 ));
             }
-            if distance >= arc * (1.0 - 1e-12) && full_reach.is_none() {
+            if distance >= arc * (1.0 - FULL_REACH_BAND) && full_reach.is_none() {
                 full_reach = Some(format!(
-                    "{key} is at full reach ({distance} m of {arc} m of rod): only the straight \
-                     rod reaches it and its reaction is indeterminate or unbounded"
+                    "{key} is within {FULL_REACH_BAND:e} of full reach ({distance} m of {arc} m of \
+                     rod): only a nearly straight rod reaches it, and its reaction (which grows \
+                     without bound as the gap closes) is not determined to any useful accuracy"
                 ));
             }
             from = (s, p);
@@ -483,6 +484,13 @@ impl Scene {
         Ok(full_reach)
     }
 }
+
+/// Relative gap to full reach under which a held point is refused as
+/// indeterminate. Closer than this, the reaction of an inextensible rod is
+/// ill-conditioned without bound, and a miss within the residual tolerance
+/// (1e-10 L) is as large as the gap itself: the straight rod would pass as
+/// "converged" with a reaction of 0.
+pub const FULL_REACH_BAND: f64 = 1e-8;
 
 /// A map with the path of its key, for error messages.
 struct Table<'a> {

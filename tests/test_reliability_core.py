@@ -310,3 +310,44 @@ def test_the_answer_is_the_rod_loaded_from_rest():
             ramp = softspine.solve(scale_loads(scene, t), n_elements=40, initial=ramp)
         if ramp.converged and ramp.stable:
             assert np.abs(sol.positions - ramp.positions).max() < 1e-8, scene
+
+
+# --- 5. Held tips at full reach --------------------------------------------------
+
+
+@pytest.mark.parametrize("gap", [1e-9, 1e-10, 1e-11])
+@pytest.mark.parametrize("angle", [0.0, 0.3])
+def test_a_target_at_the_edge_of_reach_is_indeterminate(gap, angle):
+    """Closer than 1e-8 L to full reach the straight rod used to pass as
+    converged (a miss within tolerance, an axial reaction of 0)."""
+    target = [0.0, (1 - gap) * math.sin(angle), (1 - gap) * math.cos(angle)]
+    scene = {
+        "length": 1.0,
+        "stiffness": ROUND,
+        "gravity": {"linear_density": 0.5, "vector": [0, 0, -9.81]},
+        "tip": {"type": "pinned", "position": target},
+    }
+    sol = softspine.solve(scene)
+    assert sol.status == "indeterminate" and not sol.converged and sol.iterations == 0
+    assert "full reach" in sol.message
+    with pytest.raises(SolverError, match="indeterminate"):
+        softspine.solve(scene, check=True)
+
+
+def test_a_converged_held_tip_near_full_reach_has_the_right_reaction():
+    """Outside the band: converged only with a reaction that, applied to the
+    free rod, puts its tip on the target."""
+    target = [0.0, (1 - 1e-4) * math.sin(0.3), (1 - 1e-4) * math.cos(0.3)]
+    scene = {
+        "length": 1.0,
+        "stiffness": ROUND,
+        "gravity": {"linear_density": 0.5, "vector": [0, 0, -9.81]},
+        "tip": {"type": "pinned", "position": target},
+    }
+    sol = softspine.solve(scene)
+    if sol.converged:
+        free = dict(scene, tip={"type": "free"}, tip_force=sol.tip_reaction_force.tolist())
+        check = softspine.solve(free, initial=sol, check=True)
+        assert np.linalg.norm(check.tip_position - target) < 1e-9
+    else:
+        assert "reach" in sol.message

@@ -161,8 +161,9 @@ pub enum Status {
     Underresolved,
     /// The state or the residual is not finite (an overflow).
     NumericalError,
-    /// Not attempted: the scene has no well-defined answer (a held point at
-    /// exactly full reach, whose reaction is indeterminate).
+    /// Not attempted: the scene has no well-defined answer (a held point
+    /// within [`crate::scene::FULL_REACH_BAND`] of full reach, whose reaction
+    /// is indeterminate or unbounded).
     Indeterminate,
 }
 

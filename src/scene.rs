@@ -545,7 +545,8 @@ impl<'a> Table<'a> {
     }
 }
 
-fn finite(v: &Value, key: &str) -> Result<f64> {
+/// A finite number at `key` (shared by every reader of value trees).
+pub(crate) fn finite(v: &Value, key: &str) -> Result<f64> {
     match v {
         Value::Number(x) if x.is_finite() => Ok(*x),
         Value::Number(x) => Err(Error::scene(key, format!("must be finite, got {x}"))),

@@ -408,11 +408,10 @@ impl InverseSolver {
         budget: usize,
     ) -> Result<Attempt> {
         let end = self.iterations + budget;
-        let mut st = self.begin(goal, start)?;
-        if !usable(&st.sol) {
-            let phase = PhaseEnd::Stalled { unusable: true };
-            return Ok(Attempt { state: st, phase });
-        }
+        let mut st = match self.begin_usable(goal, start)? {
+            Ok(st) => st,
+            Err(stalled) => return Ok(stalled),
+        };
         let phase = self.min_norm(goal, &mut st, pull, end)?;
         if pull == Pull::Free && goal.reached(&st.e) {
             self.polish(goal, &mut st, end)?;
@@ -422,6 +421,21 @@ impl InverseSolver {
 
     /// The equilibrium at a starting actuation (brought within range); the
     /// warm state of the next solves if it is stable.
+    /// [`Self::begin`], or the stalled attempt when the start's equilibrium
+    /// is unusable (not converged or unstable).
+    fn begin_usable(
+        &mut self,
+        goal: &Goal,
+        start: Vec<[f64; 2]>,
+    ) -> Result<std::result::Result<State, Attempt>> {
+        let st = self.begin(goal, start)?;
+        if usable(&st.sol) {
+            return Ok(Ok(st));
+        }
+        let phase = PhaseEnd::Stalled { unusable: true };
+        Ok(Err(Attempt { state: st, phase }))
+    }
+
     fn begin(&mut self, goal: &Goal, mut start: Vec<[f64; 2]>) -> Result<State> {
         self.robot.clamp_to_bounds(&mut start);
         let sol = self.forward(&start)?;
@@ -671,11 +685,10 @@ impl InverseSolver {
         budget: usize,
     ) -> Result<Attempt> {
         let end = self.iterations + budget;
-        let mut st = self.begin(goal, start)?;
-        if !usable(&st.sol) {
-            let phase = PhaseEnd::Stalled { unusable: true };
-            return Ok(Attempt { state: st, phase });
-        }
+        let mut st = match self.begin_usable(goal, start)? {
+            Ok(st) => st,
+            Err(stalled) => return Ok(stalled),
+        };
         let origin = st.sol.clone();
         let (mut done, mut h) = (0.0f64, 0.25f64);
         let mut phase = PhaseEnd::Stalled { unusable: false };

@@ -524,16 +524,7 @@ impl Robot {
 
     /// Set one field from the value tree (counts checked before anything is sized by them).
     fn read_field(&mut self, key: &str, value: &Value) -> Result<()> {
-        let num = |v: &Value| -> Result<f64> {
-            match v {
-                Value::Number(x) if x.is_finite() => Ok(*x),
-                Value::Number(x) => Err(Error::scene(key, format!("must be finite, got {x}"))),
-                other => Err(Error::scene(
-                    key,
-                    format!("expected a number, got {}", other.kind()),
-                )),
-            }
-        };
+        let num = |v: &Value| crate::scene::finite(v, key);
         let list = |v: &Value, len: usize| -> Result<Vec<f64>> {
             match v {
                 Value::List(items) if items.len() == len => items.iter().map(num).collect(),

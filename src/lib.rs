@@ -45,7 +45,7 @@ mod python;
 pub use error::{Error, Result};
 pub use model::RodModel;
 pub use quat::Quat;
-pub use robot::{IkOptions, IkResult, InverseSolver, Robot, Strategy};
+pub use robot::{IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy};
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
 pub use solver::{
     solve, solve_to_accuracy, Accuracy, Method, Settings, Solution, Solver, Status, TipSensitivity,

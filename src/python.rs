@@ -950,6 +950,17 @@ impl PyIkResult {
     fn reached(&self) -> bool {
         self.inner.reached
     }
+    /// Why the inverse solve ended: "reached", "out_of_reach", "bounds_active",
+    /// "solver_failure", "iteration_limit" or "load_ignored".
+    #[getter]
+    fn ending(&self) -> &'static str {
+        self.inner.ending.name()
+    }
+    /// Starting actuations tried (1: the fast path sufficed).
+    #[getter]
+    fn starts(&self) -> usize {
+        self.inner.starts
+    }
     #[getter]
     fn message(&self) -> String {
         self.inner.message.clone()

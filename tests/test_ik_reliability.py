@@ -164,3 +164,12 @@ def test_huge_counts_are_refused_before_allocating(data, key, shown):
     message = out.stdout.strip()
     assert message.startswith(f"{key}:"), message
     assert message.endswith(f"got {shown}"), message
+
+
+def test_the_ending_is_exposed_with_its_reason():
+    robot = Robot()
+    tip = robot.forward([[1.0, 0.5]] * robot.sections, load=0.03).tip_position
+    ok = robot.inverse(tip, load=0.03)
+    assert ok.reached and ok.ending == "reached" and ok.starts >= 1
+    far = robot.inverse([0.0, 0.0, -2.0], load=0.03)
+    assert not far.reached and far.ending == "out_of_reach"

@@ -106,6 +106,20 @@ pub enum IkEnding {
     LoadIgnored,
 }
 
+impl IkEnding {
+    /// The snake_case name used by the Python API.
+    pub fn name(self) -> &'static str {
+        match self {
+            IkEnding::Reached => "reached",
+            IkEnding::OutOfReach => "out_of_reach",
+            IkEnding::BoundsActive => "bounds_active",
+            IkEnding::SolverFailure => "solver_failure",
+            IkEnding::IterationLimit => "iteration_limit",
+            IkEnding::LoadIgnored => "load_ignored",
+        }
+    }
+}
+
 /// The actuation found, in every space, with the equilibrium it produces.
 #[derive(Debug, Clone)]
 pub struct IkResult {

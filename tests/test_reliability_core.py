@@ -184,7 +184,7 @@ def test_sizes_beyond_the_limits_are_refused_before_allocating(kwargs):
 
 
 LONG_SOLVES = {
-    "newton": 'softspine.solve(scene, n_elements=2_000_000, max_iterations=500)',
+    "newton": "softspine.solve(scene, n_elements=2_000_000, max_iterations=500)",
     "lm": 'softspine.solve(scene, n_elements=600, method="lm", max_iterations=100000)',
     "paper": 'softspine.solve(scene, n_elements=40, method="paper", '
     'paper_options={"iterations": 1000000, "particles": 200})',
@@ -287,6 +287,29 @@ def scale_loads(scene, t):
     out["gravity"] = {**scene["gravity"], "linear_density": t * scene["gravity"]["linear_density"]}
     out["tip_force"] = [t * x for x in scene["tip_force"]]
     return out
+
+
+def test_continuation_does_not_jump_to_another_stable_branch():
+    """Found by random search: a long continuation step from rest landed on
+    another stable equilibrium (energy 5.483 J against 5.520 J of the rod
+    loaded from rest, tip 0.89 m away); a corrector that moves far from the
+    prediction now shortens the step."""
+    scene = {
+        "length": 1.0,
+        "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 0.7},
+        "rest_curvature": [
+            [-0.9064369844150697, 0.9084619240691829],
+            [5.599948744654059, -0.5030452741665696],
+        ],
+        "gravity": {"linear_density": 1.7562071326976072, "vector": [0, 0, -9.81]},
+        "tip_force": [-2.6647682098087726, -0.6864764566196544, 0.36297866185439487],
+    }
+    sol = softspine.solve(scene, n_elements=40, check=True)
+    ramp = softspine.solve(scale_loads(scene, 0.0), n_elements=40)
+    for t in np.linspace(0.02, 1.0, 50):
+        ramp = softspine.solve(scale_loads(scene, t), n_elements=40, initial=ramp)
+    assert ramp.converged and ramp.stable
+    assert np.abs(sol.positions - ramp.positions).max() < 1e-8
 
 
 def test_the_answer_is_the_rod_loaded_from_rest():

@@ -804,6 +804,7 @@ fn continuation(
         .iter_mut()
         .for_each(|r| *r = Vector3::zeros());
     let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
+    let mut prediction = w.saved.clone();
     let (mut iterations, mut steps) = (0usize, 0usize);
     // The unloaded rest shape is stable; the path is followed on the stable
     // branch as long as there is one.
@@ -836,6 +837,7 @@ fn continuation(
             };
             w.q[j] = w.saved[j].perturbed(d);
         }
+        prediction.copy_from_slice(&w.q);
         let out = local.run(
             model,
             w,
@@ -848,8 +850,12 @@ fn continuation(
         // another branch near a (perturbed) bifurcation: retry it shorter. Only a
         // short step may lose stability (a genuine limit, e.g. a perfect column
         // past its buckling load, or lateral buckling under a dead moment).
-        let jumped =
-            out.converged && path_stable && dlambda > STABILITY_STEP && !is_stable(model, w);
+        // A corrector that moves far from the prediction has left the path for
+        // another equilibrium, stable or not: retry the step shorter too.
+        let jumped = out.converged
+            && dlambda > STABILITY_STEP
+            && (max_node_distance(&prediction, &w.q) > MAX_CORRECTION
+                || (path_stable && !is_stable(model, w)));
         if out.converged && !jumped {
             steps += 1;
             path_stable = path_stable && (dlambda > STABILITY_STEP || is_stable(model, w));
@@ -884,6 +890,22 @@ fn continuation(
         },
         steps,
     )
+}
+
+/// Largest rotation [rad] by which a continuation step's corrector may move a
+/// node from the tangent prediction: beyond it the step is taken to have
+/// jumped to another branch.
+const MAX_CORRECTION: f64 = 0.2;
+
+/// Largest angle between corresponding nodes of two chains [rad].
+fn max_node_distance(a: &[Quat], b: &[Quat]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| {
+            crate::model::element_turn(*x, *y)
+                .min(2.0 * std::f64::consts::PI - crate::model::element_turn(*x, *y))
+        })
+        .fold(0.0, f64::max)
 }
 
 /// Solve a scene once (see [`Solver`] to reuse the workspace).

@@ -1,6 +1,6 @@
 """Type stubs of the native module ``softspine._core`` (Rust, PyO3)."""
 
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -54,7 +54,16 @@ class Solution:
     @property
     def converged(self) -> bool: ...
     @property
-    def status(self) -> str: ...
+    def status(
+        self,
+    ) -> Literal[
+        "converged",
+        "not_converged",
+        "tolerance_not_met",
+        "underresolved",
+        "numerical_error",
+        "indeterminate",
+    ]: ...
     @property
     def iterations(self) -> int: ...
     @property
@@ -75,12 +84,12 @@ class Solution:
 def solve(
     scene: Scene | dict[str, Any],
     n_elements: int | None = None,
-    method: str = "newton",
+    method: str | None = None,
     initial: Solution | npt.ArrayLike | None = None,
     tol: float | None = None,
     refine: str | None = None,
-    residual_tol: float = 1e-10,
-    max_iterations: int = 500,
+    residual_tol: float | None = None,
+    max_iterations: int | None = None,
     check: bool = False,
     paper_options: dict[str, Any] | None = None,
 ) -> Solution: ...

@@ -215,26 +215,7 @@ pub(crate) fn newton(
             return (false, it);
         }
         load_constraint_jacobian(model, w);
-        let scale = w
-            .jac
-            .max_diagonal()
-            .max(model.residual_scale.max() * model.ds);
-        let mut shift = 0.0;
-        let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
-        let solved = loop {
-            if lu.factor(&w.jac, shift).is_ok() && kkt_step(&lu, w) {
-                break true;
-            }
-            shift = if shift == 0.0 {
-                1e-10 * scale
-            } else {
-                shift * 100.0
-            };
-            if shift > scale {
-                break false;
-            }
-        };
-        w.lu = lu;
+        let solved = super::newton::damped_solve(model, w, kkt_step);
         if !solved {
             return (false, it);
         }

@@ -902,8 +902,9 @@ fn max_node_distance(a: &[Quat], b: &[Quat]) -> f64 {
     a.iter()
         .zip(b)
         .map(|(x, y)| {
-            crate::model::element_turn(*x, *y)
-                .min(2.0 * std::f64::consts::PI - crate::model::element_turn(*x, *y))
+            // A rotation angle, whichever sign the two quaternions have.
+            let turn = crate::model::element_turn(*x, *y);
+            turn.min(2.0 * std::f64::consts::PI - turn)
         })
         .fold(0.0, f64::max)
 }

@@ -5,6 +5,7 @@
 //! Armijo backtracking always terminates near a regular solution.
 
 use super::{step_limit, LocalOutcome, LocalSolver, Workspace};
+use crate::blocktri::BlockLu;
 use crate::interrupt;
 use crate::model::RodModel;
 use crate::quat::Quat;
@@ -87,26 +88,47 @@ impl LocalSolver for Newton {
 /// direction) is damped by a growing diagonal shift; false if even a shift of
 /// the Jacobian's own scale does not make it regular.
 fn newton_step(model: &RodModel, w: &mut Workspace) -> bool {
+    damped_solve(model, w, |lu, w| {
+        for (s, g) in w.step.iter_mut().zip(&w.g) {
+            *s = -g;
+        }
+        lu.solve_in_place(&mut w.step);
+        true
+    })
+}
+
+/// Factor `J + shift I` (the workspace's Jacobian) and run `solve` with the
+/// factorisation, the shift growing from 0 (by 1e-10 of the Jacobian's scale,
+/// then a hundredfold) while the factorisation or `solve` fails: a singular
+/// pivot is a bifurcation or a neutral direction. False if even a shift of
+/// the Jacobian's own scale does not help. Shared by every Newton variant.
+pub(crate) fn damped_solve(
+    model: &RodModel,
+    w: &mut Workspace,
+    mut solve: impl FnMut(&BlockLu, &mut Workspace) -> bool,
+) -> bool {
     let scale = w
         .jac
         .max_diagonal()
         .max(model.residual_scale.max() * model.ds);
+    // The factorisation leaves the workspace while `solve` borrows it.
+    let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let mut shift = 0.0;
-    while w.lu.factor(&w.jac, shift).is_err() {
+    let solved = loop {
+        if lu.factor(&w.jac, shift).is_ok() && solve(&lu, w) {
+            break true;
+        }
         shift = if shift == 0.0 {
             1e-10 * scale
         } else {
             shift * 100.0
         };
         if shift > scale {
-            return false;
+            break false;
         }
-    }
-    for (s, g) in w.step.iter_mut().zip(&w.g) {
-        *s = -g;
-    }
-    w.lu.solve_in_place(&mut w.step);
-    true
+    };
+    w.lu = lu;
+    solved
 }
 
 /// Convergence: the scaled residual is within `tol` (the tolerance in effect,

@@ -69,6 +69,14 @@ pub struct RodModel {
     /// a stiffness ratio of 1e10 neither hides a soft row's imbalance nor
     /// demands round-off from a stiff one.
     pub residual_scale: Vector3<f64>,
+    /// The second leg of a held scene's load path (see `solver::load_path`):
+    /// the loads stay at full scale and `lambda` moves only the held points
+    /// and a clamped tip's orientation, from where the loaded free rod put them.
+    pub loads_held_fixed: bool,
+    /// Largest bending moment the applied loads can exert, times `L` over the
+    /// smallest stiffness (dimensionless): the curvature scale `kappa L` of
+    /// the loaded rod, which sets the round-off floor of the residual.
+    pub load_parameter: f64,
 }
 
 impl RodModel {
@@ -160,7 +168,15 @@ impl RodModel {
             clamped_tip,
             rest_tip: base,
             residual_scale: stiffness / length,
+            loads_held_fixed: false,
+            load_parameter: 0.0,
         };
+        let point_moment: f64 = scene.point_loads.iter().map(|p| p.force.norm() * p.s).sum();
+        let moment = scene.tip_moment.norm()
+            + length * scene.tip_force.norm()
+            + 0.5 * length * length * f.norm()
+            + point_moment;
+        model.load_parameter = moment * length / stiffness.min();
         model.refresh_rest();
         model
     }
@@ -261,6 +277,45 @@ impl RodModel {
         !self.constraints.is_empty() || self.clamped_tip.is_some()
     }
 
+    /// The scale of the applied loads at path parameter `lambda`.
+    pub fn load_scale(&self, lambda: f64) -> f64 {
+        if self.loads_held_fixed {
+            1.0
+        } else {
+            lambda
+        }
+    }
+
+    /// The same rod and loads with every held point and a clamped tip
+    /// released: the first leg of a held scene's load path.
+    pub fn released(&self) -> RodModel {
+        RodModel {
+            constraints: Vec::new(),
+            clamped_tip: None,
+            ..self.clone()
+        }
+    }
+
+    /// The second leg of a held scene's load path: the loads at full scale,
+    /// the held points (and a clamped tip's orientation) moved by `lambda`
+    /// from where the chain `q` (the loaded free rod) puts them.
+    pub fn holding_from(&self, q: &[Quat]) -> RodModel {
+        let mut model = self.clone();
+        let mut positions = vec![Vector3::zeros(); self.n + 1];
+        self.positions(q, &mut positions);
+        for c in &mut model.constraints {
+            c.rest = positions[c.node];
+        }
+        model.rest_tip = q[self.n];
+        if let Some(target) = model.clamped_tip.as_mut() {
+            if target.dot(model.rest_tip) < 0.0 {
+                *target = -*target;
+            }
+        }
+        model.loads_held_fixed = true;
+        model
+    }
+
     /// Orientation of a clamped tip at load scale `lambda` (slerp from the
     /// rest shape's tip).
     pub fn clamped_tip_at(&self, lambda: f64) -> Option<Quat> {
@@ -334,6 +389,7 @@ impl RodModel {
         debug_assert_eq!(q.len(), self.n + 1);
         debug_assert_eq!(g.len(), self.n);
         let (ds, k) = (self.ds, self.stiffness);
+        let load = self.load_scale(lambda);
         let kmat = Matrix3::from_diagonal(&k);
         g.iter_mut().for_each(|x| *x = Vector3::zeros());
         if let Some(j) = jac.as_deref_mut() {
@@ -356,7 +412,7 @@ impl RodModel {
             let gb = amat.transpose() * w;
             // Load potential kappa * a^T S b with kappa = -ds/3 (F . T(a,b) term).
             let kappa = -ds / 3.0;
-            let mut fbar = lambda * self.mean_force[i - 1];
+            let mut fbar = load * self.mean_force[i - 1];
             if !reactions.is_empty() {
                 fbar += self.reactions_from(reactions, i);
             }
@@ -398,7 +454,7 @@ impl RodModel {
         }
         // Nodes: the quadratic part of the load potential, h . T(q_j).
         for j in 1..=self.n {
-            let mut weight = lambda * self.node_force_weight[j - 1];
+            let mut weight = load * self.node_force_weight[j - 1];
             if !reactions.is_empty() {
                 weight += self.reactions_from(reactions, j) + self.reactions_from(reactions, j + 1);
             }
@@ -411,7 +467,7 @@ impl RodModel {
         }
         // Tip moment (a dead load in the world frame, no potential in 3D).
         if self.tip_moment.norm() > 0.0 {
-            let m = q[self.n].inverse_rotate(lambda * self.tip_moment);
+            let m = q[self.n].inverse_rotate(load * self.tip_moment);
             g[self.n - 1] -= m;
             if let Some(jac) = jac {
                 jac.diag[self.n - 1] -= skew(&m);
@@ -508,15 +564,25 @@ impl RodModel {
         largest
     }
 
-    /// The residual tolerance in effect: `tol`, but never below the round-off
-    /// floor `8 eps n` of the relative residual. A node's torque comes from the
-    /// curvature `(2/ds) vec(conj(a) b)` of unit quaternions stored to `eps`,
-    /// so its rounding is about `2 eps k / ds`, that is `2 eps n` relative to
-    /// `k / L` (measured: 1.8 eps n on the cantilever from n = 1e4 to 1e5).
-    /// The equilibrium is not less accurate for it: the rounding is a torque
-    /// noise of zero mean whose effect on the shape is of order `eps`.
+    /// The residual tolerance in effect: `tol`, but never below the
+    /// residual's round-off floor ([`RodModel::roundoff_floor`]). The
+    /// equilibrium is not less accurate for it: the rounding is a torque noise
+    /// of zero mean whose effect on the shape is of order `eps`.
     pub fn effective_tol(&self, tol: f64) -> f64 {
-        tol.max(8.0 * f64::EPSILON * self.n as f64)
+        tol.max(self.roundoff_floor())
+    }
+
+    /// The round-off floor of the relative residual, `8 eps (n + kappa L)`.
+    /// A node's torque comes from the curvature `(2/ds) vec(conj(a) b)` of
+    /// unit quaternions stored to `eps`, so its rounding is about
+    /// `2 eps k / ds`, that is `2 eps n` relative to `k / L` (measured: 1.8 eps
+    /// n on the cantilever from n = 1e4 to 1e5). The elastic moments `K omega`
+    /// themselves, which balance the loads' moment and the rest curvature, are
+    /// of order `kappa L` relative to `k / L` and round to `eps` of that (a tip
+    /// force of 1e8 `EI/L^2` leaves a residual noise of about 1e-8).
+    pub fn roundoff_floor(&self) -> f64 {
+        let curvature = self.load_parameter + self.max_rest_turn() * self.n as f64;
+        8.0 * f64::EPSILON * (self.n as f64 + curvature)
     }
 
     /// The line-search merit: the sum of squares of the scaled torque rows.
@@ -560,15 +626,73 @@ impl RodModel {
     /// `Pi` at load scale `lambda` (loads and rest curvature scaled).
     pub fn energy_at(&self, q: &[Quat], lambda: f64) -> f64 {
         let mut total = 0.0;
+        let load = self.load_scale(lambda);
         for i in 1..=self.n {
             let (a, b) = (q[i - 1], q[i]);
             let e = (2.0 / self.ds) * (a.conj() * b).v - self.rest_curvature[i - 1];
             let elastic = 0.5 * e.dot(&self.stiffness.component_mul(&e));
-            let work = lambda * self.mean_force[i - 1].dot(&mean_tangent(a, b));
+            let work = load * self.mean_force[i - 1].dot(&mean_tangent(a, b));
             total += self.ds * (elastic - work);
         }
         total
     }
+}
+
+/// How much less than `k ds` a chain of `k` elements reaches along a
+/// direction at angle `theta` from the tangent of its clamped first node, in
+/// units of `ds`. The discrete rod cannot straighten at once: an element's
+/// mean tangent `(T(a) + T(a, b) + T(b)) / 3` keeps a third of its clamped
+/// end's direction, so even an infinite pull leaves a deficit of about
+/// `0.2 theta^2 ds` (the optimal chain turns its nodes by `theta r^j`,
+/// `r = sqrt(24) - 5`: the deficit sits in the first two elements). The
+/// continuous rod's deficit vanishes; the discrete one falls as `1 / n`.
+///
+/// Computed exactly for the planar chain (twist only shortens it): maximise
+/// `sum_i [cos x_{i-1} + cos((x_{i-1} + x_i) / 2) + cos x_i] / 3` over the
+/// node angles `x_j` from the direction of reach, `x_0 = theta`, by
+/// Gauss-Seidel sweeps of one-dimensional Newton steps. Nodes beyond the
+/// 24th are held aligned (their optimal angle is below `1e-23 theta`).
+pub fn clamped_end_deficit(theta: f64, elements: usize) -> f64 {
+    let k = elements;
+    let m = k.min(24);
+    if k == 0 || theta == 0.0 {
+        return 0.0;
+    }
+    let ratio = 24f64.sqrt() - 5.0;
+    let mut x: Vec<f64> = (0..=m).map(|j| theta * ratio.powi(j as i32)).collect();
+    let next = |x: &[f64], j: usize| if j < m { x[j + 1] } else { 0.0 };
+    for _ in 0..100 {
+        let mut largest = 0.0f64;
+        for j in 1..=m {
+            let interior = j < k;
+            let own = if interior { 2.0 } else { 1.0 } / 3.0;
+            let (left, right) = (0.5 * (x[j - 1] + x[j]), 0.5 * (x[j] + next(&x, j)));
+            let mut slope = -own * x[j].sin() - left.sin() / 6.0;
+            let mut curvature = -own * x[j].cos() - left.cos() / 12.0;
+            if interior {
+                slope -= right.sin() / 6.0;
+                curvature -= right.cos() / 12.0;
+            }
+            // A maximum: Newton where the objective is concave, else uphill.
+            let step = if curvature < 0.0 {
+                -slope / curvature
+            } else {
+                slope
+            };
+            let step = step.clamp(-0.5, 0.5);
+            x[j] += step;
+            largest = largest.max(step.abs());
+        }
+        if largest < 1e-15 {
+            break;
+        }
+    }
+    (1..=k.min(m + 1))
+        .map(|i| {
+            let (a, b) = (x[i - 1], next(&x, i - 1));
+            1.0 - (a.cos() + (0.5 * (a + b)).cos() + b.cos()) / 3.0
+        })
+        .sum()
 }
 
 /// Spherical interpolation from `a` (t = 0) to `b` (t = 1) along the short arc

@@ -545,7 +545,7 @@ impl PySolution {
     fn message(&self) -> String {
         self.inner.message.clone()
     }
-    /// Accuracy on demand: estimated tip error, m (None for a fixed n).
+    /// Accuracy on demand: estimated largest node error over the backbone, m (None for a fixed n).
     #[getter]
     fn error_estimate(&self) -> Option<f64> {
         self.inner.error_estimate

@@ -18,6 +18,7 @@
 //! ```
 
 use crate::error::{Error, Result};
+use crate::model::clamped_end_deficit;
 use crate::quat::Quat;
 use crate::value::Value;
 use nalgebra::Vector3;
@@ -419,9 +420,10 @@ impl Scene {
     /// Check the held points against a discretisation of `n` elements: guides
     /// inside the rod, on nodes, in order; every target within reach of the
     /// previous held point (base included); a clamped tip without applied tip
-    /// loads. Returns a reason when a target is exactly at full reach (only the
-    /// straight rod reaches it: the reaction is indeterminate or unbounded).
-    pub fn check_constraints(&self, n: usize) -> Result<Option<String>> {
+    /// loads. Returns why a valid scene cannot be solved at this `n`: a target
+    /// at full reach (only the straight rod reaches it: the reaction is
+    /// indeterminate or unbounded), or beyond what the discrete rod reaches.
+    pub fn check_constraints(&self, n: usize) -> Result<Option<ReachLimit>> {
         let ds = self.length / n as f64;
         if let TipCondition::Clamped { .. } = self.tip {
             if self.tip_force.norm() > 0.0 || self.tip_moment.norm() > 0.0 {
@@ -460,9 +462,11 @@ impl Scene {
             }
         }
         let mut from = (0.0, Vector3::zeros());
-        let mut full_reach = None;
-        for (key, s, p) in held {
-            let (arc, distance) = (s - from.0, (p - from.1).norm());
+        let mut limit = None;
+        let held_count = held.len();
+        for (index, (key, s, p)) in held.into_iter().enumerate() {
+            let (arc, chord) = (s - from.0, p - from.1);
+            let distance = chord.norm();
             if distance > arc * (1.0 + 1e-12) {
                 return Err(Error::scene(
                     key,
@@ -472,17 +476,60 @@ impl Scene {
                     ),
                 ));
             }
-            if distance >= arc * (1.0 - FULL_REACH_BAND) && full_reach.is_none() {
-                full_reach = Some(format!(
+            if limit.is_some() {
+                from = (s, p);
+                continue;
+            }
+            if distance >= arc * (1.0 - FULL_REACH_BAND) {
+                limit = Some(ReachLimit::FullReach(format!(
                     "{key} is within {FULL_REACH_BAND:e} of full reach ({distance} m of {arc} m of \
                      rod): only a nearly straight rod reaches it, and its reaction (which grows \
                      without bound as the gap closes) is not determined to any useful accuracy"
-                ));
+                )));
+            } else {
+                // A clamped end (the base before the first held point, a
+                // clamped tip after the last) keeps the discrete rod from
+                // straightening at once: its reach falls short of the arc.
+                let elements = ((arc / ds).round() as usize).max(1);
+                let angle_to = |tangent: Vector3<f64>| tangent.angle(&chord).min(PI);
+                let mut deficit = 0.0f64;
+                if index == 0 {
+                    let base_tangent = self.base_quaternion.rotate(Vector3::z());
+                    deficit = clamped_end_deficit(angle_to(base_tangent), elements);
+                }
+                if let (true, TipCondition::Clamped { quaternion, .. }) =
+                    (index + 1 == held_count, &self.tip)
+                {
+                    let tip_tangent = quaternion.rotate(Vector3::z());
+                    deficit = deficit.max(clamped_end_deficit(angle_to(tip_tangent), elements));
+                }
+                let reach = arc - ds * deficit;
+                if distance >= reach - arc * FULL_REACH_BAND {
+                    let gap = arc - distance;
+                    let needed = (n as f64 * ds * deficit / gap).ceil();
+                    limit = Some(ReachLimit::BeyondDiscreteReach(format!(
+                        "{key} is {distance} m from the previous held point (or the base), beyond \
+                         the {reach} m that the rod discretised by {n} elements reaches in that \
+                         direction (its clamped end cannot straighten within an element; the \
+                         continuous rod reaches {arc} m): use more than {needed} elements"
+                    )));
+                }
             }
             from = (s, p);
         }
-        Ok(full_reach)
+        Ok(limit)
     }
+}
+
+/// Why a valid scene with held points is not solved at a given `n`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ReachLimit {
+    /// A held point within [`FULL_REACH_BAND`] of full reach: its reaction is
+    /// indeterminate (the solve's status is `Indeterminate`).
+    FullReach(String),
+    /// A held point beyond the reach of the discrete rod, which a finer
+    /// discretisation may reach (status `Underresolved`).
+    BeyondDiscreteReach(String),
 }
 
 /// Relative gap to full reach under which a held point is refused as

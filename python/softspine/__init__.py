@@ -67,8 +67,9 @@ def solve(
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
     tol : float, optional
-        Accuracy on demand: ``n`` doubles until the estimated tip error (from the
-        solves at n and 2n, second order) is below ``tol * L``; the Solution
+        Accuracy on demand: ``n`` doubles until the estimated error of the whole
+        backbone (the largest over the nodes, from the solves at n and 2n,
+        second order) is below ``tol * L``; the Solution
         carries ``error_estimate`` (m) and the ``n_elements`` used.
     refine : {"richardson"}, optional
         With ``tol``: return the Richardson-extrapolated tip ``(4 r_2n - r_n)/3``

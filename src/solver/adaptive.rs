@@ -1,7 +1,7 @@
 //! Accuracy on demand: the solver chooses the discretisation. The scheme is
-//! second order, so the tip error of the solve at 2n is about a third of the
-//! difference between the tips at n and 2n; n doubles until that estimate is
-//! below the tolerance. Richardson extrapolation `(4 r_2n - r_n) / 3` removes
+//! second order, so the error of a node of the solve at 2n is about a third
+//! of the difference between that node at n and 2n; n doubles until the
+//! largest such estimate over the backbone is below the tolerance. Richardson extrapolation `(4 r_2n - r_n) / 3` removes
 //! the leading error term and typically gains two to four digits.
 
 use super::{check_tolerance, Settings, Solution, Solver, Status, MAX_ELEMENTS};
@@ -133,7 +133,9 @@ pub fn solve_to_accuracy(
             return Ok(fine);
         }
         let (r_n, r_2n) = (coarse.tip_position(), fine.tip_position());
-        let estimate = (r_2n - r_n).norm() / 3.0;
+        // The whole backbone: a held tip never moves, so the tip alone would
+        // estimate the error of a pinned rod as zero.
+        let estimate = backbone_difference(&coarse, &fine) / 3.0;
         let asymptotic = coarse.converged() && max_turn(scene, &coarse) <= ASYMPTOTIC_TURN;
         let met = asymptotic && estimate <= accuracy.tol * length;
         if met || 4 * n > accuracy.max_elements {
@@ -156,6 +158,17 @@ pub fn solve_to_accuracy(
         coarse = fine;
         n *= 2;
     }
+}
+
+/// Largest distance between the nodes of `coarse` and the same nodes of the
+/// twice finer `fine` [m].
+fn backbone_difference(coarse: &Solution, fine: &Solution) -> f64 {
+    coarse
+        .positions
+        .iter()
+        .zip(fine.positions.iter().step_by(2))
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max)
 }
 
 /// Largest element turning of a solution [rad], rest turning included.

@@ -195,6 +195,40 @@ fn solve_small_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
     }
 }
 
+/// The path's tangent at the equilibrium in `w.q` (reactions in
+/// `w.kkt.reactions`) at `lambda`: `-dtheta/dlambda` into `w.step` (the sign
+/// of the free scenes' predictor) and `dR/dlambda` into `w.kkt.reaction_step`.
+/// It is the Newton step of the KKT system for the residuals' derivatives
+/// `[dg/dlambda; dh/dlambda]`: the loads' (nothing on a leg whose loads stay
+/// fixed) and the targets' motion. Near a held point's full reach the tangent
+/// is large and points along the buckling mode, which is what the predictor
+/// needs there. A clamped tip's orientation is left to the corrector.
+pub(crate) fn tangent(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool {
+    let n = model.n;
+    let m = model.constraints.len();
+    evaluate(model, w, lambda, true);
+    load_constraint_jacobian(model, w);
+    if model.loads_held_fixed {
+        w.g.iter_mut().for_each(|x| *x = Vector3::zeros());
+    } else {
+        model.residual_lambda_derivative(&w.q, &mut w.g, &mut w.scratch);
+    }
+    if model.clamped_tip.is_some() {
+        w.g[n - 1] = Vector3::zeros();
+    }
+    for (h, c) in w.kkt.h[..m].iter_mut().zip(&model.constraints) {
+        *h = c.rest - c.target;
+    }
+    if !super::newton::damped_solve(model, w, kkt_step) {
+        return false;
+    }
+    w.step.iter_mut().for_each(|x| *x = -*x);
+    for (i, d) in w.kkt.reaction_step[..m].iter_mut().enumerate() {
+        *d = Vector3::new(w.kkt.rhs[3 * i], w.kkt.rhs[3 * i + 1], w.kkt.rhs[3 * i + 2]);
+    }
+    true
+}
+
 /// Newton on the KKT system with a backtracking line search on the merit.
 pub(crate) fn newton(
     model: &RodModel,

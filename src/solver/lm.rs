@@ -64,7 +64,7 @@ impl LevenbergMarquardt {
         if model.is_constrained() {
             load_constraint_jacobian(model, w);
             let wt = position_weight(model);
-            for (ci, d) in w.kkt.d.iter().enumerate() {
+            for (ci, d) in w.kkt.d[..model.constraints.len()].iter().enumerate() {
                 for (j, block) in d.iter().enumerate() {
                     for a in 0..3 {
                         for b in 0..3 {
@@ -96,7 +96,8 @@ impl LevenbergMarquardt {
                 self.residual[(3 * j + r, 0)] = g[r] / model.residual_scale[r];
             }
         }
-        for (c, h) in w.kkt.h.iter().enumerate() {
+        // The workspace is sized for the scene; a released leg holds nothing.
+        for (c, h) in w.kkt.h[..model.constraints.len()].iter().enumerate() {
             for r in 0..3 {
                 self.residual[(3 * (n + c) + r, 0)] = wt * h[r];
             }
@@ -127,6 +128,10 @@ fn norm(model: &RodModel, w: &Workspace) -> f64 {
 }
 
 impl LocalSolver for LevenbergMarquardt {
+    fn for_model(&self, model: &RodModel) -> Box<dyn LocalSolver + Send + Sync> {
+        Box::new(LevenbergMarquardt::new(model))
+    }
+
     fn run(
         &mut self,
         model: &RodModel,
@@ -211,7 +216,10 @@ impl LocalSolver for LevenbergMarquardt {
             for j in 1..=n {
                 w.q[j] = w.trial[j].perturbed(w.step[j - 1]);
             }
-            for (c, r) in w.kkt.reactions.iter_mut().enumerate() {
+            for (c, r) in w.kkt.reactions[..model.constraints.len()]
+                .iter_mut()
+                .enumerate()
+            {
                 *r += Vector3::new(
                     self.rhs[(3 * (n + c), 0)],
                     self.rhs[(3 * (n + c) + 1, 0)],

@@ -4,6 +4,7 @@
 
 mod adaptive;
 mod constrained;
+mod continuation;
 mod lm;
 mod newton;
 
@@ -15,7 +16,7 @@ use crate::interrupt;
 use crate::model::RodModel;
 use crate::paper_method::{solve_paper, PaperSettings};
 use crate::quat::Quat;
-use crate::scene::Scene;
+use crate::scene::{ReachLimit, Scene};
 use nalgebra::Vector3;
 
 /// The numerical method.
@@ -155,9 +156,11 @@ pub enum Status {
     /// Accuracy on demand stopped at its largest `n` with the error estimate
     /// above the tolerance (the state is a converged equilibrium at that `n`).
     ToleranceNotMet,
-    /// An equilibrium of the discrete system whose elements turn by more than
-    /// [`MAX_RESOLVED_TURN`]: the discrete rod cannot follow the shape (a
-    /// coiled rod folds onto itself); solve with more elements.
+    /// The discrete rod cannot follow the shape; solve with more elements.
+    /// Either an equilibrium whose elements turn by more than
+    /// [`MAX_RESOLVED_TURN`] (a coiled rod folds onto itself), or, not
+    /// attempted, a held point beyond the discrete rod's reach (see
+    /// [`crate::model::clamped_end_deficit`]).
     Underresolved,
     /// The state or the residual is not finite (an overflow).
     NumericalError,
@@ -217,8 +220,9 @@ pub struct Solution {
     pub stable: bool,
     /// A short human-readable account of how the solve ended.
     pub message: String,
-    /// Accuracy on demand: the estimated distance of the tip from the
-    /// continuous rod's [m] (from the solves at n/2 and n, second order).
+    /// Accuracy on demand: the estimated largest distance of a node from
+    /// the continuous rod's [m], over the whole backbone (from the solves at
+    /// n/2 and n, second order).
     pub error_estimate: Option<f64>,
     /// Accuracy on demand with Richardson extrapolation: `(4 r_n - r_{n/2}) / 3`,
     /// returned by [`Solution::tip_position`] in place of the last node.
@@ -310,6 +314,9 @@ pub(crate) trait LocalSolver {
         max_iter: usize,
         tol: f64,
     ) -> LocalOutcome;
+
+    /// The same method, with its buffers sized for `model`.
+    fn for_model(&self, model: &RodModel) -> Box<dyn LocalSolver + Send + Sync>;
 }
 
 /// A reusable solver of one scene at one discretisation: build it once, call
@@ -320,7 +327,7 @@ pub struct Solver {
     work: Workspace,
     local: Box<dyn LocalSolver + Send + Sync>,
     /// Why the scene cannot be solved as posed (a held point at full reach).
-    full_reach: Option<String>,
+    reach_limit: Option<ReachLimit>,
     /// The scene itself, for the paper's method (which builds its own system).
     scene: Scene,
 }
@@ -330,7 +337,7 @@ impl Solver {
         settings.validate()?;
         scene.check_derived()?;
         scene.check_elements(settings.n_elements)?;
-        let full_reach = scene.check_constraints(settings.n_elements)?;
+        let reach_limit = scene.check_constraints(settings.n_elements)?;
         let model = RodModel::new(scene, settings.n_elements);
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
@@ -344,7 +351,7 @@ impl Solver {
             settings,
             work,
             local,
-            full_reach,
+            reach_limit,
             scene: scene.clone(),
         })
     }
@@ -457,10 +464,18 @@ impl Solver {
             .reactions
             .iter_mut()
             .for_each(|r| *r = Vector3::zeros());
-        if let Some(reason) = &self.full_reach {
+        if let Some(limit) = &self.reach_limit {
             w.q.copy_from_slice(&model.initial_guess());
             evaluate(model, w, 1.0);
-            let ending = Ending::Refused(format!("not solved: {reason}"));
+            let ending = match limit {
+                ReachLimit::FullReach(reason) => {
+                    Ending::Refused(Status::Indeterminate, format!("not solved: {reason}"))
+                }
+                ReachLimit::BeyondDiscreteReach(reason) => Ending::Refused(
+                    Status::Underresolved,
+                    format!("underresolved, not solved: {reason}"),
+                ),
+            };
             return Ok(self.finish(ending, 0, 0));
         }
         if initial.is_none() && model.is_trivial() {
@@ -493,15 +508,22 @@ impl Solver {
             .then(|| (w.q.clone(), w.kkt.reactions.clone()));
         let remaining = budget - direct.iterations.min(budget);
         let min_step = self.settings.min_continuation_step;
-        let (cont, steps) = continuation(self.local.as_mut(), model, w, tol, remaining, min_step);
+        let (cont, steps) =
+            continuation::load_path(self.local.as_mut(), model, w, tol, remaining, min_step);
         iterations += cont.iterations;
-        // Continuation is there to find the stable branch; when it ends on an
-        // unstable equilibrium too, the direct answer (the caller's warm
-        // start's neighbourhood) stands.
-        let stable_path = cont.converged && (direct_state.is_none() || is_stable(model, w));
-        if stable_path {
+        // Continuation is there to find the stable branch. A free rod's load
+        // path ends unstable only where the loading itself loses stability,
+        // so that end stands unless a direct answer (the caller's warm
+        // start's neighbourhood) does. A held scene's path moves its held
+        // points along an arbitrary route: an unstable end of it is kept as
+        // a candidate while the LM fallback looks for a stable equilibrium.
+        if cont.converged
+            && ((direct_state.is_none() && !model.is_constrained()) || is_stable(model, w))
+        {
             return Ok(self.finish(Ending::Continuation, iterations, steps));
         }
+        let path_state = (cont.converged && direct_state.is_none())
+            .then(|| (w.q.clone(), w.kkt.reactions.clone()));
         // Newton's undamped steps can fail where Levenberg-Marquardt's damping
         // gets there: held points that only a strongly bent (buckled) rod
         // reaches, torsion far stiffer than bending. LM is dense, so it is only
@@ -521,17 +543,22 @@ impl Solver {
             if direct.converged && is_stable(model, w) {
                 return Ok(self.finish(Ending::LmFallback, iterations, steps));
             }
-            let (out, lm_steps) = continuation(&mut lm, model, w, tol, budget, min_step);
+            let (out, lm_steps) = continuation::load_path(&mut lm, model, w, tol, budget, min_step);
             iterations += out.iterations;
-            if out.converged {
+            if out.converged && (path_state.is_none() || is_stable(model, w)) {
                 return Ok(self.finish(Ending::LmFallback, iterations, steps + lm_steps));
             }
         }
-        if let Some((q, reactions)) = direct_state {
-            w.q.copy_from_slice(&q);
-            w.kkt.reactions.copy_from_slice(&reactions);
-            evaluate(model, w, 1.0);
-            return Ok(self.finish(Ending::DirectUnstable, iterations, steps));
+        for (state, ending) in [
+            (path_state, Ending::Continuation),
+            (direct_state, Ending::DirectUnstable),
+        ] {
+            if let Some((q, reactions)) = state {
+                w.q.copy_from_slice(&q);
+                w.kkt.reactions.copy_from_slice(&reactions);
+                evaluate(model, w, 1.0);
+                return Ok(self.finish(ending, iterations, steps));
+            }
         }
         let mut msg = format!(
             "no convergence: the direct solve and load continuation (stopped after {steps} steps) both failed"
@@ -550,7 +577,9 @@ impl Solver {
     /// the model's residual and stability at the renormalised quaternions.
     fn solve_paper(&mut self) -> Result<Solution> {
         let literal = self.settings.method == Method::PaperLiteral;
-        if let Some(reason) = &self.full_reach {
+        if let Some(ReachLimit::FullReach(reason) | ReachLimit::BeyondDiscreteReach(reason)) =
+            &self.reach_limit
+        {
             return Err(Error::argument("tip", reason.clone()));
         }
         let out = solve_paper(&self.scene, self.model.n, &self.settings.paper, literal)?;
@@ -622,8 +651,8 @@ impl Solver {
         let residual_norm = residual_norm(model, w);
         let mut positions = vec![Vector3::zeros(); model.n + 1];
         model.positions(&w.q, &mut positions);
-        let solved = match ending {
-            Ending::Refused(_) => Err(Status::Indeterminate),
+        let solved = match &ending {
+            Ending::Refused(status, _) => Err(*status),
             Ending::Failed(_) => Err(Status::NotConverged),
             _ => Ok(()),
         };
@@ -734,7 +763,7 @@ enum Ending {
     /// Only the direct solve converged, to an unstable equilibrium.
     DirectUnstable,
     /// Not attempted: the scene has no well-defined answer.
-    Refused(String),
+    Refused(Status, String),
     Failed(String),
 }
 
@@ -746,7 +775,7 @@ impl Ending {
             Ending::Continuation => "converged by load continuation".into(),
             Ending::LmFallback => "converged (Levenberg-Marquardt fallback)".into(),
             Ending::DirectUnstable => "converged (unstable equilibrium)".into(),
-            Ending::Refused(m) | Ending::Failed(m) => m.clone(),
+            Ending::Refused(_, m) | Ending::Failed(m) => m.clone(),
         }
     }
 }
@@ -779,135 +808,8 @@ fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
 /// Largest system (unknowns) that a failed Newton solve retries with dense LM.
 const LM_FALLBACK_UNKNOWNS: usize = 600;
 
-/// Continuation steps shorter than this may end on an unstable equilibrium.
-const STABILITY_STEP: f64 = 1e-3;
-
-/// Iteration limits of the direct attempt and of one continuation step.
+/// Iteration limit of the direct attempt.
 const DIRECT_ITERATIONS: usize = 60;
-const STEP_ITERATIONS: usize = 25;
-
-/// Follow `lambda` from 0 (the unloaded rest shape, exact) to 1 with a tangent predictor
-/// and an adaptive step, within `budget` iterations. Returns the outcome at
-/// `lambda = 1` and the steps taken.
-fn continuation(
-    local: &mut dyn LocalSolver,
-    model: &RodModel,
-    w: &mut Workspace,
-    tol: f64,
-    budget: usize,
-    min_step: f64,
-) -> (LocalOutcome, usize) {
-    let n = model.n;
-    w.saved.copy_from_slice(&model.rest_shape());
-    w.kkt
-        .reactions_saved
-        .iter_mut()
-        .for_each(|r| *r = Vector3::zeros());
-    let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
-    let mut prediction = w.saved.clone();
-    let (mut iterations, mut steps) = (0usize, 0usize);
-    // The unloaded rest shape is stable; the path is followed on the stable
-    // branch as long as there is one.
-    let mut path_stable = true;
-    while lambda < 1.0 && !interrupt::requested() {
-        let target = (lambda + dlambda).min(1.0);
-        // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last equilibrium
-        // (free scenes; a constrained step starts from the last equilibrium).
-        w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
-        let predicted = !model.is_constrained() && {
-            model.residual_jacobian(&w.saved, lambda, &mut w.g, &mut w.jac);
-            model.residual_lambda_derivative(&w.saved, &mut w.step, &mut w.scratch);
-            w.lu.factor(&w.jac, 0.0).is_ok()
-        };
-        if predicted {
-            w.lu.solve_in_place(&mut w.step);
-        }
-        let h = target - lambda;
-        w.q[0] = w.saved[0];
-        for j in 1..=n {
-            let d = if predicted {
-                -h * w.step[j - 1]
-            } else {
-                Vector3::zeros()
-            };
-            let d = if d.norm() > 0.5 {
-                d * (0.5 / d.norm())
-            } else {
-                d
-            };
-            w.q[j] = w.saved[j].perturbed(d);
-        }
-        prediction.copy_from_slice(&w.q);
-        let out = local.run(
-            model,
-            w,
-            target,
-            STEP_ITERATIONS.min(budget.saturating_sub(iterations)),
-            tol,
-        );
-        iterations += out.iterations;
-        // A large step that ends on an unstable equilibrium has likely jumped to
-        // another branch near a (perturbed) bifurcation: retry it shorter. Only a
-        // short step may lose stability (a genuine limit, e.g. a perfect column
-        // past its buckling load, or lateral buckling under a dead moment).
-        // A corrector that moves far from the prediction has left the path for
-        // another equilibrium, stable or not: retry the step shorter too.
-        let jumped = out.converged
-            && dlambda > STABILITY_STEP
-            && (max_node_distance(&prediction, &w.q) > MAX_CORRECTION
-                || (path_stable && !is_stable(model, w)));
-        if out.converged && !jumped {
-            steps += 1;
-            path_stable = path_stable && (dlambda > STABILITY_STEP || is_stable(model, w));
-            lambda = target;
-            w.saved.copy_from_slice(&w.q);
-            w.kkt.reactions_saved.copy_from_slice(&w.kkt.reactions);
-            if out.iterations <= 6 {
-                dlambda = (dlambda * 2.0).min(1.0);
-            }
-        } else {
-            dlambda *= 0.5;
-            if dlambda < min_step || iterations >= budget {
-                w.q.copy_from_slice(&w.saved);
-                w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
-                evaluate(model, w, 1.0);
-                return (
-                    LocalOutcome {
-                        converged: false,
-                        iterations,
-                    },
-                    steps,
-                );
-            }
-        }
-    }
-    // w.q is the equilibrium at lambda = 1 (unless interrupted); w.g and
-    // w.jac are current.
-    (
-        LocalOutcome {
-            converged: lambda >= 1.0,
-            iterations,
-        },
-        steps,
-    )
-}
-
-/// Largest rotation [rad] by which a continuation step's corrector may move a
-/// node from the tangent prediction: beyond it the step is taken to have
-/// jumped to another branch.
-const MAX_CORRECTION: f64 = 0.2;
-
-/// Largest angle between corresponding nodes of two chains [rad].
-fn max_node_distance(a: &[Quat], b: &[Quat]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| {
-            // A rotation angle, whichever sign the two quaternions have.
-            let turn = crate::model::element_turn(*x, *y);
-            turn.min(2.0 * std::f64::consts::PI - turn)
-        })
-        .fold(0.0, f64::max)
-}
 
 /// Solve a scene once (see [`Solver`] to reuse the workspace).
 pub fn solve(scene: &Scene, settings: Settings, initial: Option<&[Quat]>) -> Result<Solution> {

@@ -18,6 +18,10 @@ const MAX_NODE_TURN: f64 = 1.0;
 const MAX_ELEMENT_TURN: f64 = 0.3;
 
 impl LocalSolver for Newton {
+    fn for_model(&self, _model: &RodModel) -> Box<dyn LocalSolver + Send + Sync> {
+        Box::new(Newton)
+    }
+
     fn run(
         &mut self,
         model: &RodModel,

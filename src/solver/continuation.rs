@@ -1,0 +1,331 @@
+//! Load continuation: the path from the unloaded rest shape (a chain of
+//! arcs, an exact equilibrium) to the scene, followed on its stable branch,
+//! as a loading experiment would. A direct solve that fails or lands on an
+//! unstable equilibrium falls back to it.
+//!
+//! A held scene takes the path in two legs: the loads are ramped on the free
+//! rod, then the held points move from where the loaded rod puts them to
+//! their targets. A single leg that moves the targets and the loads together
+//! starts, for a straight rest shape, at full reach (its tip is exactly `L`
+//! from the base), where the reaction is indeterminate: a target on the axis
+//! with a small lateral load was not found that way. The single leg stays as
+//! the fallback.
+
+use super::{evaluate, is_stable, LocalOutcome, LocalSolver, Workspace};
+use crate::interrupt;
+use crate::model::RodModel;
+use crate::quat::Quat;
+use nalgebra::Vector3;
+
+/// The whole load path of `model` from its rest shape, within `budget`
+/// iterations (see the module). On success `w.q` is the equilibrium at
+/// `lambda = 1` with `w.g` and `w.jac` current.
+pub(crate) fn load_path(
+    local: &mut dyn LocalSolver,
+    model: &RodModel,
+    w: &mut Workspace,
+    tol: f64,
+    budget: usize,
+    min_step: f64,
+) -> (LocalOutcome, usize) {
+    let mut iterations = 0;
+    let mut steps = 0;
+    if model.is_constrained() {
+        // First leg: the loads on the released rod.
+        let released = model.released();
+        let mut free_local = local.for_model(&released);
+        start_from_rest(&released, w);
+        let (first, first_steps) =
+            continuation(free_local.as_mut(), &released, w, tol, budget, min_step);
+        iterations += first.iterations;
+        steps += first_steps;
+        if first.converged && !interrupt::requested() {
+            // Second leg: the held points from where the loaded rod puts them.
+            let holding = model.holding_from(&w.q);
+            w.saved.copy_from_slice(&w.q);
+            zero(&mut w.kkt.reactions_saved);
+            let (second, second_steps) = continuation(
+                local,
+                &holding,
+                w,
+                tol,
+                budget - iterations.min(budget),
+                min_step,
+            );
+            iterations += second.iterations;
+            steps += second_steps;
+            if second.converged {
+                // At lambda = 1 the holding model is the scene itself.
+                evaluate(model, w, 1.0);
+                return (
+                    LocalOutcome {
+                        converged: true,
+                        iterations,
+                    },
+                    steps,
+                );
+            }
+        }
+    }
+    // One leg: loads and held points together from the rest shape.
+    start_from_rest(model, w);
+    let (out, more) = continuation(
+        local,
+        model,
+        w,
+        tol,
+        budget - iterations.min(budget),
+        min_step,
+    );
+    iterations += out.iterations;
+    (
+        LocalOutcome {
+            converged: out.converged,
+            iterations,
+        },
+        steps + more,
+    )
+}
+
+fn start_from_rest(model: &RodModel, w: &mut Workspace) {
+    w.saved.copy_from_slice(&model.rest_shape());
+    zero(&mut w.kkt.reactions_saved);
+}
+
+fn zero(v: &mut [Vector3<f64>]) {
+    v.iter_mut().for_each(|r| *r = Vector3::zeros());
+}
+
+/// Continuation steps shorter than this may end on an unstable equilibrium.
+const STABILITY_STEP: f64 = 1e-3;
+
+/// Largest rotation of a node by the predictor [rad].
+const MAX_PREDICTION: f64 = 0.5;
+
+/// Iteration limit of one continuation step.
+const STEP_ITERATIONS: usize = 25;
+
+/// Follow `lambda` from 0 to 1 with a tangent predictor and an adaptive step,
+/// within `budget` iterations, from the equilibrium at `lambda = 0` in
+/// `w.saved` (reactions in `w.kkt.reactions_saved`). Returns the outcome at
+/// `lambda = 1` and the steps taken.
+fn continuation(
+    local: &mut dyn LocalSolver,
+    model: &RodModel,
+    w: &mut Workspace,
+    tol: f64,
+    budget: usize,
+    min_step: f64,
+) -> (LocalOutcome, usize) {
+    let n = model.n;
+    let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
+    let mut prediction = w.saved.clone();
+    let (mut iterations, mut steps) = (0usize, 0usize);
+    // The unloaded rest shape is stable; the path is followed on the stable
+    // branch as long as there is one.
+    let mut path_stable = true;
+    while lambda < 1.0 && !interrupt::requested() {
+        let target = (lambda + dlambda).min(1.0);
+        // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last
+        // equilibrium (a held scene: the KKT system's, reactions included).
+        w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+        let predicted = if model.is_constrained() {
+            w.q.copy_from_slice(&w.saved);
+            super::constrained::tangent(model, w, lambda)
+        } else {
+            model.residual_jacobian(&w.saved, lambda, &mut w.g, &mut w.jac);
+            model.residual_lambda_derivative(&w.saved, &mut w.step, &mut w.scratch);
+            let factored = w.lu.factor(&w.jac, 0.0).is_ok();
+            if factored {
+                w.lu.solve_in_place(&mut w.step);
+            }
+            factored
+        };
+        let h = target - lambda;
+        w.q[0] = w.saved[0];
+        let mut clipped = false;
+        if model.is_constrained() {
+            // The whole state along the tangent, scaled so that no node turns
+            // by more than MAX_PREDICTION (the mode shape is kept).
+            let largest = if predicted {
+                h * w.step.iter().map(|d| d.norm()).fold(0.0, f64::max)
+            } else {
+                0.0
+            };
+            clipped = largest > MAX_PREDICTION;
+            let scale = if clipped {
+                -h * MAX_PREDICTION / largest
+            } else {
+                -h
+            };
+            for j in 1..=n {
+                let d = if predicted {
+                    scale * w.step[j - 1]
+                } else {
+                    Vector3::zeros()
+                };
+                w.q[j] = w.saved[j].perturbed(d);
+            }
+            if predicted {
+                let m = model.constraints.len();
+                for (r, d) in w.kkt.reactions[..m].iter_mut().zip(&w.kkt.reaction_step) {
+                    *r -= scale * d;
+                }
+            }
+        } else {
+            for j in 1..=n {
+                let d = if predicted {
+                    -h * w.step[j - 1]
+                } else {
+                    Vector3::zeros()
+                };
+                let d = if d.norm() > MAX_PREDICTION {
+                    d * (MAX_PREDICTION / d.norm())
+                } else {
+                    d
+                };
+                w.q[j] = w.saved[j].perturbed(d);
+            }
+        }
+        prediction.copy_from_slice(&w.q);
+        // A held path that starts at a bifurcation (its tangent is huge, the
+        // buckling mode) may go either way: both are tried on the first step.
+        let mirrored = (clipped && steps == 0).then(|| mirror(w));
+        let out = local.run(
+            model,
+            w,
+            target,
+            STEP_ITERATIONS.min(budget.saturating_sub(iterations)),
+            tol,
+        );
+        iterations += out.iterations;
+        let out = match mirrored {
+            Some(other) => {
+                let (out, spent) =
+                    better_branch(local, model, w, out, other, &mut prediction, target, tol);
+                iterations += spent;
+                out
+            }
+            None => out,
+        };
+        // A large step that ends on an unstable equilibrium has likely jumped to
+        // another branch near a (perturbed) bifurcation: retry it shorter. Only a
+        // short step may lose stability (a genuine limit, e.g. a perfect column
+        // past its buckling load, or lateral buckling under a dead moment).
+        // A corrector that moves far from the prediction has left the path for
+        // another equilibrium, stable or not: retry the step shorter too.
+        let jumped = out.converged
+            && dlambda > STABILITY_STEP
+            && (max_node_distance(&prediction, &w.q) > MAX_CORRECTION
+                || (path_stable && !is_stable(model, w)));
+        if out.converged && !jumped {
+            steps += 1;
+            path_stable = path_stable && (dlambda > STABILITY_STEP || is_stable(model, w));
+            lambda = target;
+            w.saved.copy_from_slice(&w.q);
+            w.kkt.reactions_saved.copy_from_slice(&w.kkt.reactions);
+            if out.iterations <= 6 {
+                dlambda = (dlambda * 2.0).min(1.0);
+            }
+        } else {
+            dlambda *= 0.5;
+            if dlambda < min_step || iterations >= budget {
+                w.q.copy_from_slice(&w.saved);
+                w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+                evaluate(model, w, 1.0);
+                return (
+                    LocalOutcome {
+                        converged: false,
+                        iterations,
+                    },
+                    steps,
+                );
+            }
+        }
+    }
+    // w.q is the equilibrium at lambda = 1 (unless interrupted); w.g and
+    // w.jac are current.
+    (
+        LocalOutcome {
+            converged: lambda >= 1.0,
+            iterations,
+        },
+        steps,
+    )
+}
+
+/// The prediction reflected through the last equilibrium (`w.saved`), with
+/// its reactions: the other side of a bifurcation.
+fn mirror(w: &Workspace) -> (Vec<Quat>, Vec<Vector3<f64>>) {
+    let q = w
+        .saved
+        .iter()
+        .zip(&w.q)
+        .map(|(s, p)| *s * (s.conj() * *p).conj())
+        .collect();
+    let reactions = w
+        .kkt
+        .reactions_saved
+        .iter()
+        .zip(&w.kkt.reactions)
+        .map(|(s, p)| 2.0 * s - p)
+        .collect();
+    (q, reactions)
+}
+
+/// Run the corrector from the mirrored prediction too and keep the better of
+/// the two ends in the workspace: converged first, then stable, then the
+/// lower energy. Returns its outcome and the iterations the second run took.
+#[allow(clippy::too_many_arguments)]
+fn better_branch(
+    local: &mut dyn LocalSolver,
+    model: &RodModel,
+    w: &mut Workspace,
+    first: LocalOutcome,
+    (q, reactions): (Vec<Quat>, Vec<Vector3<f64>>),
+    prediction: &mut [Quat],
+    lambda: f64,
+    tol: f64,
+) -> (LocalOutcome, usize) {
+    let rank = |out: &LocalOutcome, w: &mut Workspace| {
+        (
+            out.converged,
+            out.converged && is_stable(model, w),
+            -model.energy_at(&w.q, lambda),
+        )
+    };
+    let first_rank = rank(&first, w);
+    let kept = (w.q.clone(), w.kkt.reactions.clone(), prediction.to_vec());
+    prediction.copy_from_slice(&q);
+    w.q.copy_from_slice(&q);
+    w.kkt.reactions.copy_from_slice(&reactions);
+    let second = local.run(model, w, lambda, STEP_ITERATIONS, tol);
+    let second_rank = rank(&second, w);
+    // Lexicographic: converged, then stable, then lower energy.
+    let better = second_rank > first_rank;
+    if better {
+        return (second, second.iterations);
+    }
+    w.q.copy_from_slice(&kept.0);
+    w.kkt.reactions.copy_from_slice(&kept.1);
+    prediction.copy_from_slice(&kept.2);
+    evaluate(model, w, lambda);
+    (first, second.iterations)
+}
+
+/// Largest rotation [rad] by which a continuation step's corrector may move a
+/// node from the tangent prediction: beyond it the step is taken to have
+/// jumped to another branch.
+const MAX_CORRECTION: f64 = 0.2;
+
+/// Largest angle between corresponding nodes of two chains [rad].
+fn max_node_distance(a: &[Quat], b: &[Quat]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| {
+            // A rotation angle, whichever sign the two quaternions have.
+            let turn = crate::model::element_turn(*x, *y);
+            turn.min(2.0 * std::f64::consts::PI - turn)
+        })
+        .fold(0.0, f64::max)
+}

@@ -42,19 +42,8 @@ STATUSES = {
 # --- the reference at large n ---------------------------------------------------------
 
 
-def quat_mul(p, q):
-    """Hamilton product of scalar-first quaternions (complex-safe, vectorised)."""
-    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
-    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ],
-        axis=-1,
-    )
+# The reference's own Hamilton product (vectorised, complex-safe).
+quat_mul = reference._qmul
 
 
 def row_scale(scene):

@@ -338,18 +338,24 @@ def test_the_answer_is_the_rod_loaded_from_rest():
 # --- 5. Held tips at full reach --------------------------------------------------
 
 
+def upright_pinned(target):
+    """A round rod, 1 m, under its own weight along its base tangent, its tip
+    pinned at `target`."""
+    return {
+        "length": 1.0,
+        "stiffness": ROUND,
+        "gravity": {"linear_density": 0.5, "vector": [0, 0, -9.81]},
+        "tip": {"type": "pinned", "position": target},
+    }
+
+
 @pytest.mark.parametrize("gap", [1e-9, 1e-10, 1e-11])
 @pytest.mark.parametrize("angle", [0.0, 0.3])
 def test_a_target_at_the_edge_of_reach_is_indeterminate(gap, angle):
     """Closer than 1e-8 L to full reach the straight rod used to pass as
     converged (a miss within tolerance, an axial reaction of 0)."""
     target = [0.0, (1 - gap) * math.sin(angle), (1 - gap) * math.cos(angle)]
-    scene = {
-        "length": 1.0,
-        "stiffness": ROUND,
-        "gravity": {"linear_density": 0.5, "vector": [0, 0, -9.81]},
-        "tip": {"type": "pinned", "position": target},
-    }
+    scene = upright_pinned(target)
     sol = softspine.solve(scene)
     assert sol.status == "indeterminate" and not sol.converged and sol.iterations == 0
     assert "full reach" in sol.message
@@ -372,12 +378,7 @@ def test_a_converged_held_tip_near_full_reach_has_the_right_reaction():
     """Outside the band: converged only with a reaction that, applied to the
     free rod, puts its tip on the target."""
     target = [0.0, (1 - 1e-4) * math.sin(0.3), (1 - 1e-4) * math.cos(0.3)]
-    scene = {
-        "length": 1.0,
-        "stiffness": ROUND,
-        "gravity": {"linear_density": 0.5, "vector": [0, 0, -9.81]},
-        "tip": {"type": "pinned", "position": target},
-    }
+    scene = upright_pinned(target)
     sol = softspine.solve(scene)
     if sol.converged:
         assert np.linalg.norm(sol.tip_position - target) < 1e-9
@@ -482,12 +483,7 @@ def test_a_target_beyond_the_discrete_reach_is_underresolved(n, gap):
     first element from straightening (about 0.2 theta^2 L / n short). It used
     to end not_converged after about 1 100 iterations (1 s at n = 80)."""
     target = [0.0, (1 - gap) * math.sin(0.3), (1 - gap) * math.cos(0.3)]
-    scene = {
-        "length": 1.0,
-        "stiffness": ROUND,
-        "gravity": {"linear_density": 0.5, "vector": [0, 0, -9.81]},
-        "tip": {"type": "pinned", "position": target},
-    }
+    scene = upright_pinned(target)
     sol = softspine.solve(scene, n_elements=n)
     assert sol.status == "underresolved" and sol.iterations == 0
     reach = float(sol.message.split("beyond the ")[1].split(" m")[0])
@@ -508,12 +504,7 @@ def test_a_target_just_inside_the_discrete_reach_is_solved(depth):
     n = 80
     distance = discrete_reach(0.3, n) - depth
     target = [0.0, distance * math.sin(0.3), distance * math.cos(0.3)]
-    scene = {
-        "length": 1.0,
-        "stiffness": ROUND,
-        "gravity": {"linear_density": 0.5, "vector": [0, 0, -9.81]},
-        "tip": {"type": "pinned", "position": target},
-    }
+    scene = upright_pinned(target)
     sol = softspine.solve(scene, n_elements=n, check=True)
     assert np.linalg.norm(sol.tip_position - target) < 1e-9
     assert_reaction_holds_the_tip(scene, sol)

@@ -10,6 +10,8 @@
 
 use crate::error::{Error, Result};
 use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
 /// Time between two calls of the poll function: well under the 0.1 s a user
@@ -52,6 +54,54 @@ pub fn with_check<R>(poll: impl FnMut() -> bool + 'static, f: impl FnOnce() -> R
     }
     let _reset = Reset(installed);
     f()
+}
+
+/// Run `work` on a worker thread while the calling thread calls `poll` every
+/// [`POLL_INTERVAL`]. When the poll says stop, the caller returns
+/// [`Error::Interrupted`] at once and the worker, told through
+/// [`requested`], winds down and frees its memory on its own: at millions of
+/// elements one pass over the rod, or freeing its gigabyte of workspace,
+/// takes longer than the 0.1 s a user waits after Ctrl-C, and the solvers
+/// poll between passes, not inside every one. A panic in `work` resumes on
+/// the caller's thread. Costs a thread start (tens of microseconds): for
+/// large computations only.
+pub fn on_worker<R: Send + 'static>(
+    mut poll: impl FnMut() -> bool,
+    work: impl FnOnce() -> Result<R> + Send + 'static,
+) -> Result<R> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let told = Arc::clone(&stop);
+    let (sender, receiver) = mpsc::channel();
+    std::thread::Builder::new()
+        .name("softspine-solve".into())
+        // The size of the main thread's stack, which the solvers were written for.
+        .stack_size(8 << 20)
+        .spawn(move || {
+            let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                with_check(move || told.load(Ordering::Relaxed), work)
+            }));
+            // The caller may have left already: nobody to tell.
+            let _ = sender.send(result);
+        })
+        .map_err(|e| Error::OutOfMemory {
+            what: format!("starting a worker thread ({e})"),
+            bytes: 8 << 20,
+        })?;
+    loop {
+        match receiver.recv_timeout(POLL_INTERVAL) {
+            Ok(Ok(result)) => return result,
+            Ok(Err(panic)) => std::panic::resume_unwind(panic),
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                if poll() {
+                    stop.store(true, Ordering::Relaxed);
+                    return Err(Error::Interrupted);
+                }
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                unreachable!("the worker sends before it ends, even after a panic")
+            }
+        }
+    }
 }
 
 /// Whether the computation should stop: polls the installed check at most
@@ -101,3 +151,49 @@ pub fn filled<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>> {
 
 /// Elements filled between two polls by [`filled`].
 const FILL_CHUNK: usize = 1 << 16;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_worker_is_left_behind_at_once_on_an_interrupt() {
+        let started = Instant::now();
+        let mut polls = 0;
+        let result: Result<()> = on_worker(
+            move || {
+                polls += 1;
+                polls == 2
+            },
+            || {
+                // A pass that never polls, as one over millions of elements.
+                std::thread::sleep(Duration::from_secs(2));
+                Ok(())
+            },
+        );
+        assert_eq!(result, Err(Error::Interrupted));
+        assert!(started.elapsed() < Duration::from_millis(500));
+    }
+
+    #[test]
+    fn a_worker_returns_its_result_and_tells_it_to_stop() {
+        let result = on_worker(
+            || true,
+            || {
+                while !requested() {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                Ok(7)
+            },
+        );
+        // Told to stop on the first poll: the caller leaves, the worker ends.
+        assert_eq!(result, Err(Error::Interrupted));
+        assert_eq!(on_worker(|| false, || Ok(7)), Ok(7));
+    }
+
+    #[test]
+    #[should_panic(expected = "from the worker")]
+    fn a_panic_on_the_worker_resumes_on_the_caller() {
+        let _ = on_worker(|| false, || -> Result<()> { panic!("from the worker") });
+    }
+}

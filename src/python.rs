@@ -44,7 +44,41 @@ fn detach_interruptible<T: Send>(
     py: Python<'_>,
     f: impl FnOnce() -> crate::Result<T> + Send,
 ) -> PyResult<T> {
-    let pending: Arc<Mutex<Option<PyErr>>> = Arc::default();
+    let (poll, pending) = signal_poll();
+    raise_interrupt(py.detach(move || interrupt::with_check(poll, f)), &pending)
+}
+
+/// As [`detach_interruptible`], with `f` on a worker thread that is left to
+/// wind down after Ctrl-C (`interrupt::on_worker`): for solves large enough
+/// that one pass over the rod takes longer than the user should wait.
+fn detach_on_worker<T: Send + 'static>(
+    py: Python<'_>,
+    f: impl FnOnce() -> crate::Result<T> + Send + 'static,
+) -> PyResult<T> {
+    let (poll, pending) = signal_poll();
+    raise_interrupt(py.detach(move || interrupt::on_worker(poll, f)), &pending)
+}
+
+/// [`detach_on_worker`] if one pass of `f` may outlast the poll interval
+/// (`long`: `Settings::has_long_passes`), else [`detach_interruptible`].
+fn detach_solve<T: Send + 'static>(
+    py: Python<'_>,
+    long: bool,
+    f: impl FnOnce() -> crate::Result<T> + Send + 'static,
+) -> PyResult<T> {
+    if long {
+        detach_on_worker(py, f)
+    } else {
+        detach_interruptible(py, f)
+    }
+}
+
+type PendingSignal = Arc<Mutex<Option<PyErr>>>;
+
+/// A poll of Python's signal handlers that keeps the exception a handler
+/// raised (KeyboardInterrupt for Ctrl-C) for [`raise_interrupt`].
+fn signal_poll() -> (impl FnMut() -> bool + Send + 'static, PendingSignal) {
+    let pending: PendingSignal = Arc::default();
     let slot = Arc::clone(&pending);
     let poll = move || {
         Python::attach(|py| match py.check_signals() {
@@ -57,7 +91,12 @@ fn detach_interruptible<T: Send>(
             }
         })
     };
-    match py.detach(move || interrupt::with_check(poll, f)) {
+    (poll, pending)
+}
+
+/// An interrupted computation raises the signal handler's exception.
+fn raise_interrupt<T>(result: crate::Result<T>, pending: &PendingSignal) -> PyResult<T> {
+    match result {
         Err(Error::Interrupted) => Err(pending
             .lock()
             .ok()
@@ -526,7 +565,7 @@ impl PySolution {
     fn continuation_steps(&self) -> usize {
         self.inner.continuation_steps
     }
-    /// Largest torque imbalance over max(k)/L (dimensionless).
+    /// Largest torque imbalance of a row over its own stiffness scale k_c/L (dimensionless).
     #[getter]
     fn residual_norm(&self) -> f64 {
         self.inner.residual_norm
@@ -675,7 +714,8 @@ fn solve(
         None => {
             let initial = initial.map(|q| quaternions_arg("initial", q)).transpose()?;
             // Building the solver allocates O(n): without the GIL too.
-            detach_interruptible(py, || {
+            let long = settings.has_long_passes();
+            detach_solve(py, long, move || {
                 Solver::new(&scene, settings)?.solve(initial.as_deref())
             })?
         }
@@ -689,7 +729,8 @@ fn solve(
                 richardson,
                 ..Accuracy::new(tol)
             };
-            detach_interruptible(py, || solve_to_accuracy(&scene, settings, &accuracy))?
+            // It may end at any n up to the limit.
+            detach_on_worker(py, move || solve_to_accuracy(&scene, settings, &accuracy))?
         }
     };
     let solution = if check { solution.check()? } else { solution };
@@ -992,7 +1033,9 @@ impl PyIkResult {
 /// shared state), and a thread waiting for its turn does not hold the GIL.
 #[pyclass(name = "InverseSolver", module = "softspine._core", frozen)]
 pub struct PyInverseSolver {
-    inner: Mutex<InverseSolver>,
+    /// Shared with a worker thread during a long solve (see `detach_solve`).
+    inner: Arc<Mutex<InverseSolver>>,
+    long_passes: bool,
 }
 
 #[pymethods]
@@ -1017,7 +1060,8 @@ impl PyInverseSolver {
             return Err(PyValueError::new_err("tol: must be positive"));
         }
         // Locked without the GIL; None if a solve panicked holding the lock.
-        let r = detach_interruptible(py, || match self.inner.lock() {
+        let inner = Arc::clone(&self.inner);
+        let r = detach_solve(py, self.long_passes, move || match inner.lock() {
             Ok(mut solver) => solver
                 .solve(target, direction, reference.as_deref(), tol, max_iterations)
                 .map(Some),
@@ -1176,7 +1220,8 @@ impl PyRobot {
             n_elements: self.inner.n_elements,
             ..Settings::default()
         };
-        let sol = detach_interruptible(py, || crate::solve(&scene, settings, None))?;
+        let long = self.inner.has_long_passes();
+        let sol = detach_solve(py, long, move || crate::solve(&scene, settings, None))?;
         Ok(PySolution { inner: sol })
     }
 
@@ -1187,7 +1232,8 @@ impl PyRobot {
         #[pyo3(from_py_with = load_arg)] load: f64,
     ) -> PyResult<PyInverseSolver> {
         Ok(PyInverseSolver {
-            inner: Mutex::new(InverseSolver::new(&self.inner, load)?),
+            inner: Arc::new(Mutex::new(InverseSolver::new(&self.inner, load)?)),
+            long_passes: self.inner.has_long_passes(),
         })
     }
 
@@ -1210,8 +1256,9 @@ impl PyRobot {
     ) -> PyResult<PyIkResult> {
         let target = vec3_arg("target", target)?;
         let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
-        let robot = &self.inner;
-        let r = detach_interruptible(py, || robot.inverse(target, &options))?;
+        let robot = self.inner.clone();
+        let long = robot.has_long_passes();
+        let r = detach_solve(py, long, move || robot.inverse(target, &options))?;
         Ok(PyIkResult { inner: r })
     }
 
@@ -1238,8 +1285,9 @@ impl PyRobot {
             .map(Vector3::from)
             .collect();
         let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
-        let robot = &self.inner;
-        let rs = detach_interruptible(py, || robot.track(&pts, &options))?;
+        let robot = self.inner.clone();
+        let long = robot.has_long_passes();
+        let rs = detach_solve(py, long, move || robot.track(&pts, &options))?;
         Ok(rs.into_iter().map(|inner| PyIkResult { inner }).collect())
     }
 

@@ -33,6 +33,10 @@ pub const STANDARD_GRAVITY: f64 = 9.81;
 /// Most sections a robot may have (the IK's dense Jacobian has `2 m` columns).
 pub const MAX_SECTIONS: usize = 10_000;
 
+/// Sections from which one IK iteration (dense over `2 m` columns) may
+/// outlast an interrupt poll.
+const LONG_IK_PASS_SECTIONS: usize = 200;
+
 /// Most elements of a robot's discretisation (about 0.5 GB of solver workspace).
 pub const MAX_ROBOT_ELEMENTS: usize = 1_000_000;
 
@@ -244,6 +248,17 @@ impl Robot {
             }
         }
         clamped
+    }
+
+    /// Whether one pass of a solve of this robot (a sweep over its elements,
+    /// the IK's dense factorisation over its sections) may outlast an
+    /// interrupt poll: see [`crate::Settings::has_long_passes`].
+    pub fn has_long_passes(&self) -> bool {
+        let forward = crate::Settings {
+            n_elements: self.n_elements,
+            ..crate::Settings::default()
+        };
+        forward.has_long_passes() || self.sections >= LONG_IK_PASS_SECTIONS
     }
 
     /// The scene of the robot with the given actuation and a tip mass [kg]: own

@@ -201,8 +201,15 @@ fn continuation(
         iterations += out.iterations;
         let out = match mirrored {
             Some(other) => {
-                let (out, spent) =
-                    better_branch(local, model, w, out, other, &mut prediction, target, tol);
+                let max_iter = STEP_ITERATIONS.min(budget.saturating_sub(iterations));
+                let (out, spent) = better_branch(
+                    local,
+                    model,
+                    w,
+                    (out, other),
+                    &mut prediction,
+                    (target, max_iter, tol),
+                );
                 iterations += spent;
                 out
             }
@@ -275,17 +282,15 @@ fn mirror(w: &Workspace) -> (Vec<Quat>, Vec<Vector3<f64>>) {
 
 /// Run the corrector from the mirrored prediction too and keep the better of
 /// the two ends in the workspace: converged first, then stable, then the
-/// lower energy. Returns its outcome and the iterations the second run took.
-#[allow(clippy::too_many_arguments)]
+/// lower energy. The second run takes at most `max_iter` iterations. Returns
+/// the kept outcome and the iterations the second run took.
 fn better_branch(
     local: &mut dyn LocalSolver,
     model: &RodModel,
     w: &mut Workspace,
-    first: LocalOutcome,
-    (q, reactions): (Vec<Quat>, Vec<Vector3<f64>>),
+    (first, (q, reactions)): (LocalOutcome, (Vec<Quat>, Vec<Vector3<f64>>)),
     prediction: &mut [Quat],
-    lambda: f64,
-    tol: f64,
+    (lambda, max_iter, tol): (f64, usize, f64),
 ) -> (LocalOutcome, usize) {
     let rank = |out: &LocalOutcome, w: &mut Workspace| {
         (
@@ -299,7 +304,7 @@ fn better_branch(
     prediction.copy_from_slice(&q);
     w.q.copy_from_slice(&q);
     w.kkt.reactions.copy_from_slice(&reactions);
-    let second = local.run(model, w, lambda, STEP_ITERATIONS, tol);
+    let second = local.run(model, w, lambda, max_iter, tol);
     let second_rank = rank(&second, w);
     // Lexicographic: converged, then stable, then lower energy.
     let better = second_rank > first_rank;

@@ -58,12 +58,13 @@ pub struct Settings {
     /// Convergence tolerance on the relative residual: the largest torque
     /// imbalance of a row over its own scale `k_c / L` (default 1e-10, within
     /// [`RESIDUAL_TOL_RANGE`]). The tolerance in effect is never below the
-    /// round-off floor of the residual, `8 eps n` (see
-    /// [`RodModel::effective_tol`]), so that it cannot be defeated at large n.
+    /// round-off floor of the residual (see [`RodModel::roundoff_floor`]), so
+    /// that it cannot be defeated at large n.
     pub residual_tol: f64,
-    /// Iteration budget of a solve, all load-continuation steps included
-    /// (default 500). One direct attempt uses at most 60 of it, a continuation
-    /// step at most 25.
+    /// Iteration budget of a solve (default 500), shared by the direct
+    /// attempt (at most 60 of it), every load-continuation step (at most 25
+    /// each) and the Levenberg-Marquardt fallback: `Solution::iterations`
+    /// never exceeds it.
     pub max_iterations: usize,
     /// Smallest load-continuation step before giving up (default 1e-6).
     pub min_continuation_step: f64,
@@ -111,7 +112,24 @@ pub(crate) fn check_tolerance(name: &str, value: f64, (min, max): (f64, f64)) ->
     ))
 }
 
+/// Smallest discretisations of which one pass may outlast an interrupt poll
+/// ([`Settings::has_long_passes`]): a sweep over 20 000 elements takes about
+/// 2 ms, a dense factorisation of 100 elements' `(3n)^2` matrix about as long.
+const LONG_PASS_ELEMENTS: usize = 20_000;
+const LONG_DENSE_PASS_ELEMENTS: usize = 100;
+
 impl Settings {
+    /// Whether one pass of this solve (a sweep over the rod, a dense
+    /// factorisation) may take longer than [`crate::interrupt::POLL_INTERVAL`]:
+    /// a caller that must answer Ctrl-C at once then runs it
+    /// [`crate::interrupt::on_worker`]. The solvers poll between passes.
+    pub fn has_long_passes(&self) -> bool {
+        match self.method {
+            Method::Newton => self.n_elements >= LONG_PASS_ELEMENTS,
+            _ => self.n_elements >= LONG_DENSE_PASS_ELEMENTS,
+        }
+    }
+
     pub fn validate(&self) -> Result<()> {
         let limit = match self.method {
             Method::Newton => MAX_ELEMENTS,
@@ -527,7 +545,7 @@ impl Solver {
         // Newton's undamped steps can fail where Levenberg-Marquardt's damping
         // gets there: held points that only a strongly bent (buckled) rod
         // reaches, torsion far stiffer than bending. LM is dense, so it is only
-        // a fallback, and only for moderate n.
+        // a fallback, and only for moderate n. It shares the iteration budget.
         if self.settings.method == Method::Newton
             && direct_state.is_none()
             && 3 * (model.n + model.constraints.len()) <= LM_FALLBACK_UNKNOWNS
@@ -538,12 +556,14 @@ impl Solver {
                 .reactions
                 .iter_mut()
                 .for_each(|r| *r = Vector3::zeros());
-            let direct = lm.run(model, w, 1.0, budget, tol);
+            let direct = lm.run(model, w, 1.0, budget - iterations.min(budget), tol);
             iterations += direct.iterations;
             if direct.converged && is_stable(model, w) {
                 return Ok(self.finish(Ending::LmFallback, iterations, steps));
             }
-            let (out, lm_steps) = continuation::load_path(&mut lm, model, w, tol, budget, min_step);
+            let remaining = budget - iterations.min(budget);
+            let (out, lm_steps) =
+                continuation::load_path(&mut lm, model, w, tol, remaining, min_step);
             iterations += out.iterations;
             if out.converged && (path_state.is_none() || is_stable(model, w)) {
                 return Ok(self.finish(Ending::LmFallback, iterations, steps + lm_steps));

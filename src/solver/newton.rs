@@ -73,7 +73,8 @@ impl LocalSolver for Newton {
                     break;
                 }
                 alpha *= 0.5;
-                if alpha < 1e-4 {
+                // An interrupt leaves the trial residuals unfinished.
+                if alpha < 1e-4 || interrupt::requested() {
                     return LocalOutcome {
                         converged: false,
                         iterations: it + 1,

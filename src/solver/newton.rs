@@ -60,9 +60,17 @@ impl LocalSolver for Newton {
                 return stop(false);
             }
             let mut alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
+            // The first trial, usually accepted, is evaluated with its
+            // Jacobian: the factorisation no longer needs `w.jac`, and the
+            // next iteration then needs no second pass over the rod.
+            let mut jacobian_at_trial = true;
             loop {
                 retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
-                model.residual(&w.trial, lambda, &mut w.g_trial);
+                if jacobian_at_trial {
+                    model.residual_jacobian(&w.trial, lambda, &mut w.g_trial, &mut w.jac);
+                } else {
+                    model.residual(&w.trial, lambda, &mut w.g_trial);
+                }
                 let trial_merit = model.merit(&w.g_trial);
                 // At the round-off floor the merit is noise and need not
                 // decrease: a trial within the tolerance is accepted as well.
@@ -72,9 +80,12 @@ impl LocalSolver for Newton {
                     merit = trial_merit;
                     break;
                 }
+                jacobian_at_trial = false;
                 alpha *= 0.5;
                 // An interrupt leaves the trial residuals unfinished.
                 if alpha < 1e-4 || interrupt::requested() {
+                    // The contract: `w.g` and `w.jac` at `w.q`.
+                    model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
                     return LocalOutcome {
                         converged: false,
                         iterations: it + 1,
@@ -82,7 +93,10 @@ impl LocalSolver for Newton {
                 }
             }
             std::mem::swap(&mut w.q, &mut w.trial);
-            model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+            std::mem::swap(&mut w.g, &mut w.g_trial);
+            if !jacobian_at_trial {
+                model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+            }
         }
         unreachable!("the loop returns at its last pass")
     }

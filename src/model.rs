@@ -21,6 +21,37 @@ use nalgebra::{Matrix3, Vector3};
 /// Elements or nodes between two interrupt polls in the O(n) passes.
 pub(crate) const INTERRUPT_STRIDE: usize = 1 << 14;
 
+/// Elements per chunk of the parallel assembly (about 10 ms of work with the
+/// Jacobian); a rod of one chunk, every ordinary one, is assembled in place.
+const ASSEMBLY_CHUNK: usize = 1 << 16;
+
+/// The terms of one element (see `RodModel::element_terms`).
+struct ElementTerms {
+    ga: Vector3<f64>,
+    gb: Vector3<f64>,
+    jaa: Matrix3<f64>,
+    jbb: Matrix3<f64>,
+    jab: Matrix3<f64>,
+}
+
+/// A chunk's diagonal, upper and lower blocks of the Jacobian.
+type JacobianRows<'a> = (
+    &'a mut [Matrix3<f64>],
+    &'a mut [Matrix3<f64>],
+    &'a mut [Matrix3<f64>],
+);
+
+/// One chunk of the parallel assembly: its elements `first..end`, its rows
+/// of `g` and blocks of the Jacobian, and its first element's terms on the
+/// row before the chunk.
+struct Slab<'a> {
+    first: usize,
+    end: usize,
+    g: &'a mut [Vector3<f64>],
+    blocks: Option<JacobianRows<'a>>,
+    boundary: (Vector3<f64>, Matrix3<f64>),
+}
+
 /// A node held at a position (a pinned tip or a guide). Its reaction force is
 /// an unknown that acts on the rod like a point force at the node.
 #[derive(Debug, Clone, PartialEq)]
@@ -378,6 +409,173 @@ impl RodModel {
             .sum()
     }
 
+    /// The element terms of node `i - 1` (`gb`, `jbb`) and node `i - 2`
+    /// (`ga`, `jaa`), and the coupling block `jab` of element `i`.
+    fn element_terms(
+        &self,
+        i: usize,
+        q: &[Quat],
+        load: f64,
+        reactions: &[Vector3<f64>],
+        with_jacobian: bool,
+    ) -> ElementTerms {
+        let (ds, k) = (self.ds, self.stiffness);
+        let (a, b) = (q[i - 1], q[i]);
+        let c = a.conj() * b;
+        let (c0, cv) = (c.w, c.v);
+        let e = (2.0 / ds) * cv - self.rest_curvature[i - 1];
+        let w = k.component_mul(&e); // bending/twisting moment, body frame
+        let amat = Matrix3::identity() * c0 + skew(&cv);
+        let ga = -(amat * w);
+        let gb = amat.transpose() * w;
+        // Load potential kappa * a^T S b with kappa = -ds/3 (F . T(a,b) term).
+        let kappa = -ds / 3.0;
+        let mut fbar = load * self.mean_force[i - 1];
+        if !reactions.is_empty() {
+            fbar += self.reactions_from(reactions, i);
+        }
+        let sb = tangent_form_apply(&fbar, b);
+        let sa = tangent_form_apply(&fbar, a);
+        let gax = 0.5 * kappa * (a.conj() * sb).v;
+        let gbx = 0.5 * kappa * (b.conj() * sa).v;
+        let mut terms = ElementTerms {
+            ga: ga + gax,
+            gb: gb + gbx,
+            jaa: Matrix3::zeros(),
+            jbb: Matrix3::zeros(),
+            jab: Matrix3::zeros(),
+        };
+        if !with_jacobian {
+            return terms;
+        }
+        let kmat = Matrix3::from_diagonal(&k);
+        let cw = cv.dot(&w);
+        let psi = kappa * a.dot(sb);
+        let radial = (-0.5 * cw - 0.25 * psi) * Matrix3::identity();
+        terms.jbb = amat.transpose() * kmat * amat / ds + radial + 0.5 * skew(&terms.gb);
+        if i >= 2 {
+            terms.jaa = amat * kmat * amat.transpose() / ds + radial + 0.5 * skew(&terms.ga);
+            let mut jab = -(amat * kmat * amat) / ds
+                - 0.5
+                    * (Matrix3::identity() * cw
+                        - c0 * skew(&w)
+                        - cv * w.transpose()
+                        - w * cv.transpose());
+            // 1/4 kappa G(a) S G(b)^T, column by column: G(b)^T e_k = b * (0, e_k).
+            for col in 0..3 {
+                let bek = b * Quat::pure(Vector3::ith(col, 1.0));
+                let v = (a.conj() * tangent_form_apply(&fbar, bek)).v;
+                jab.set_column(col, &(jab.column(col) + 0.25 * kappa * v));
+            }
+            terms.jab = jab;
+        }
+        terms
+    }
+
+    /// Set `g` and `jac` to the sum of every element's terms (each row's
+    /// first term is written, the second added: no clearing pass). A
+    /// long rod is cut into chunks assembled on all cores: a chunk owns the
+    /// rows of its elements' distal nodes, and the one term of its first
+    /// element on the node before it is added after the join, in the order
+    /// of the one-thread loop, so that the sum is the same to the last bit
+    /// whatever the number of threads.
+    fn assemble_elements(
+        &self,
+        q: &[Quat],
+        load: f64,
+        reactions: &[Vector3<f64>],
+        g: &mut [Vector3<f64>],
+        mut jac: Option<&mut BlockTridiagonal>,
+        chunk: usize,
+    ) {
+        let n = self.n;
+        let with_jacobian = jac.is_some();
+        let boundaries: Vec<(usize, Vector3<f64>, Matrix3<f64>)> = {
+            // Chunk c: elements [first, end), rows g[first - 1 .. end - 1],
+            // coupling blocks [max(first, 2) - 2 .. end - 2].
+            let mut slabs = Vec::with_capacity(n.div_ceil(chunk));
+            let mut g_rest = &mut g[..];
+            let mut jac_rest = jac
+                .as_deref_mut()
+                .map(|j| (&mut j.diag[..], &mut j.upper[..], &mut j.lower[..]));
+            let mut first = 1;
+            while first <= n {
+                let end = (first + chunk).min(n + 1);
+                let rows = end - first;
+                let couplings = end.saturating_sub(first.max(2));
+                let (g_own, g_next) = std::mem::take(&mut g_rest).split_at_mut(rows);
+                g_rest = g_next;
+                let blocks = jac_rest.take().map(|(diag, upper, lower)| {
+                    let (d, d_next) = diag.split_at_mut(rows);
+                    let (u, u_next) = upper.split_at_mut(couplings);
+                    let (l, l_next) = lower.split_at_mut(couplings);
+                    jac_rest = Some((d_next, u_next, l_next));
+                    (d, u, l)
+                });
+                slabs.push(Slab {
+                    first,
+                    end,
+                    g: g_own,
+                    blocks,
+                    boundary: (Vector3::zeros(), Matrix3::zeros()),
+                });
+                first = end;
+            }
+            let fill = |slab: &mut Slab| {
+                for i in slab.first..slab.end {
+                    // A huge n takes long here: an interrupt leaves the residual
+                    // unfinished, and the solver's loops stop on the same flag.
+                    if i % INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
+                        return;
+                    }
+                    let t = self.element_terms(i, q, load, reactions, with_jacobian);
+                    let row = i - slab.first;
+                    if i >= 2 {
+                        if i == slab.first {
+                            slab.boundary.0 = t.ga;
+                        } else {
+                            slab.g[row - 1] += t.ga;
+                        }
+                    }
+                    // Row `i - 1`'s first term (its second comes from element i + 1).
+                    slab.g[row] = t.gb;
+                    if let Some((diag, upper, lower)) = slab.blocks.as_mut() {
+                        diag[row] = t.jbb;
+                        if i >= 2 {
+                            if i == slab.first {
+                                slab.boundary.1 = t.jaa;
+                            } else {
+                                diag[row - 1] += t.jaa;
+                            }
+                            let coupling = i - slab.first.max(2);
+                            upper[coupling] = t.jab;
+                            lower[coupling] = t.jab.transpose();
+                        }
+                    }
+                }
+            };
+            if let [slab] = slabs.as_mut_slice() {
+                fill(slab);
+            } else {
+                use rayon::prelude::*;
+                slabs.par_iter_mut().for_each(fill);
+            }
+            slabs
+                .iter()
+                .skip(1)
+                .map(|s| (s.first, s.boundary.0, s.boundary.1))
+                .collect()
+        };
+        // The first element of a chunk on the last row of the chunk before,
+        // added after that row's own term as in the one-thread loop.
+        for (first, ga, jaa) in boundaries {
+            g[first - 2] += ga;
+            if let Some(j) = jac.as_deref_mut() {
+                j.diag[first - 2] += jaa;
+            }
+        }
+    }
+
     fn assemble(
         &self,
         q: &[Quat],
@@ -388,70 +586,11 @@ impl RodModel {
     ) {
         debug_assert_eq!(q.len(), self.n + 1);
         debug_assert_eq!(g.len(), self.n);
-        let (ds, k) = (self.ds, self.stiffness);
+        let ds = self.ds;
         let load = self.load_scale(lambda);
-        let kmat = Matrix3::from_diagonal(&k);
-        g.iter_mut().for_each(|x| *x = Vector3::zeros());
-        if let Some(j) = jac.as_deref_mut() {
-            j.clear();
-        }
         // Elements: elastic energy and the bilinear part of the load potential.
-        for i in 1..=self.n {
-            // A huge n takes long here: an interrupt leaves the residual
-            // unfinished, and the solver's loops stop on the same flag.
-            if i % INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
-                return;
-            }
-            let (a, b) = (q[i - 1], q[i]);
-            let c = a.conj() * b;
-            let (c0, cv) = (c.w, c.v);
-            let e = (2.0 / ds) * cv - self.rest_curvature[i - 1];
-            let w = k.component_mul(&e); // bending/twisting moment, body frame
-            let amat = Matrix3::identity() * c0 + skew(&cv);
-            let ga = -(amat * w);
-            let gb = amat.transpose() * w;
-            // Load potential kappa * a^T S b with kappa = -ds/3 (F . T(a,b) term).
-            let kappa = -ds / 3.0;
-            let mut fbar = load * self.mean_force[i - 1];
-            if !reactions.is_empty() {
-                fbar += self.reactions_from(reactions, i);
-            }
-            let sb = tangent_form_apply(&fbar, b);
-            let sa = tangent_form_apply(&fbar, a);
-            let gax = 0.5 * kappa * (a.conj() * sb).v;
-            let gbx = 0.5 * kappa * (b.conj() * sa).v;
-            if i >= 2 {
-                g[i - 2] += ga + gax;
-            }
-            g[i - 1] += gb + gbx;
-
-            if let Some(jac) = jac.as_deref_mut() {
-                let cw = cv.dot(&w);
-                let psi = kappa * a.dot(sb);
-                let radial = (-0.5 * cw - 0.25 * psi) * Matrix3::identity();
-                let jbb = amat.transpose() * kmat * amat / ds + radial + 0.5 * skew(&(gb + gbx));
-                jac.diag[i - 1] += jbb;
-                if i >= 2 {
-                    let jaa =
-                        amat * kmat * amat.transpose() / ds + radial + 0.5 * skew(&(ga + gax));
-                    jac.diag[i - 2] += jaa;
-                    let mut jab = -(amat * kmat * amat) / ds
-                        - 0.5
-                            * (Matrix3::identity() * cw
-                                - c0 * skew(&w)
-                                - cv * w.transpose()
-                                - w * cv.transpose());
-                    // 1/4 kappa G(a) S G(b)^T, column by column: G(b)^T e_k = b * (0, e_k).
-                    for col in 0..3 {
-                        let bek = b * Quat::pure(Vector3::ith(col, 1.0));
-                        let v = (a.conj() * tangent_form_apply(&fbar, bek)).v;
-                        jab.set_column(col, &(jab.column(col) + 0.25 * kappa * v));
-                    }
-                    jac.upper[i - 2] += jab;
-                    jac.lower[i - 2] += jab.transpose();
-                }
-            }
-        }
+        // They write every entry of `g` and `jac`: no clearing pass.
+        self.assemble_elements(q, load, reactions, g, jac.as_deref_mut(), ASSEMBLY_CHUNK);
         // Nodes: the quadratic part of the load potential, h . T(q_j).
         for j in 1..=self.n {
             let mut weight = load * self.node_force_weight[j - 1];
@@ -719,4 +858,55 @@ pub fn element_turn(a: Quat, b: Quat) -> f64 {
 /// Mean tangent of an element: the exact mean of `T` under linear interpolation of `q`.
 pub fn mean_tangent(a: Quat, b: Quat) -> Vector3<f64> {
     (a.tangent() + tangent_bilinear(a, b) + b.tangent()) / 3.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    /// The chunked (parallel) assembly adds the same terms in the same order
+    /// as the one-chunk loop: equal to the last bit, with and without
+    /// reactions, whatever the chunk size, and whatever the buffers held.
+    #[test]
+    fn chunked_assembly_is_bitwise_the_one_thread_assembly() {
+        let scene = Scene::from_json_str(
+            r#"{"length": 1.3, "stiffness": {"kx": 1, "ky": 2, "kz": 0.5},
+                "rest_curvature": [[1, -2], [0.5, 3]], "tip_force": [1, -2, 0.5],
+                "gravity": {"linear_density": 0.3, "vector": [0, 1, -9.81]},
+                "tip_moment": [0.2, 0.1, -0.3],
+                "tip": {"type": "pinned", "position": [0.3, 0.2, 1.0]}}"#,
+        )
+        .unwrap();
+        let n = 37;
+        let model = RodModel::new(&scene, n);
+        // A bent, twisted state.
+        let q: Vec<Quat> = (0..=n)
+            .map(|j| {
+                let s = j as f64 / n as f64;
+                Quat::from_rotation_vector(Vector3::new(0.9 * s, -0.4 * s * s, 1.7 * s))
+            })
+            .collect();
+        let reactions = [Vector3::new(0.3, -1.2, 2.0)];
+        for reactions in [&[][..], &reactions[..]] {
+            let run = |chunk: usize| {
+                // Every entry is written: what was there before does not matter.
+                let mut g = vec![Vector3::repeat(f64::NAN); n];
+                let mut jac = BlockTridiagonal::zeros(n);
+                jac.diag.fill(Matrix3::repeat(f64::NAN));
+                jac.upper.fill(Matrix3::repeat(f64::NAN));
+                jac.lower.fill(Matrix3::repeat(f64::NAN));
+                model.assemble_elements(&q, 0.8, reactions, &mut g, Some(&mut jac), chunk);
+                (g, jac)
+            };
+            let (g1, j1) = run(n + 1);
+            for chunk in [1, 2, 3, 5, 16, 36, 37] {
+                let (g2, j2) = run(chunk);
+                assert_eq!(g1, g2, "chunk {chunk}");
+                assert_eq!(j1.diag, j2.diag, "chunk {chunk}");
+                assert_eq!(j1.upper, j2.upper, "chunk {chunk}");
+                assert_eq!(j1.lower, j2.lower, "chunk {chunk}");
+            }
+        }
+    }
 }

@@ -78,9 +78,12 @@ def solve(
         Tolerance in [1e-14, 1e-4] (default 1e-10) on the relative residual
         (the largest torque imbalance of a row over its own stiffness ``k_c / L``)
         and on the Newton step that certifies it (rad). Never below the
-        residual's round-off floor ``8 eps n``.
+        residual's round-off floor ``8 eps (n + kappa L)`` (``kappa L``: the
+        curvature scale of the loads).
     max_iterations : int, optional
-        Iteration budget of a solve, load-continuation steps included (default 500).
+        Iteration budget of the whole solve (default 500): the direct attempt,
+        every load-continuation step and the Levenberg-Marquardt fallback share
+        it, so ``Solution.iterations`` never exceeds it.
     check : bool
         Raise ``SolverError`` for any status other than "converged" (e.g.
         "tolerance_not_met", "underresolved", "numerical_error").

@@ -39,17 +39,6 @@ impl BlockTridiagonal {
         self.diag.len()
     }
 
-    pub fn clear(&mut self) {
-        for m in self
-            .diag
-            .iter_mut()
-            .chain(self.upper.iter_mut())
-            .chain(self.lower.iter_mut())
-        {
-            *m = Matrix3::zeros();
-        }
-    }
-
     /// `y = A x`.
     pub fn mul_vec(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
         let n = self.n();

@@ -41,6 +41,10 @@ type JacobianRows<'a> = (
     &'a mut [Matrix3<f64>],
 );
 
+fn jacobian_rows(j: &mut BlockTridiagonal) -> JacobianRows<'_> {
+    (&mut j.diag[..], &mut j.upper[..], &mut j.lower[..])
+}
+
 /// One chunk of the parallel assembly: its elements `first..end`, its rows
 /// of `g` and blocks of the Jacobian, and its first element's terms on the
 /// row before the chunk.
@@ -473,12 +477,13 @@ impl RodModel {
     }
 
     /// Set `g` and `jac` to the sum of every element's terms (each row's
-    /// first term is written, the second added: no clearing pass). A
-    /// long rod is cut into chunks assembled on all cores: a chunk owns the
-    /// rows of its elements' distal nodes, and the one term of its first
-    /// element on the node before it is added after the join, in the order
-    /// of the one-thread loop, so that the sum is the same to the last bit
-    /// whatever the number of threads.
+    /// first term is written, the second added: no clearing pass). A rod of
+    /// one chunk, every ordinary one, is assembled in place without
+    /// allocating. A longer rod is cut into chunks assembled on all cores: a
+    /// chunk owns the rows of its elements' distal nodes, and the one term of
+    /// its first element on the node before it is added after the join, in
+    /// the order of the one-thread loop, so that the sum is the same to the
+    /// last bit whatever the number of threads.
     fn assemble_elements(
         &self,
         q: &[Quat],
@@ -489,15 +494,23 @@ impl RodModel {
         chunk: usize,
     ) {
         let n = self.n;
-        let with_jacobian = jac.is_some();
+        if n <= chunk {
+            let mut slab = Slab {
+                first: 1,
+                end: n + 1,
+                g,
+                blocks: jac.map(jacobian_rows),
+                boundary: (Vector3::zeros(), Matrix3::zeros()),
+            };
+            self.fill_slab(&mut slab, q, load, reactions);
+            return;
+        }
         let boundaries: Vec<(usize, Vector3<f64>, Matrix3<f64>)> = {
             // Chunk c: elements [first, end), rows g[first - 1 .. end - 1],
             // coupling blocks [max(first, 2) - 2 .. end - 2].
             let mut slabs = Vec::with_capacity(n.div_ceil(chunk));
             let mut g_rest = &mut g[..];
-            let mut jac_rest = jac
-                .as_deref_mut()
-                .map(|j| (&mut j.diag[..], &mut j.upper[..], &mut j.lower[..]));
+            let mut jac_rest = jac.as_deref_mut().map(jacobian_rows);
             let mut first = 1;
             while first <= n {
                 let end = (first + chunk).min(n + 1);
@@ -521,45 +534,10 @@ impl RodModel {
                 });
                 first = end;
             }
-            let fill = |slab: &mut Slab| {
-                for i in slab.first..slab.end {
-                    // A huge n takes long here: an interrupt leaves the residual
-                    // unfinished, and the solver's loops stop on the same flag.
-                    if i % INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
-                        return;
-                    }
-                    let t = self.element_terms(i, q, load, reactions, with_jacobian);
-                    let row = i - slab.first;
-                    if i >= 2 {
-                        if i == slab.first {
-                            slab.boundary.0 = t.ga;
-                        } else {
-                            slab.g[row - 1] += t.ga;
-                        }
-                    }
-                    // Row `i - 1`'s first term (its second comes from element i + 1).
-                    slab.g[row] = t.gb;
-                    if let Some((diag, upper, lower)) = slab.blocks.as_mut() {
-                        diag[row] = t.jbb;
-                        if i >= 2 {
-                            if i == slab.first {
-                                slab.boundary.1 = t.jaa;
-                            } else {
-                                diag[row - 1] += t.jaa;
-                            }
-                            let coupling = i - slab.first.max(2);
-                            upper[coupling] = t.jab;
-                            lower[coupling] = t.jab.transpose();
-                        }
-                    }
-                }
-            };
-            if let [slab] = slabs.as_mut_slice() {
-                fill(slab);
-            } else {
-                use rayon::prelude::*;
-                slabs.par_iter_mut().for_each(fill);
-            }
+            use rayon::prelude::*;
+            slabs
+                .par_iter_mut()
+                .for_each(|slab| self.fill_slab(slab, q, load, reactions));
             slabs
                 .iter()
                 .skip(1)
@@ -572,6 +550,42 @@ impl RodModel {
             g[first - 2] += ga;
             if let Some(j) = jac.as_deref_mut() {
                 j.diag[first - 2] += jaa;
+            }
+        }
+    }
+
+    /// The terms of the elements of one chunk into its rows.
+    fn fill_slab(&self, slab: &mut Slab, q: &[Quat], load: f64, reactions: &[Vector3<f64>]) {
+        let with_jacobian = slab.blocks.is_some();
+        for i in slab.first..slab.end {
+            // A huge n takes long here: an interrupt leaves the residual
+            // unfinished, and the solver's loops stop on the same flag.
+            if i % INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
+                return;
+            }
+            let t = self.element_terms(i, q, load, reactions, with_jacobian);
+            let row = i - slab.first;
+            if i >= 2 {
+                if i == slab.first {
+                    slab.boundary.0 = t.ga;
+                } else {
+                    slab.g[row - 1] += t.ga;
+                }
+            }
+            // Row `i - 1`'s first term (its second comes from element i + 1).
+            slab.g[row] = t.gb;
+            if let Some((diag, upper, lower)) = slab.blocks.as_mut() {
+                diag[row] = t.jbb;
+                if i >= 2 {
+                    if i == slab.first {
+                        slab.boundary.1 = t.jaa;
+                    } else {
+                        diag[row - 1] += t.jaa;
+                    }
+                    let coupling = i - slab.first.max(2);
+                    upper[coupling] = t.jab;
+                    lower[coupling] = t.jab.transpose();
+                }
             }
         }
     }

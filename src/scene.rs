@@ -461,9 +461,74 @@ impl Scene {
                 held.push(("tip.position".into(), self.length, *position));
             }
         }
-        let mut from = (0.0, Vector3::zeros());
-        let mut limit = None;
+        let spans = self.held_spans(held, n)?;
+        let limit = spans.into_iter().find_map(|span| {
+            let HeldSpan {
+                key,
+                arc,
+                distance,
+                reach,
+            } = span;
+            if distance >= arc * (1.0 - FULL_REACH_BAND) {
+                Some(ReachLimit::FullReach(format!(
+                    "{key} is within {FULL_REACH_BAND:e} of full reach ({distance} m of {arc} m of \
+                     rod): only a nearly straight rod reaches it, and its reaction (which grows \
+                     without bound as the gap closes) is not determined to any useful accuracy"
+                )))
+            } else if distance >= reach - arc * FULL_REACH_BAND {
+                let (gap, deficit) = (arc - distance, arc - reach);
+                let needed = (n as f64 * deficit / gap).ceil();
+                Some(ReachLimit::BeyondDiscreteReach(format!(
+                    "{key} is {distance} m from the previous held point (or the base), beyond \
+                     the {reach} m that the rod discretised by {n} elements reaches in that \
+                     direction (its clamped end cannot straighten within an element; the \
+                     continuous rod reaches {arc} m): use more than {needed} elements"
+                )))
+            } else {
+                None
+            }
+        });
+        Ok(limit)
+    }
+
+    /// The smallest slack of a held point to what the rod of `n` elements
+    /// reaches, over the rod between it and the previous held point: 1 for a
+    /// free tip, 0 at the discrete reach (see [`Scene::check_constraints`]).
+    /// A valid scene's held points only; invalid ones count as no slack.
+    pub fn reach_slack(&self, n: usize) -> f64 {
+        let mut held: Vec<(String, f64, Vector3<f64>)> = self
+            .guides
+            .iter()
+            .map(|g| (String::new(), g.s, g.position))
+            .collect();
+        if let TipCondition::Pinned { position } | TipCondition::Clamped { position, .. } =
+            &self.tip
+        {
+            held.push((String::new(), self.length, *position));
+        }
+        match self.held_spans(held, n) {
+            Ok(spans) => spans
+                .iter()
+                .map(|h| (h.reach - h.distance) / h.arc)
+                .fold(1.0, f64::min),
+            Err(_) => 0.0,
+        }
+    }
+
+    /// The spans between consecutive held points `(key, s, position)` (the
+    /// base first), each with what the rod of `n` elements reaches along it.
+    /// A clamped end (the base before the first held point, a clamped tip
+    /// after the last) keeps the discrete rod from straightening at once:
+    /// its reach falls short of the arc.
+    fn held_spans(
+        &self,
+        held: Vec<(String, f64, Vector3<f64>)>,
+        n: usize,
+    ) -> Result<Vec<HeldSpan>> {
+        let ds = self.length / n as f64;
         let held_count = held.len();
+        let mut from = (0.0, Vector3::zeros());
+        let mut spans = Vec::with_capacity(held_count);
         for (index, (key, s, p)) in held.into_iter().enumerate() {
             let (arc, chord) = (s - from.0, p - from.1);
             let distance = chord.norm();
@@ -476,49 +541,41 @@ impl Scene {
                     ),
                 ));
             }
-            if limit.is_some() {
-                from = (s, p);
-                continue;
+            let elements = ((arc / ds).round() as usize).max(1);
+            let angle_to = |tangent: Vector3<f64>| tangent.angle(&chord).min(PI);
+            let mut deficit = 0.0f64;
+            if index == 0 {
+                let base_tangent = self.base_quaternion.rotate(Vector3::z());
+                deficit = clamped_end_deficit(angle_to(base_tangent), elements);
             }
-            if distance >= arc * (1.0 - FULL_REACH_BAND) {
-                limit = Some(ReachLimit::FullReach(format!(
-                    "{key} is within {FULL_REACH_BAND:e} of full reach ({distance} m of {arc} m of \
-                     rod): only a nearly straight rod reaches it, and its reaction (which grows \
-                     without bound as the gap closes) is not determined to any useful accuracy"
-                )));
-            } else {
-                // A clamped end (the base before the first held point, a
-                // clamped tip after the last) keeps the discrete rod from
-                // straightening at once: its reach falls short of the arc.
-                let elements = ((arc / ds).round() as usize).max(1);
-                let angle_to = |tangent: Vector3<f64>| tangent.angle(&chord).min(PI);
-                let mut deficit = 0.0f64;
-                if index == 0 {
-                    let base_tangent = self.base_quaternion.rotate(Vector3::z());
-                    deficit = clamped_end_deficit(angle_to(base_tangent), elements);
-                }
-                if let (true, TipCondition::Clamped { quaternion, .. }) =
-                    (index + 1 == held_count, &self.tip)
-                {
-                    let tip_tangent = quaternion.rotate(Vector3::z());
-                    deficit = deficit.max(clamped_end_deficit(angle_to(tip_tangent), elements));
-                }
-                let reach = arc - ds * deficit;
-                if distance >= reach - arc * FULL_REACH_BAND {
-                    let gap = arc - distance;
-                    let needed = (n as f64 * ds * deficit / gap).ceil();
-                    limit = Some(ReachLimit::BeyondDiscreteReach(format!(
-                        "{key} is {distance} m from the previous held point (or the base), beyond \
-                         the {reach} m that the rod discretised by {n} elements reaches in that \
-                         direction (its clamped end cannot straighten within an element; the \
-                         continuous rod reaches {arc} m): use more than {needed} elements"
-                    )));
-                }
+            if let (true, TipCondition::Clamped { quaternion, .. }) =
+                (index + 1 == held_count, &self.tip)
+            {
+                let tip_tangent = quaternion.rotate(Vector3::z());
+                deficit = deficit.max(clamped_end_deficit(angle_to(tip_tangent), elements));
             }
+            spans.push(HeldSpan {
+                key,
+                arc,
+                distance,
+                reach: arc - ds * deficit,
+            });
             from = (s, p);
         }
-        Ok(limit)
+        Ok(spans)
     }
+}
+
+/// The rod between two consecutive held points (the base first).
+struct HeldSpan {
+    /// The key of the later held point's position.
+    key: String,
+    /// Rod between the two [m].
+    arc: f64,
+    /// Straight distance between the two [m].
+    distance: f64,
+    /// What the discrete rod reaches in that direction [m].
+    reach: f64,
 }
 
 /// Why a valid scene with held points is not solved at a given `n`.

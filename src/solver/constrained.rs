@@ -234,14 +234,15 @@ pub(crate) fn newton(
     model: &RodModel,
     w: &mut Workspace,
     lambda: f64,
-    max_iter: usize,
-    tol: f64,
+    (max_iter, tol): (usize, f64),
+    give_up_when_stalled: bool,
 ) -> (bool, usize) {
     let n = model.n;
     if let Some(tip) = model.clamped_tip_at(lambda) {
         w.q[n] = tip;
     }
     let mut merit_now = evaluate(model, w, lambda, true);
+    let mut progress = super::newton::Progress::new();
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
         let norm = residual_norm(model, w);
@@ -256,7 +257,8 @@ pub(crate) fn newton(
         if super::newton::certified(norm, &w.step, tol) {
             return (true, it);
         }
-        if it == max_iter {
+        let stalled = give_up_when_stalled && norm > tol && progress.stalled(merit_now);
+        if it == max_iter || stalled {
             return (false, it);
         }
         for (i, d) in w.kkt.reaction_step.iter_mut().enumerate() {

@@ -6,6 +6,7 @@ mod adaptive;
 mod constrained;
 mod continuation;
 mod lm;
+mod nested;
 mod newton;
 
 pub use adaptive::{solve_to_accuracy, Accuracy};
@@ -333,6 +334,20 @@ pub(crate) trait LocalSolver {
         tol: f64,
     ) -> LocalOutcome;
 
+    /// A direct attempt from an arbitrary start (the initial guess, a warm
+    /// start), with load continuation as the fallback: it may give up as soon
+    /// as it stops making progress. By default the same as `run`.
+    fn attempt(
+        &mut self,
+        model: &RodModel,
+        w: &mut Workspace,
+        lambda: f64,
+        max_iter: usize,
+        tol: f64,
+    ) -> LocalOutcome {
+        self.run(model, w, lambda, max_iter, tol)
+    }
+
     /// The same method, with its buffers sized for `model`.
     fn for_model(&self, model: &RodModel) -> Box<dyn LocalSolver + Send + Sync>;
 }
@@ -392,6 +407,8 @@ impl Solver {
             return Err(Error::argument("rest_curvature", "must be finite"));
         }
         self.model.set_section_curvature(sections);
+        // The scene too: the paper's method and nested iteration rebuild from it.
+        self.scene.rest_curvature = sections.to_vec();
         Ok(())
     }
 
@@ -502,6 +519,23 @@ impl Solver {
             evaluate(model, w, 1.0);
             return Ok(self.finish(Ending::Exact, 0, 0));
         }
+        let budget = self.settings.max_iterations;
+        let mut spent = 0;
+        if initial.is_none() {
+            if let Some(n0) = nested::coarse_elements(&self.scene, &self.settings) {
+                let nested = self.start_from_coarse(n0, budget, tol)?;
+                if nested.converged {
+                    let ending = Ending::FromCoarse {
+                        coarse_elements: n0,
+                        stable: nested.stable,
+                    };
+                    return Ok(self.finish(ending, nested.iterations, nested.continuation_steps));
+                }
+                // The full strategy on this rod, with what is left.
+                spent = nested.iterations.min(budget);
+            }
+        }
+        let (model, w) = (&self.model, &mut self.work);
         match initial {
             Some(q) => {
                 w.q[0] = model.base;
@@ -511,11 +545,14 @@ impl Solver {
             }
             None => w.q.copy_from_slice(&model.initial_guess()),
         }
-        let budget = self.settings.max_iterations;
-        let direct = self
-            .local
-            .run(model, w, 1.0, budget.min(DIRECT_ITERATIONS), tol);
-        let mut iterations = direct.iterations;
+        w.kkt
+            .reactions
+            .iter_mut()
+            .for_each(|r| *r = Vector3::zeros());
+        let direct =
+            self.local
+                .attempt(model, w, 1.0, (budget - spent).min(DIRECT_ITERATIONS), tol);
+        let mut iterations = spent + direct.iterations;
         if direct.converged && is_stable(model, w) {
             return Ok(self.finish(Ending::DirectStable, iterations, 0));
         }
@@ -524,7 +561,7 @@ impl Solver {
         let direct_state = direct
             .converged
             .then(|| (w.q.clone(), w.kkt.reactions.clone()));
-        let remaining = budget - direct.iterations.min(budget);
+        let remaining = budget - iterations.min(budget);
         let min_step = self.settings.min_continuation_step;
         let (cont, steps) =
             continuation::load_path(self.local.as_mut(), model, w, tol, remaining, min_step);
@@ -685,7 +722,12 @@ impl Solver {
             model.effective_tol(self.settings.residual_tol),
         );
         let converged = status == Status::Converged;
-        let stable = converged && (ending == Ending::DirectStable || is_stable(model, w));
+        let stable = converged
+            && match ending {
+                Ending::DirectStable => true,
+                Ending::FromCoarse { stable, .. } => stable,
+                _ => is_stable(model, w),
+            };
         let mut message = ending.message();
         if converged && !stable && ending != Ending::DirectUnstable {
             message.push_str(" (unstable equilibrium)");
@@ -782,6 +824,12 @@ enum Ending {
     LmFallback,
     /// Only the direct solve converged, to an unstable equilibrium.
     DirectUnstable,
+    /// Newton from the equilibrium of a coarse rod (nested iteration)
+    /// converged next to it; its stability already tested.
+    FromCoarse {
+        coarse_elements: usize,
+        stable: bool,
+    },
     /// Not attempted: the scene has no well-defined answer.
     Refused(Status, String),
     Failed(String),
@@ -795,6 +843,9 @@ impl Ending {
             Ending::Continuation => "converged by load continuation".into(),
             Ending::LmFallback => "converged (Levenberg-Marquardt fallback)".into(),
             Ending::DirectUnstable => "converged (unstable equilibrium)".into(),
+            Ending::FromCoarse {
+                coarse_elements, ..
+            } => format!("converged from the equilibrium at n = {coarse_elements}"),
             Ending::Refused(_, m) | Ending::Failed(m) => m.clone(),
         }
     }

@@ -17,6 +17,44 @@ pub(crate) struct Newton;
 const MAX_NODE_TURN: f64 = 1.0;
 const MAX_ELEMENT_TURN: f64 = 0.3;
 
+/// Iterations over which a run must reduce its merit by `STALL_FACTOR`.
+const STALL_WINDOW: usize = 5;
+const STALL_FACTOR: f64 = 0.9;
+
+/// Detects a stalled direct attempt: the merit (half the squared residual)
+/// has not dropped below `STALL_FACTOR` of its value `STALL_WINDOW`
+/// iterations ago. From the initial guess, Newton often ends near a local
+/// minimum of the merit that is no equilibrium (the Jacobian nearly
+/// singular), where the line search keeps accepting steps of a few percent
+/// that lower the merit by a hair: the attempt wandered until its budget was
+/// spent (12 iterations at n = 24, 48 to 65 at n = 192 and above), and load
+/// continuation started later the finer the rod. A continuation step is not
+/// judged this way: it starts next to the path, and a slow step there is
+/// genuine progress towards a strained equilibrium (a held tip just inside
+/// its reach creeps in for hundreds of iterations).
+pub(crate) struct Progress {
+    recent: [f64; STALL_WINDOW],
+    seen: usize,
+}
+
+impl Progress {
+    pub(crate) fn new() -> Self {
+        Progress {
+            recent: [f64::INFINITY; STALL_WINDOW],
+            seen: 0,
+        }
+    }
+
+    /// Record the merit at the start of an iteration; true if the run stalls.
+    pub(crate) fn stalled(&mut self, merit: f64) -> bool {
+        let slot = self.seen % STALL_WINDOW;
+        let before = self.recent[slot];
+        self.recent[slot] = merit;
+        self.seen += 1;
+        self.seen > STALL_WINDOW && merit > STALL_FACTOR * before
+    }
+}
+
 impl LocalSolver for Newton {
     fn for_model(&self, _model: &RodModel) -> Box<dyn LocalSolver + Send + Sync> {
         Box::new(Newton)
@@ -30,76 +68,102 @@ impl LocalSolver for Newton {
         max_iter: usize,
         tol: f64,
     ) -> LocalOutcome {
-        if model.is_constrained() {
-            let (converged, iterations) =
-                super::constrained::newton(model, w, lambda, max_iter, tol);
-            return LocalOutcome {
-                converged,
-                iterations,
-            };
-        }
-        model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
-        let mut merit = model.merit(&w.g);
-        // One pass more than the budget: the last one only certifies.
-        for it in 0..=max_iter {
-            let norm = model.residual_norm(&w.g);
-            let stop = |converged| LocalOutcome {
-                converged,
-                iterations: it,
-            };
-            if !norm.is_finite() || interrupt::requested() {
-                return stop(false);
-            }
-            if !newton_step(model, w) {
-                return stop(false);
-            }
-            if certified(norm, &w.step, tol) {
-                return stop(true);
-            }
-            if it == max_iter {
-                return stop(false);
-            }
-            let mut alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
-            // The first trial, usually accepted, is evaluated with its
-            // Jacobian: the factorisation no longer needs `w.jac`, and the
-            // next iteration then needs no second pass over the rod.
-            let mut jacobian_at_trial = true;
-            loop {
-                retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
-                if jacobian_at_trial {
-                    model.residual_jacobian(&w.trial, lambda, &mut w.g_trial, &mut w.jac);
-                } else {
-                    model.residual(&w.trial, lambda, &mut w.g_trial);
-                }
-                let trial_merit = model.merit(&w.g_trial);
-                // At the round-off floor the merit is noise and need not
-                // decrease: a trial within the tolerance is accepted as well.
-                let decreased = trial_merit <= (1.0 - 1e-4 * alpha) * merit;
-                if trial_merit.is_finite() && (decreased || model.residual_norm(&w.g_trial) <= tol)
-                {
-                    merit = trial_merit;
-                    break;
-                }
-                jacobian_at_trial = false;
-                alpha *= 0.5;
-                // An interrupt leaves the trial residuals unfinished.
-                if alpha < 1e-4 || interrupt::requested() {
-                    // The contract: `w.g` and `w.jac` at `w.q`.
-                    model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
-                    return LocalOutcome {
-                        converged: false,
-                        iterations: it + 1,
-                    };
-                }
-            }
-            std::mem::swap(&mut w.q, &mut w.trial);
-            std::mem::swap(&mut w.g, &mut w.g_trial);
-            if !jacobian_at_trial {
-                model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
-            }
-        }
-        unreachable!("the loop returns at its last pass")
+        iterate(model, w, lambda, (max_iter, tol), false)
     }
+
+    fn attempt(
+        &mut self,
+        model: &RodModel,
+        w: &mut Workspace,
+        lambda: f64,
+        max_iter: usize,
+        tol: f64,
+    ) -> LocalOutcome {
+        iterate(model, w, lambda, (max_iter, tol), true)
+    }
+}
+
+/// Newton from `w.q` within `max_iter` iterations; with `give_up_when_stalled`
+/// it stops once the merit stalls (see [`Progress`]).
+fn iterate(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    (max_iter, tol): (usize, f64),
+    give_up_when_stalled: bool,
+) -> LocalOutcome {
+    if model.is_constrained() {
+        let (converged, iterations) =
+            super::constrained::newton(model, w, lambda, (max_iter, tol), give_up_when_stalled);
+        return LocalOutcome {
+            converged,
+            iterations,
+        };
+    }
+    model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+    let mut merit = model.merit(&w.g);
+    let mut progress = Progress::new();
+    // One pass more than the budget: the last one only certifies.
+    for it in 0..=max_iter {
+        let norm = model.residual_norm(&w.g);
+        let stop = |converged| LocalOutcome {
+            converged,
+            iterations: it,
+        };
+        if !norm.is_finite() || interrupt::requested() {
+            return stop(false);
+        }
+        if !newton_step(model, w) {
+            return stop(false);
+        }
+        if certified(norm, &w.step, tol) {
+            return stop(true);
+        }
+        // Within the tolerance the merit is round-off: only the step is
+        // still being certified.
+        let stalled = give_up_when_stalled && norm > tol && progress.stalled(merit);
+        if it == max_iter || stalled {
+            return stop(false);
+        }
+        let mut alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
+        // The first trial, usually accepted, is evaluated with its
+        // Jacobian: the factorisation no longer needs `w.jac`, and the
+        // next iteration then needs no second pass over the rod.
+        let mut jacobian_at_trial = true;
+        loop {
+            retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
+            if jacobian_at_trial {
+                model.residual_jacobian(&w.trial, lambda, &mut w.g_trial, &mut w.jac);
+            } else {
+                model.residual(&w.trial, lambda, &mut w.g_trial);
+            }
+            let trial_merit = model.merit(&w.g_trial);
+            // At the round-off floor the merit is noise and need not
+            // decrease: a trial within the tolerance is accepted as well.
+            let decreased = trial_merit <= (1.0 - 1e-4 * alpha) * merit;
+            if trial_merit.is_finite() && (decreased || model.residual_norm(&w.g_trial) <= tol) {
+                merit = trial_merit;
+                break;
+            }
+            jacobian_at_trial = false;
+            alpha *= 0.5;
+            // An interrupt leaves the trial residuals unfinished.
+            if alpha < 1e-4 || interrupt::requested() {
+                // The contract: `w.g` and `w.jac` at `w.q`.
+                model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+                return LocalOutcome {
+                    converged: false,
+                    iterations: it + 1,
+                };
+            }
+        }
+        std::mem::swap(&mut w.q, &mut w.trial);
+        std::mem::swap(&mut w.g, &mut w.g_trial);
+        if !jacobian_at_trial {
+            model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+        }
+    }
+    unreachable!("the loop returns at its last pass")
 }
 
 /// The Newton step `-J^{-1} g` at the workspace state into `w.step` (`w.lu`
@@ -175,5 +239,25 @@ fn retract_along_chain(q: &[Quat], step: &[Vector3<f64>], alpha: f64, out: &mut 
         let increment = d - relative.inverse_rotate(previous);
         out[j] = (out[j - 1] * relative.perturbed(increment)).normalized();
         previous = d;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_stalls_on_a_flat_merit_only() {
+        // Newton-like progress, and damped progress by 5 % an iteration, go on.
+        let mut fast = Progress::new();
+        assert!((0..30).all(|k| !fast.stalled(0.5f64.powi(k))));
+        let mut damped = Progress::new();
+        assert!((0..30).all(|k| !damped.stalled(0.95f64.powi(k))));
+        // A merit lowered by a hair an iteration stalls after the window.
+        let mut flat = Progress::new();
+        let stalled: Vec<bool> = (0..8)
+            .map(|k| flat.stalled(1.0 - 1e-3 * k as f64))
+            .collect();
+        assert_eq!(stalled.iter().position(|&s| s), Some(STALL_WINDOW));
     }
 }

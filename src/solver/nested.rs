@@ -15,9 +15,9 @@
 
 use super::{is_stable, Method, Settings, Solver};
 use crate::error::Result;
-use crate::model::{element_turn, slerp};
 use crate::quat::Quat;
 use crate::scene::Scene;
+use nalgebra::Vector3;
 
 /// Fewest elements of the coarse rod (more if the scene needs them: see
 /// [`coarse_elements`]).
@@ -25,6 +25,13 @@ const COARSE_ELEMENTS: usize = 24;
 
 /// A rod of n elements starts from a coarse rod of n0 when n >= NEST_FACTOR n0.
 const NEST_FACTOR: usize = 4;
+
+/// The coarse rod has at least n / LEVEL_RATIO elements; it is itself solved
+/// from a coarser one when it is long enough (the levels nest). From n0 = 24
+/// Newton needs 3 to 5 iterations on the fine rod, each a full pass over it;
+/// from a coarse rod 256 times shorter at most 2 (its discretisation error
+/// is below 1e-7 of the fine rod's scale), so n = 1e6 goes through 3 906.
+const LEVEL_RATIO: usize = 256;
 
 /// The coarse rod reaches every held point with at least this share of the
 /// fine rod's slack (see [`Scene::reach_slack`]): a coarse rod strained to
@@ -44,7 +51,7 @@ const FINE_ITERATIONS: usize = 25;
 const MAX_CORRECTION: f64 = 0.5;
 
 /// The coarse rod for a solve of `n` elements, if nesting pays: the fewest
-/// elements from [`COARSE_ELEMENTS`] up that resolve the rest shape (as
+/// elements from [`COARSE_ELEMENTS`] (or `n / LEVEL_RATIO`) up that resolve the rest shape (as
 /// accuracy on demand starts), are a multiple of the sections, put every point
 /// load and held point on a node and reach the held points with slack to
 /// spare; at most `n / NEST_FACTOR`.
@@ -54,7 +61,7 @@ pub(crate) fn coarse_elements(scene: &Scene, settings: &Settings) -> Option<usiz
         return None;
     }
     let m = scene.sections();
-    let first = super::adaptive::starting_elements(scene, COARSE_ELEMENTS);
+    let first = super::adaptive::starting_elements(scene, COARSE_ELEMENTS.max(n / LEVEL_RATIO));
     let slack = scene.reach_slack(n);
     (first..=n / NEST_FACTOR).step_by(m).find(|&n0| {
         scene.check_elements(n0).is_ok()
@@ -65,20 +72,39 @@ pub(crate) fn coarse_elements(scene: &Scene, settings: &Settings) -> Option<usiz
 
 /// The coarse chain `coarse` (n0 + 1 nodes) at the n + 1 nodes of `out`:
 /// node i sits at `s = i L / n`, between two coarse nodes, and takes the
-/// rotation part way between theirs.
+/// rotation part way between theirs (about the axis of their relative
+/// rotation, which is found once per coarse element).
 pub(crate) fn interpolate(coarse: &[Quat], out: &mut [Quat]) {
     let n = out.len() - 1;
-    for (i, q) in out.iter_mut().enumerate() {
-        *q = interpolated(coarse, i, n);
-    }
+    for_each_interpolated(coarse, n, |i, q| out[i] = q);
 }
 
-/// Node `i` of `n` interpolated from the coarse chain.
-fn interpolated(coarse: &[Quat], i: usize, n: usize) -> Quat {
+/// Call `f(i, q_i)` with the coarse chain interpolated at each node `i` of
+/// a chain of `n` elements, in order.
+fn for_each_interpolated(coarse: &[Quat], n: usize, mut f: impl FnMut(usize, Quat)) {
     let n0 = coarse.len() - 1;
-    let x = (i * n0) as f64 / n as f64;
-    let j = (x.floor() as usize).min(n0 - 1);
-    slerp(coarse[j], coarse[j + 1], x - j as f64)
+    let mut element = usize::MAX;
+    let mut turn = Vector3::zeros();
+    for i in 0..=n {
+        let x = (i * n0) as f64 / n as f64;
+        let j = (x.floor() as usize).min(n0 - 1);
+        if j != element {
+            element = j;
+            // The relative rotation as a rotation vector (slerp's).
+            let rel = coarse[j].conj() * coarse[j + 1];
+            let sine = rel.v.norm();
+            turn = if sine > 0.0 {
+                rel.v * (2.0 * sine.atan2(rel.w) / sine)
+            } else {
+                Vector3::zeros()
+            };
+        }
+        let t = x - j as f64;
+        f(
+            i,
+            (coarse[j] * Quat::from_rotation_vector(turn * t)).normalized(),
+        );
+    }
 }
 
 /// How the nested start ended.
@@ -141,20 +167,21 @@ impl Solver {
 }
 
 /// True if no node of the fine chain `q` is turned by more than
-/// [`MAX_CORRECTION`] from the interpolated coarse chain.
+/// [`MAX_CORRECTION`] from the interpolated coarse chain: `|a . b|`, the
+/// cosine of half the angle between two rotations whichever their signs.
 fn next_to(coarse: &[Quat], q: &[Quat]) -> bool {
-    let n = q.len() - 1;
-    q.iter().enumerate().all(|(i, x)| {
-        // A rotation angle, whichever sign the two quaternions have.
-        let turn = element_turn(interpolated(coarse, i, n), *x);
-        turn.min(2.0 * std::f64::consts::PI - turn) <= MAX_CORRECTION
-    })
+    let least = (0.5 * MAX_CORRECTION).cos();
+    let mut next = true;
+    for_each_interpolated(coarse, q.len() - 1, |i, x| {
+        next &= x.dot(q[i]).abs() >= least;
+    });
+    next
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
+    use crate::model::element_turn;
 
     fn scene(json: &str) -> Scene {
         Scene::from_json_str(json).unwrap()

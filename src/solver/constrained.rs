@@ -17,7 +17,7 @@
 //! for a free tip without guides.
 
 use super::{step_limit, Workspace};
-use crate::blocktri::{BlockLu, BlockTridiagonal};
+use crate::blocktri::BlockLu;
 use crate::interrupt;
 use crate::model::RodModel;
 use nalgebra::{DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
@@ -305,39 +305,35 @@ pub(crate) fn newton(
 /// negative eigenvalues; by Haynsworth's inertia formula that number is
 /// `neg(A) + pos(D A^{-1} D^T)` (symmetric parts, `A` nonsingular).
 pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
-    let n = model.n;
-    let mut sym = BlockTridiagonal::zeros(n);
-    for j in 0..n {
-        sym.diag[j] = 0.5 * (w.jac.diag[j] + w.jac.diag[j].transpose());
-        if j + 1 < n {
-            sym.upper[j] = 0.5 * (w.jac.upper[j] + w.jac.lower[j].transpose());
-            sym.lower[j] = sym.upper[j].transpose();
-        }
-    }
-    let Some(negative) = crate::blocktri::negative_eigenvalues(&sym) else {
-        return false;
-    };
     load_constraint_jacobian(model, w);
-    let mut lu = BlockLu::new(n);
-    if lu.factor(&sym, 0.0).is_err() {
-        return false;
-    }
-    let m = model.constraints.len();
-    let mut s = DMatrix::zeros(3 * m, 3 * m);
-    let mut col = vec![Vector3::zeros(); n];
-    for c2 in 0..m {
-        for e2 in 0..3 {
-            for (x, b) in col.iter_mut().zip(&w.kkt.d[c2]) {
-                *x = b.row(e2).transpose();
-            }
-            lu.solve_in_place(&mut col);
-            for c in 0..m {
-                for e in 0..3 {
-                    s[(3 * c + e, 3 * c2 + e2)] = d_times(&w.kkt.d[c], e, &col);
+    // The workspace's factorisation is free (every use refactors first) and
+    // takes that of the symmetric part; `w.scratch` holds the columns.
+    let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
+    let negative = lu.factor_symmetric_part(&w.jac);
+    let s = negative.map(|_| {
+        let m = model.constraints.len();
+        let mut s = DMatrix::zeros(3 * m, 3 * m);
+        let col = &mut w.scratch;
+        for c2 in 0..m {
+            for e2 in 0..3 {
+                for (x, b) in col.iter_mut().zip(&w.kkt.d[c2]) {
+                    *x = b.row(e2).transpose();
+                }
+                lu.solve_in_place(col);
+                for c in 0..m {
+                    for e in 0..3 {
+                        s[(3 * c + e, 3 * c2 + e2)] = d_times(&w.kkt.d[c], e, col);
+                    }
                 }
             }
         }
-    }
+        s
+    });
+    w.lu = lu;
+    let (Some(negative), Some(s)) = (negative, s) else {
+        return false;
+    };
+    let m = model.constraints.len();
     let s = 0.5 * (&s + s.transpose());
     let eig = SymmetricEigen::new(s);
     let tiny = 1e-12 * eig.eigenvalues.amax().max(f64::MIN_POSITIVE);

@@ -5,6 +5,7 @@ Ctrl-C honoured. Each test reproduces a failure of the solver before the fix."""
 from __future__ import annotations
 
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -535,6 +536,26 @@ def test_a_target_just_inside_the_discrete_reach_is_solved(depth):
     sol = softspine.solve(scene, n_elements=n, check=True)
     assert np.linalg.norm(sol.tip_position - target) < 1e-9
     assert_reaction_holds_the_tip(scene, sol)
+
+
+def test_a_target_at_the_edge_of_the_discrete_reach_says_so():
+    """1e-7 L inside what 80 elements reach the rod is strained to its limit
+    and the solve gives up: the message used to name only the continuous
+    reach (100.0 %). It now gives the slack to the discrete reach, measured
+    here independently, and a finer n that has slack to spare, which solves."""
+    n = 80
+    distance = discrete_reach(0.3, n) - 1e-7
+    target = [0.0, distance * math.sin(0.3), distance * math.cos(0.3)]
+    scene = upright_pinned(target)
+    sol = softspine.solve(scene, n_elements=n)
+    assert sol.status == "not_converged"
+    match = re.search(r"only ([0-9.e+-]+) of its span inside the farthest that 80 elements "
+                      r"reach .*: (\d+) elements leave", sol.message)
+    assert match, sol.message
+    assert 0.5e-7 < float(match.group(1)) < 2e-7
+    finer = softspine.solve(scene, n_elements=int(match.group(2)), check=True)
+    assert np.linalg.norm(finer.tip_position - target) < 1e-9
+    assert_reaction_holds_the_tip(scene, finer)
 
 
 def test_a_huge_tip_force_converges():

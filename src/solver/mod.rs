@@ -627,6 +627,19 @@ impl Solver {
                 100.0 * reach
             ));
         }
+        // Just inside what the n elements reach, the rod is strained to its
+        // limit: a finer rod reaches further and has slack to spare.
+        let slack = self.scene.reach_slack(model.n);
+        if slack < DISCRETE_REACH_NOTE {
+            let finer = 4 * model.n;
+            msg.push_str(&format!(
+                "; it is only {slack:.1e} of its span inside the farthest that {} elements reach \
+                 (the clamped end cannot straighten within an element): {finer} elements leave \
+                 {:.1e}",
+                model.n,
+                self.scene.reach_slack(finer)
+            ));
+        }
         Ok(self.finish(Ending::Failed(msg), iterations, steps))
     }
 
@@ -875,6 +888,10 @@ fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
         symmetric_part_is_positive_definite(&w.jac)
     }
 }
+
+/// A failed held scene whose slack to the discrete reach (see
+/// [`Scene::reach_slack`]) is below this says so.
+const DISCRETE_REACH_NOTE: f64 = 1e-3;
 
 /// Largest system (unknowns) that a failed Newton solve retries with dense LM.
 const LM_FALLBACK_UNKNOWNS: usize = 600;

@@ -37,7 +37,7 @@ fn bench_scene(c: &mut Criterion, name: &str, make: fn(f64) -> Scene) {
     let mut group = c.benchmark_group(name);
     for n in SIZES {
         let settings = Settings {
-            n_elements: n,
+            n_elements: Some(n),
             ..Settings::default()
         };
         let mut solver = Solver::new(&make(1.0), settings.clone()).unwrap();
@@ -62,7 +62,7 @@ fn bench_scene(c: &mut Criterion, name: &str, make: fn(f64) -> Scene) {
 fn held_tip(scale: f64, clamped: bool, n: usize) -> Scene {
     let mut s = robot(1.0);
     let settings = Settings {
-        n_elements: n,
+        n_elements: Some(n),
         ..Settings::default()
     };
     let free = solve(&s, settings, None).unwrap();
@@ -85,7 +85,7 @@ fn held(c: &mut Criterion) {
         let kind = if clamped { "clamped" } else { "pinned" };
         for n in [20, 80] {
             let settings = Settings {
-                n_elements: n,
+                n_elements: Some(n),
                 ..Settings::default()
             };
             let mut solver = Solver::new(&held_tip(1.0, clamped, n), settings.clone()).unwrap();
@@ -118,7 +118,7 @@ fn methods(c: &mut Criterion) {
     for (name, scene) in scenes {
         for method in [Method::Newton, Method::LevenbergMarquardt] {
             let settings = Settings {
-                n_elements: 20,
+                n_elements: Some(20),
                 method,
                 ..Settings::default()
             };
@@ -168,7 +168,7 @@ fn hard(c: &mut Criterion) {
     let mut group = c.benchmark_group("hard");
     for (name, scene, n) in cases {
         let settings = Settings {
-            n_elements: n,
+            n_elements: Some(n),
             ..Settings::default()
         };
         let mut solver = Solver::new(&scene, settings).unwrap();

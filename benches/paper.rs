@@ -25,7 +25,7 @@ fn paper_vs_newton(c: &mut Criterion) {
     for (name, scene) in scenes() {
         for method in [Method::Newton, Method::Paper] {
             let settings = Settings {
-                n_elements: 20,
+                n_elements: Some(20),
                 method,
                 ..Settings::default()
             };

@@ -24,7 +24,7 @@ fn main() -> softspine::Result<()> {
     for (name, json) in scenes {
         let scene = Scene::from_json_str(json)?;
         let settings = Settings {
-            n_elements: n,
+            n_elements: Some(n),
             ..Settings::default()
         };
         let start = Instant::now();

@@ -19,7 +19,7 @@
 //! assert!((sol.tip_position().x - 0.60325344).abs() < 1e-3);
 //!
 //! // A control loop: one solver (its workspace is allocated once), warm starts.
-//! let mut solver = softspine::Solver::new(&scene, Settings { n_elements: 40, ..Settings::default() }).unwrap();
+//! let mut solver = softspine::Solver::new(&scene, Settings { n_elements: Some(40), ..Settings::default() }).unwrap();
 //! let mut previous = solver.solve(None).unwrap();
 //! for k in 0..10 {
 //!     solver.set_rest_curvature(&[[0.1 * k as f64, 0.0]]).unwrap(); // new actuation
@@ -48,6 +48,7 @@ pub use quat::Quat;
 pub use robot::{IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy};
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
 pub use solver::{
-    solve, solve_to_accuracy, Accuracy, Method, Settings, Solution, Solver, Status, TipSensitivity,
+    default_elements, solve, solve_to_accuracy, Accuracy, Method, Settings, Solution, Solver,
+    Status, TipSensitivity, DEFAULT_ELEMENTS,
 };
 pub use value::Value;

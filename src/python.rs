@@ -679,9 +679,6 @@ fn solve(
             ))
         })?),
     };
-    if n_elements == Some(0) {
-        return Err(PyValueError::new_err("n_elements: must be positive, got 0"));
-    }
     let richardson = match refine.as_deref() {
         None => false,
         Some("richardson") if tol.is_some() => true,
@@ -696,14 +693,8 @@ fn solve(
             )))
         }
     };
-    let sections = scene.sections();
-    let default_n = if tol.is_some() {
-        sections * 10usize.div_ceil(sections)
-    } else {
-        20
-    };
     let settings = Settings {
-        n_elements: n_elements.unwrap_or(default_n),
+        n_elements,
         method,
         residual_tol,
         max_iterations,
@@ -714,7 +705,7 @@ fn solve(
         None => {
             let initial = initial.map(|q| quaternions_arg("initial", q)).transpose()?;
             // Building the solver allocates O(n): without the GIL too.
-            let long = settings.has_long_passes();
+            let long = settings.resolved(&scene).has_long_passes();
             detach_solve(py, long, move || {
                 Solver::new(&scene, settings)?.solve(initial.as_deref())
             })?
@@ -1217,7 +1208,7 @@ impl PyRobot {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
         let scene = self.inner.scene(&k, load)?;
         let settings = Settings {
-            n_elements: self.inner.n_elements,
+            n_elements: Some(self.inner.n_elements),
             ..Settings::default()
         };
         let long = self.inner.has_long_passes();

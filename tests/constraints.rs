@@ -14,7 +14,7 @@ fn loaded() -> Scene {
 
 fn settings(n: usize) -> Settings {
     Settings {
-        n_elements: n,
+        n_elements: Some(n),
         ..Settings::default()
     }
 }

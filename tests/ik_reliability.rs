@@ -37,7 +37,7 @@ fn in_range_actuations(robot: &Robot, count: usize, seed: u64) -> Vec<Vec<[f64; 
 fn forward(robot: &Robot, kappa: &[[f64; 2]], load: f64) -> softspine::Solution {
     let scene = robot.scene(kappa, load).unwrap();
     let settings = Settings {
-        n_elements: robot.n_elements,
+        n_elements: Some(robot.n_elements),
         ..Settings::default()
     };
     solve(&scene, settings, None).unwrap()

@@ -78,7 +78,7 @@ fn cantilever_matches_bisshopp_drucker() {
         let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0);
         scene.tip_force = Vector3::new(alpha, 0.0, 0.0);
         let settings = Settings {
-            n_elements: 160,
+            n_elements: Some(160),
             ..Settings::default()
         };
         let sol = solve(&scene, settings, None).unwrap();
@@ -107,7 +107,7 @@ fn full_roll_up_by_end_moment() {
     scene.tip_moment = Vector3::new(0.0, 2.0 * std::f64::consts::PI, 0.0);
     for n in [20, 40, 80] {
         let settings = Settings {
-            n_elements: n,
+            n_elements: Some(n),
             ..Settings::default()
         };
         let sol = solve(&scene, settings, None).unwrap();
@@ -129,7 +129,7 @@ fn tip_sensitivity_matches_finite_differences() {
     scene.tip_force = Vector3::new(-0.7, 0.4, 0.5);
     scene.base_quaternion = Quat::new(0.9, 0.2, -0.3, 0.1).normalized();
     let settings = Settings {
-        n_elements: 20,
+        n_elements: Some(20),
         residual_tol: 1e-13,
         ..Settings::default()
     };

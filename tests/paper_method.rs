@@ -7,7 +7,7 @@ use softspine::{solve, Quat, Scene, Settings};
 
 fn newton_tip(scene: &Scene, n: usize) -> Vector3<f64> {
     let settings = Settings {
-        n_elements: n,
+        n_elements: Some(n),
         residual_tol: 1e-12,
         ..Settings::default()
     };

@@ -45,7 +45,7 @@ fn tracking_reaches_every_point_of_the_circle_with_30_g() {
         let fresh = solve(
             &scene,
             Settings {
-                n_elements: robot.n_elements,
+                n_elements: Some(robot.n_elements),
                 ..Settings::default()
             },
             None,

@@ -54,9 +54,11 @@ def solve(
     scene : Scene, dict, or path of a ``.json`` / ``.toml`` file
         What is solved (see ``softspine.Scene``).
     n_elements : int, optional
-        Number of elements ``n``, a multiple of the number of sections. Default 20;
-        with ``tol``, the first ``n`` tried (default: the smallest multiple of the
-        sections that is at least 10).
+        Number of elements ``n``, a multiple of the number of sections. Default:
+        the smallest multiple of the sections that is at least 20 (20 for one to
+        four, five, ten or twenty sections, 21 for three). With ``tol``, the first
+        ``n`` tried (the same default, raised to an ``n`` that resolves the rest
+        shape).
     method : {"newton", "lm", "paper", "paper-literal"}, optional
         ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
         continuation when a direct solve fails (default). ``"lm"``:

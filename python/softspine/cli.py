@@ -34,7 +34,7 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"  tip quaternion:   [{', '.join(f'{x:+.5f}' for x in sol.tip_quaternion)}]")
     print(f"  base force [N]:   [{', '.join(f'{x:+.4f}' for x in sol.forces[0])}]")
     print(f"  energy: {sol.energy:.6f} J")
-    fine = solve(scene, n_elements=8 * args.n_elements, method=args.method, initial=None)
+    fine = solve(scene, n_elements=8 * sol.n_elements, method=args.method, initial=None)
     err = float(np.linalg.norm(fine.tip_position - tip))
     print(f"  tip difference to n = {fine.n_elements}: {err * 1e3:.3f} mm")
     # What the load does: the same actuation without weight and without the tip load.
@@ -153,7 +153,9 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="solve and plot a scene (the demo robot by default)")
     demo.add_argument("--scene", help="a .json or .toml scene file")
-    demo.add_argument("--n-elements", type=int, default=20)
+    demo.add_argument(
+        "--n-elements", type=int, default=None,
+        help="elements (default: the smallest multiple of the sections that is at least 20)")
     demo.add_argument("--method", default="newton", choices=["newton", "lm"])
     demo.add_argument("--out", default="softspine-demo.png", help="PNG file to write")
     demo.set_defaults(func=_demo)

@@ -282,7 +282,7 @@ impl InverseSolver {
         let zero = vec![[0.0; 2]; robot.sections];
         let scene = robot.scene(&zero, tip_mass)?;
         let settings = Settings {
-            n_elements: robot.n_elements,
+            n_elements: Some(robot.n_elements),
             residual_tol: 1e-12,
             ..Settings::default()
         };

@@ -75,7 +75,9 @@ pub struct Robot {
     /// Shortest and longest muscle length [m] (default 0.8 and 1.05 times the
     /// rest length): the contraction range.
     pub muscle_length_range: [f64; 2],
-    /// Elements of the discretisation used by every solve (default 20).
+    /// Elements of the discretisation used by every solve (default: the
+    /// smallest multiple of the sections that is at least 20, see
+    /// [`crate::solver::default_elements`]).
     pub n_elements: usize,
 }
 
@@ -255,7 +257,7 @@ impl Robot {
     /// interrupt poll: see [`crate::Settings::has_long_passes`].
     pub fn has_long_passes(&self) -> bool {
         let forward = crate::Settings {
-            n_elements: self.n_elements,
+            n_elements: Some(self.n_elements),
             ..crate::Settings::default()
         };
         forward.has_long_passes() || self.sections >= LONG_IK_PASS_SECTIONS
@@ -511,8 +513,8 @@ impl Robot {
         if !given("muscle_length_range") {
             r.muscle_length_range = [0.8 * r.muscle_rest_length, 1.05 * r.muscle_rest_length];
         }
-        if r.n_elements % r.sections != 0 && !given("n_elements") {
-            r.n_elements = 2 * r.sections;
+        if !given("n_elements") {
+            r.n_elements = crate::solver::default_elements(r.sections);
         }
         // A field defaulted from another is blamed on the one given.
         let rest_key = if given("muscle_rest_length") {

@@ -80,11 +80,11 @@ pub fn solve_to_accuracy(
 ) -> Result<Solution> {
     accuracy.validate()?;
     let length = scene.length;
-    let mut n = starting_elements(scene, settings.n_elements);
+    let mut n = starting_elements(scene, settings.elements_for(scene));
     let mut solver = Solver::new(
         scene,
         Settings {
-            n_elements: n,
+            n_elements: Some(n),
             ..settings.clone()
         },
     )?;
@@ -122,7 +122,7 @@ pub fn solve_to_accuracy(
         let mut fine = Solver::new(
             scene,
             Settings {
-                n_elements: 2 * n,
+                n_elements: Some(2 * n),
                 ..settings.clone()
             },
         )?

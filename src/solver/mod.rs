@@ -53,8 +53,10 @@ impl std::str::FromStr for Method {
 /// Solver settings; every field has a documented default.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Settings {
-    /// Number of elements `n` (default 20); a multiple of the number of sections.
-    pub n_elements: usize,
+    /// Number of elements `n`, a multiple of the number of sections. `None`
+    /// (the default): [`default_elements`] of the scene's sections, the
+    /// smallest multiple of them that is at least [`DEFAULT_ELEMENTS`].
+    pub n_elements: Option<usize>,
     pub method: Method,
     /// Convergence tolerance on the relative residual: the largest torque
     /// imbalance of a row over its own scale `k_c / L` (default 1e-10, within
@@ -76,7 +78,7 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Settings {
-            n_elements: 20,
+            n_elements: None,
             method: Method::Newton,
             residual_tol: 1e-10,
             max_iterations: 500,
@@ -84,6 +86,17 @@ impl Default for Settings {
             paper: PaperSettings::default(),
         }
     }
+}
+
+/// The fewest elements of a solve by default (see [`default_elements`]).
+pub const DEFAULT_ELEMENTS: usize = 20;
+
+/// The default number of elements of a rod of `sections` sections: the
+/// smallest multiple of them that is at least [`DEFAULT_ELEMENTS`] (every
+/// section gets the same whole number of elements).
+pub fn default_elements(sections: usize) -> usize {
+    let sections = sections.max(1);
+    DEFAULT_ELEMENTS.div_ceil(sections) * sections
 }
 
 /// Largest `n_elements` of the O(n) Newton solver: about 0.5 KB a node of
@@ -124,10 +137,28 @@ impl Settings {
     /// factorisation) may take longer than [`crate::interrupt::POLL_INTERVAL`]:
     /// a caller that must answer Ctrl-C at once then runs it
     /// [`crate::interrupt::on_worker`]. The solvers poll between passes.
+    /// (Settings [`resolved`](Settings::resolved) for the scene: the default
+    /// n counts as [`DEFAULT_ELEMENTS`].)
     pub fn has_long_passes(&self) -> bool {
+        let n = self.n_elements.unwrap_or(DEFAULT_ELEMENTS);
         match self.method {
-            Method::Newton => self.n_elements >= LONG_PASS_ELEMENTS,
-            _ => self.n_elements >= LONG_DENSE_PASS_ELEMENTS,
+            Method::Newton => n >= LONG_PASS_ELEMENTS,
+            _ => n >= LONG_DENSE_PASS_ELEMENTS,
+        }
+    }
+
+    /// The number of elements of a solve of `scene`: `n_elements`, or
+    /// [`default_elements`] of its sections.
+    pub fn elements_for(&self, scene: &Scene) -> usize {
+        self.n_elements
+            .unwrap_or_else(|| default_elements(scene.sections()))
+    }
+
+    /// These settings with the number of elements for `scene` filled in.
+    pub fn resolved(&self, scene: &Scene) -> Settings {
+        Settings {
+            n_elements: Some(self.elements_for(scene)),
+            ..self.clone()
         }
     }
 
@@ -137,14 +168,16 @@ impl Settings {
             Method::LevenbergMarquardt => MAX_DENSE_ELEMENTS,
             Method::Paper | Method::PaperLiteral => MAX_PAPER_ELEMENTS,
         };
-        if self.n_elements == 0 || self.n_elements > limit {
-            return Err(Error::argument(
-                "n_elements",
-                format!(
-                    "must lie in [1, {limit}] for method {:?}, got {}",
-                    self.method, self.n_elements
-                ),
-            ));
+        if let Some(n) = self.n_elements {
+            if n == 0 || n > limit {
+                return Err(Error::argument(
+                    "n_elements",
+                    format!(
+                        "must lie in [1, {limit}] for method {:?}, got {n}",
+                        self.method
+                    ),
+                ));
+            }
         }
         check_tolerance("residual_tol", self.residual_tol, RESIDUAL_TOL_RANGE)?;
         if self.max_iterations == 0 {
@@ -367,11 +400,13 @@ pub struct Solver {
 
 impl Solver {
     pub fn new(scene: &Scene, settings: Settings) -> Result<Self> {
+        let settings = settings.resolved(scene);
         settings.validate()?;
+        let n = settings.elements_for(scene);
         scene.check_derived()?;
-        scene.check_elements(settings.n_elements)?;
-        let reach_limit = scene.check_constraints(settings.n_elements)?;
-        let model = RodModel::new(scene, settings.n_elements);
+        scene.check_elements(n)?;
+        let reach_limit = scene.check_constraints(n)?;
+        let model = RodModel::new(scene, n);
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
             Method::Newton => Box::new(newton::Newton),

@@ -56,7 +56,7 @@ const MAX_CORRECTION: f64 = 0.5;
 /// load and held point on a node and reach the held points with slack to
 /// spare; at most `n / NEST_FACTOR`.
 pub(crate) fn coarse_elements(scene: &Scene, settings: &Settings) -> Option<usize> {
-    let n = settings.n_elements;
+    let n = settings.elements_for(scene);
     if settings.method != Method::Newton || n < NEST_FACTOR * COARSE_ELEMENTS {
         return None;
     }
@@ -134,7 +134,7 @@ impl Solver {
         tol: f64,
     ) -> Result<Nested> {
         let coarse_settings = Settings {
-            n_elements: n0,
+            n_elements: Some(n0),
             max_iterations: budget,
             ..self.settings.clone()
         };
@@ -189,7 +189,7 @@ mod tests {
 
     fn settings(n: usize) -> Settings {
         Settings {
-            n_elements: n,
+            n_elements: Some(n),
             ..Settings::default()
         }
     }

@@ -64,3 +64,70 @@ def test_accuracy_on_demand_starts_from_the_default_n():
     # Doubling from 21 (the rest shape is resolved at 21 already).
     assert sol.n_elements % 21 == 0 and ((sol.n_elements // 21) & (sol.n_elements // 21 - 1)) == 0
     assert sol.n_elements > 21 and sol.error_estimate <= 1e-4
+
+
+# --- issue 11, item 2: orientations ------------------------------------------------------
+
+BASE = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.3, "kz": 0.7}, "tip_force": [0.2, 0.1, 0.0]}
+
+
+def scalar_first(rotation):
+    x, y, z, w = rotation.as_quat()
+    return [w, x, y, z]
+
+
+def test_the_readmes_rounded_quaternion_is_accepted_and_normalised():
+    """[0.924, 0, 0.383, 0] (norm 1.00023) was refused at a tolerance of 1e-6."""
+    q = [0.924, 0.0, 0.383, 0.0]
+    tip = {"type": "clamped", "position": [0.3, 0.0, 0.9], "quaternion": q}
+    sol = softspine.solve({"length": 1.0, "stiffness": BASE["stiffness"], "tip": tip}, check=True)
+    unit = np.asarray(q) / np.linalg.norm(q)
+    assert np.abs(sol.tip_quaternion - unit).max() < 1e-12
+    sol = softspine.solve(dict(BASE, base_quaternion=q), check=True)
+    assert np.abs(sol.quaternions[0] - unit).max() < 1e-15
+
+
+def test_a_scipy_rotation_matrix_is_the_same_orientation_as_its_quaternion():
+    from scipy.spatial.transform import Rotation
+
+    rotation = Rotation.from_rotvec([0.3, -1.2, 2.5])
+    by_quaternion = softspine.solve(dict(BASE, base_quaternion=scalar_first(rotation)))
+    by_matrix = softspine.solve(dict(BASE, base_quaternion=rotation.as_matrix()))
+    by_list = softspine.solve(dict(BASE, base_quaternion=rotation.as_matrix().tolist()))
+    for sol in (by_matrix, by_list):
+        assert np.abs(sol.positions - by_quaternion.positions).max() < 1e-14
+    # The base tangent is the matrix's third column (material z in the world).
+    assert np.allclose(by_matrix.positions[1] / np.linalg.norm(by_matrix.positions[1]),
+                       rotation.as_matrix()[:, 2], atol=0.05)
+    # A clamped tip and a robot's base take a matrix too.
+    tip = Rotation.from_rotvec([0.0, 0.8, 0.0])
+    held = {"length": 1.0, "stiffness": BASE["stiffness"]}
+    clamped = lambda o: dict(held, tip={"type": "clamped", "position": [0.3, 0, 0.9],  # noqa: E731
+                                         "quaternion": o})
+    a = softspine.solve(clamped(scalar_first(tip)), check=True)
+    b = softspine.solve(clamped(tip.as_matrix()), check=True)
+    assert np.abs(a.positions - b.positions).max() < 1e-14
+    turned = Rotation.from_rotvec([np.pi, 0.0, 0.0])
+    robots = [softspine.Robot({"base_quaternion": o})
+              for o in (scalar_first(turned), turned.as_matrix())]
+    kappa = [[0.5, 0.0]] * 10
+    shapes = [r.forward(kappa).positions for r in robots]
+    assert np.abs(shapes[0] - shapes[1]).max() < 1e-14
+
+
+@pytest.mark.parametrize(
+    "orientation, reason",
+    [
+        ([0.9, 0.0, 0.383, 0.0], "within 0.001 of norm 1"),
+        ([[1, 0, 0], [0, 1, 0], [0, 0, -1]], "det R = -1"),
+        ((1.01 * np.eye(3)).tolist(), "must be a rotation matrix"),
+        ([[1, 0], [0, 1]], "or a 3x3 rotation matrix"),
+        ([[1, 0, 0], [0, 1, 0], [0, 0, "x"]], r"base_quaternion\[2\]\[2\]"),
+    ],
+)
+def test_a_bad_orientation_is_refused_naming_the_key(orientation, reason):
+    with pytest.raises(ValueError, match=r"^base_quaternion") as info:
+        softspine.solve(dict(BASE, base_quaternion=orientation))
+    assert info.match(reason)
+    with pytest.raises(ValueError, match=r"^base_quaternion"):
+        softspine.Robot({"base_quaternion": orientation})

@@ -569,17 +569,7 @@ impl Robot {
             }
             "disk_mass" => self.disk_mass = num(value)?,
             "gravity" => self.gravity = Vector3::from_vec(list(value, 3)?),
-            "base_quaternion" => {
-                let q = list(value, 4)?;
-                let q = Quat::new(q[0], q[1], q[2], q[3]);
-                if (q.norm() - 1.0).abs() > 1e-6 {
-                    return Err(Error::scene(
-                        key,
-                        "must be a unit quaternion [w, x, y, z]",
-                    ));
-                }
-                self.base_quaternion = q.normalized();
-            }
+            "base_quaternion" => self.base_quaternion = crate::scene::orientation(value, key)?,
             "muscle_rest_length" => self.muscle_rest_length = num(value)?,
             "inflation_rate" => self.inflation_rate = num(value)?,
             "muscle_length_range" => {

@@ -84,6 +84,8 @@ pub struct RodModel {
     /// Diagonal stiffness `(kx, ky, kz)` [N m^2].
     pub stiffness: Vector3<f64>,
     pub base: Quat,
+    /// Position of node 0 [m], world frame.
+    pub base_position: Vector3<f64>,
     /// Rest curvature of element `i` (index `i - 1`), material frame [1/m].
     pub rest_curvature: Vec<Vector3<f64>>,
     /// Mean internal force `Fbar_i` of element `i` (index `i - 1`), world frame [N].
@@ -194,6 +196,7 @@ impl RodModel {
             ds,
             stiffness,
             base: scene.base_quaternion,
+            base_position: scene.base_position,
             rest_curvature,
             mean_force,
             node_force_weight,
@@ -297,7 +300,7 @@ impl RodModel {
     /// The largest ratio of the distance between consecutive held points (the
     /// base first) to the rod between them: 1 is full reach.
     pub fn tightest_reach(&self) -> f64 {
-        let mut from = (0usize, Vector3::zeros());
+        let mut from = (0usize, self.base_position);
         let mut ratio: f64 = 0.0;
         for c in &self.constraints {
             let arc = (c.node - from.0) as f64 * self.ds;
@@ -762,9 +765,10 @@ impl RodModel {
             .fold(0.0, f64::max)
     }
 
-    /// Node positions `r_0 = 0`, `r_i = r_{i-1} + ds T_i` with the exact mean tangent.
+    /// Node positions `r_0` (the base position), `r_i = r_{i-1} + ds T_i`
+    /// with the exact mean tangent.
     pub fn positions(&self, q: &[Quat], out: &mut [Vector3<f64>]) {
-        out[0] = Vector3::zeros();
+        out[0] = self.base_position;
         for i in 1..=self.n {
             out[i] = out[i - 1] + self.ds * mean_tangent(q[i - 1], q[i]);
         }

@@ -1130,6 +1130,8 @@ impl PyRobot {
         d.set_item("disk_mass", r.disk_mass)?;
         d.set_item("gravity", vec![r.gravity.x, r.gravity.y, r.gravity.z])?;
         d.set_item("base_quaternion", r.base_quaternion.to_array().to_vec())?;
+        let p = r.base_position;
+        d.set_item("base_position", vec![p.x, p.y, p.z])?;
         d.set_item("muscle_rest_length", r.muscle_rest_length)?;
         d.set_item("inflation_rate", r.inflation_rate)?;
         d.set_item("muscle_length_range", r.muscle_length_range.to_vec())?;

@@ -13,6 +13,7 @@
 //! tip_force         [Px, Py, Pz] N, world frame
 //! tip_moment        [Mx, My, Mz] N m, world frame
 //! base_quaternion   [w, x, y, z] or a 3x3 rotation matrix, default identity (tangent +z)
+//! base_position     [x, y, z] m, world frame, default the origin
 //! tip               {type: "free"}
 //! name              free text
 //! ```
@@ -104,6 +105,9 @@ pub struct Scene {
     pub tip_moment: Vector3<f64>,
     /// Base orientation `Q0`, unit.
     pub base_quaternion: Quat,
+    /// Base position `r_0` [m], world frame (default the origin): every node
+    /// and held target is in the same world frame.
+    pub base_position: Vector3<f64>,
     pub tip: TipCondition,
     /// Interior points held in place, by increasing `s`.
     pub guides: Vec<Guide>,
@@ -124,6 +128,7 @@ impl Scene {
             tip_force: Vector3::zeros(),
             tip_moment: Vector3::zeros(),
             base_quaternion: Quat::IDENTITY,
+            base_position: Vector3::zeros(),
             tip: TipCondition::Free,
             guides: Vec::new(),
             point_loads: Vec::new(),
@@ -185,6 +190,7 @@ impl Scene {
             "tip_force",
             "tip_moment",
             "base_quaternion",
+            "base_position",
             "tip",
             "guides",
             "point_loads",
@@ -236,6 +242,7 @@ impl Scene {
             tip_force: vec3_or_zero("tip_force")?,
             tip_moment: vec3_or_zero("tip_moment")?,
             base_quaternion,
+            base_position: vec3_or_zero("base_position")?,
             tip,
             guides,
             point_loads,
@@ -351,6 +358,9 @@ impl Scene {
             "base_quaternion".into(),
             Value::List(q.iter().map(|x| num(*x)).collect()),
         ));
+        if self.base_position != Vector3::zeros() {
+            m.push(("base_position".into(), v3(&self.base_position)));
+        }
         let q4 = |q: &Quat| Value::List(q.to_array().iter().map(|x| num(*x)).collect());
         let kind = |k: &str| ("type".to_string(), Value::String(k.into()));
         let tip = match &self.tip {
@@ -527,7 +537,7 @@ impl Scene {
     ) -> Result<Vec<HeldSpan>> {
         let ds = self.length / n as f64;
         let held_count = held.len();
-        let mut from = (0.0, Vector3::zeros());
+        let mut from = (0.0, self.base_position);
         let mut spans = Vec::with_capacity(held_count);
         for (index, (key, s, p)) in held.into_iter().enumerate() {
             let (arc, chord) = (s - from.0, p - from.1);

@@ -131,3 +131,46 @@ def test_a_bad_orientation_is_refused_naming_the_key(orientation, reason):
     assert info.match(reason)
     with pytest.raises(ValueError, match=r"^base_quaternion"):
         softspine.Robot({"base_quaternion": orientation})
+
+
+# --- issue 11, item 2: base_position -----------------------------------------------------
+
+
+def test_a_base_position_translates_the_rod_and_its_held_points():
+    from softspine import reference
+
+    offset = np.array([0.4, -1.5, 2.0])
+    free = dict(BASE, rest_curvature=[[1.0, -0.5]],
+                gravity={"linear_density": 0.2, "vector": [0.0, 0.0, -9.81]})
+    at_origin = softspine.solve(free, check=True)
+    moved = softspine.solve(dict(free, base_position=offset.tolist()), check=True)
+    assert np.abs(moved.positions - (at_origin.positions + offset)).max() < 1e-14
+    assert np.abs(moved.quaternions - at_origin.quaternions).max() < 1e-14
+    # The NumPy reference places the nodes the same way.
+    scene = dict(free, base_position=offset.tolist())
+    assert np.abs(reference.positions(scene, moved.quaternions) - moved.positions).max() < 1e-14
+    # A held target is in the same world frame: the same shape, the same reaction.
+    target = (at_origin.tip_position * [0.9, 0.9, 0.95]).tolist()
+    pinned = softspine.solve(dict(free, tip={"type": "pinned", "position": target}), check=True)
+    shifted = dict(free, base_position=offset.tolist(),
+                   tip={"type": "pinned", "position": (np.asarray(target) + offset).tolist()})
+    pinned_moved = softspine.solve(shifted, check=True)
+    assert np.abs(pinned_moved.positions - (pinned.positions + offset)).max() < 1e-12
+    assert np.abs(pinned_moved.tip_reaction_force - pinned.tip_reaction_force).max() < 1e-10
+    # Reach is measured from the base: the untranslated target is out of reach.
+    with pytest.raises(ValueError, match=r"^tip.position: unreachable"):
+        softspine.solve(dict(shifted, tip={"type": "pinned", "position": [0.0, 0.0, 0.5]}))
+    # The scene round-trips with it.
+    assert softspine.Scene(scene).to_dict()["base_position"] == offset.tolist()
+
+
+def test_a_robot_with_a_base_position_reaches_translated_targets():
+    offset = [0.1, 0.2, -0.3]
+    robot = softspine.Robot({"sections": 3})
+    moved = softspine.Robot({"sections": 3, "base_position": offset})
+    kappa = [[1.0, 0.0], [0.0, -1.0], [0.5, 0.5]]
+    a, b = robot.forward(kappa), moved.forward(kappa)
+    assert np.abs(b.positions - (a.positions + offset)).max() < 1e-14
+    ik = moved.inverse(b.tip_position)
+    assert ik.reached and np.linalg.norm(ik.tip_position - b.tip_position) < 1e-6
+    assert moved.to_dict()["base_position"] == offset

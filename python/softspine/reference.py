@@ -15,7 +15,7 @@ rotating material to world; the material tangent is local ``+z``):
   ``T_i = (T(a) + T(a, b) + T(b)) / 3`` with ``T(q)`` the third column of the
   rotation matrix written as a homogeneous quadratic form of ``q`` and
   ``T(a, b)`` its symmetric bilinear form.
-* Positions ``r_0 = 0``, ``r_i = r_{i-1} + ds T_i``.
+* Positions ``r_0`` (``base_position``), ``r_i = r_{i-1} + ds T_i``.
 * Internal force at node ``j``: ``F_j = P + (L - s_j) f``; ``Fbar_i`` is the
   mean of the element's two nodal forces.
 * Potential ``Pi(q) = sum_i ds [1/2 e_i^T K e_i - Fbar_i . T_i]`` with
@@ -245,13 +245,15 @@ def energy(scene: dict, q: np.ndarray) -> float:
 
 
 def positions(scene: dict, q: np.ndarray) -> np.ndarray:
-    """Node positions ``r_0 = 0``, ``r_i = r_{i-1} + ds T_i``, (n+1, 3)."""
+    """Node positions ``r_0`` (the scene's ``base_position``, default the
+    origin), ``r_i = r_{i-1} + ds T_i``, (n+1, 3)."""
     model = _model(scene)
     q = np.asarray(q)
     n = _check_q(q)
     ds = model["L"] / n
     steps = ds * _element_tangents(q)
-    return np.vstack([np.zeros((1, 3), dtype=steps.dtype), np.cumsum(steps, axis=0)])
+    base = _vec(scene.get("base_position", [0.0, 0.0, 0.0]), 3, "base_position")
+    return base + np.vstack([np.zeros((1, 3), dtype=steps.dtype), np.cumsum(steps, axis=0)])
 
 
 def _gradient(model: dict, q: np.ndarray) -> np.ndarray:

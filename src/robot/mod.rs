@@ -67,6 +67,8 @@ pub struct Robot {
     pub gravity: Vector3<f64>,
     /// Base orientation (default `[0, 1, 0, 0]`: hanging, tangent `-z`).
     pub base_quaternion: Quat,
+    /// Base position [m], world frame (default the origin).
+    pub base_position: Vector3<f64>,
     /// Muscle length at zero inflation time [m] (default: the section length).
     pub muscle_rest_length: f64,
     /// Calibration `length = rest_length + rate * time` [m/s] (default -0.01:
@@ -137,6 +139,7 @@ impl Default for Robot {
             disk_mass: 0.01,
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
             base_quaternion: Quat::new(0.0, 1.0, 0.0, 0.0),
+            base_position: Vector3::zeros(),
             muscle_rest_length: rest,
             inflation_rate: -0.01,
             muscle_length_range: [0.8 * rest, 1.05 * rest],
@@ -299,6 +302,7 @@ impl Robot {
             vector: self.gravity,
         });
         s.base_quaternion = self.base_quaternion;
+        s.base_position = self.base_position;
         s.tip_force = tip_mass * self.gravity;
         s.point_loads = (1..=self.sections)
             .map(|k| PointLoad {
@@ -570,6 +574,7 @@ impl Robot {
             "disk_mass" => self.disk_mass = num(value)?,
             "gravity" => self.gravity = Vector3::from_vec(list(value, 3)?),
             "base_quaternion" => self.base_quaternion = crate::scene::orientation(value, key)?,
+            "base_position" => self.base_position = Vector3::from_vec(list(value, 3)?),
             "muscle_rest_length" => self.muscle_rest_length = num(value)?,
             "inflation_rate" => self.inflation_rate = num(value)?,
             "muscle_length_range" => {
@@ -578,7 +583,7 @@ impl Robot {
             }
             "n_elements" => self.n_elements = count(key, num(value)?, MAX_ROBOT_ELEMENTS)?,
             other => {
-                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, muscle_rest_length, inflation_rate, muscle_length_range, n_elements)"))
+                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements)"))
             }
         }
         Ok(())

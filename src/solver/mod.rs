@@ -248,7 +248,7 @@ pub struct Solution {
     pub n_elements: usize,
     /// Node quaternions `q_0..q_n`, `q_0` the base.
     pub quaternions: Vec<Quat>,
-    /// Node positions `r_0..r_n` [m], `r_0 = 0`.
+    /// Node positions `r_0..r_n` [m], `r_0` the scene's base position.
     pub positions: Vec<Vector3<f64>>,
     /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
     pub forces: Vec<Vector3<f64>>,

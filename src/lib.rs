@@ -4,11 +4,11 @@
 //! unit quaternions at `n + 1` nodes (finite differences), equilibrium comes from
 //! the discrete total potential, and the equations are solved by Newton's method
 //! on a block-tridiagonal system (O(n) per iteration) or by Levenberg-Marquardt.
-//! See `MODEL.md` of the project for the equations and conventions.
+//! See `docs/model.md` of the project for the equations and conventions.
 //!
 //! ```
+//! use softspine::nalgebra::Vector3;
 //! use softspine::{solve, Scene, Settings};
-//! use nalgebra::Vector3;
 //!
 //! // A cantilever (EI = 1, L = 1) under a tip force P = 3 perpendicular to its axis.
 //! let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0);
@@ -43,6 +43,14 @@ pub mod value;
 mod python;
 
 pub use error::{Error, Result};
+/// The linear algebra crate of the public types (`Vector3`, `Matrix3xX`): a
+/// user of softspine needs no dependency of their own on it.
+pub use nalgebra;
+
+/// The README's Rust code, compiled and run as a test (`cargo test --doc`).
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
 pub use model::RodModel;
 pub use quat::Quat;
 pub use robot::{IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy};

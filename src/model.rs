@@ -1,4 +1,4 @@
-//! The discrete equations of MODEL.md: residual (body-frame torque balance per
+//! The discrete equations of docs/model.md: residual (body-frame torque balance per
 //! node), its analytic Jacobian (block-tridiagonal), positions and energy.
 //!
 //! Unknowns are the node quaternions `q_1..q_n` (`q_0` is the clamped base).

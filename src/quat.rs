@@ -1,7 +1,7 @@
 //! Unit quaternions, scalar first `(w, x, y, z)`, rotating material to world.
 //!
 //! A small explicit type rather than nalgebra's `Quaternion`, whose storage order
-//! is `(x, y, z, w)`: the formulas of MODEL.md read one-to-one here.
+//! is `(x, y, z, w)`: the formulas of docs/model.md read one-to-one here.
 
 use nalgebra::{Matrix3, Vector3};
 use std::ops::Mul;

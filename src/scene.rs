@@ -1,4 +1,4 @@
-//! The scene: what is being solved, in SI units and the conventions of MODEL.md.
+//! The scene: what is being solved, in SI units and the conventions of docs/model.md.
 //!
 //! A scene is read from a [`Value`] tree (JSON, TOML or a Python dict) by one
 //! validator, which refuses unknown keys, wrong shapes, non-finite numbers and

@@ -1,7 +1,7 @@
 """NumPy reference implementation of the *discrete* quaternion rod model.
 
 This module is a deliberately plain, slow and independent implementation of
-the discrete model described in ``MODEL.md`` (quaternion finite differences,
+the discrete model described in ``docs/model.md`` (quaternion finite differences,
 free tip, dead loads). It exists to check the fast Rust core: it shares no
 code with it and solves the equilibrium in a different way (raw 4-vector
 unknowns, unit-norm equations, complex-step Jacobian, dense Newton).

@@ -5,13 +5,13 @@
 //! Armijo backtracking), then Levenberg-Marquardt with the gain-ratio update of
 //! the damping.
 //!
-//! The rows are the published ones with MODEL.md's corrections: the torque
+//! The rows are the published ones with docs/model.md's corrections: the torque
 //! balance of every node from the variation of the discrete potential (with the
 //! forces as unknowns), the force balance in the world frame
 //! `(F_i - F_{i-1})/ds + f = 0`, the tip condition (`F_n = P`, or the tip held),
 //! and a unit-norm row `|q_j|^2 - 1` per node. `literal` drops the unit-norm rows,
 //! as printed: the system is then underdetermined and its least-squares solutions
-//! let `|q|` drift (the collapse MODEL.md describes).
+//! let `|q|` drift (the collapse docs/model.md describes).
 //!
 //! The Jacobian is taken by central differences (the paper gives none), so this
 //! method is slow by design; `newton` solves the same discrete equilibrium.

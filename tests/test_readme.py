@@ -1,0 +1,33 @@
+"""Issue 11, item 3: every Python block of the README runs, in order, in one
+fresh interpreter (they build on each other, as a reader types them). The Rust
+block is a doctest (``cargo test --doc``, see ``src/lib.rs``)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+
+
+def python_blocks(text):
+    return re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
+
+
+def test_the_readme_has_python_blocks():
+    assert len(python_blocks(README.read_text())) >= 4
+
+
+def test_the_readmes_python_blocks_run(tmp_path):
+    script = "\n\n".join(python_blocks(README.read_text()))
+    run = subprocess.run(
+        [sys.executable, "-c", script],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin"},
+    )
+    assert run.returncode == 0, run.stderr[-3000:]

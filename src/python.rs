@@ -515,7 +515,10 @@ impl PySolution {
     fn quaternions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows4(py, &self.inner.quaternions)
     }
-    /// Internal force at the nodes, world frame, shape (n+1, 3), N.
+    /// Internal force at the nodes, world frame, shape (n+1, 3), N: the force
+    /// that the rod beyond node j exerts on the rod before it. ``forces[0]`` is
+    /// the force of the rod on its base support (the support's reaction on the
+    /// rod is minus it).
     #[getter]
     fn forces<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows3(py, &self.inner.forces)
@@ -720,8 +723,13 @@ fn solve(
                 richardson,
                 ..Accuracy::new(tol)
             };
-            // It may end at any n up to the limit.
-            detach_on_worker(py, move || solve_to_accuracy(&scene, settings, &accuracy))?
+            // It may end at any n up to the limit. A worker thread costs a
+            // thread start, which made a solve of tens of microseconds take
+            // 1.6 ms: only for passes that may outlast the poll.
+            let long = accuracy.has_long_passes(&settings);
+            detach_solve(py, long, move || {
+                solve_to_accuracy(&scene, settings, &accuracy)
+            })?
         }
     };
     let solution = if check { solution.check()? } else { solution };

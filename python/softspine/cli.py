@@ -32,7 +32,9 @@ def _demo(args: argparse.Namespace) -> int:
     tip = sol.tip_position
     print(f"  tip position [m]: [{tip[0]:+.5f}, {tip[1]:+.5f}, {tip[2]:+.5f}]")
     print(f"  tip quaternion:   [{', '.join(f'{x:+.5f}' for x in sol.tip_quaternion)}]")
-    print(f"  base force [N]:   [{', '.join(f'{x:+.4f}' for x in sol.forces[0])}]")
+    # forces[0]: the force of the rod on its base support (the reaction is minus it).
+    print(f"  force on the base support [N]: "
+          f"[{', '.join(f'{x:+.4f}' for x in sol.forces[0])}]")
     print(f"  energy: {sol.energy:.6f} J")
     fine = solve(scene, n_elements=8 * sol.n_elements, method=args.method, initial=None)
     err = float(np.linalg.norm(fine.tip_position - tip))

@@ -41,6 +41,17 @@ pub const ACCURACY_TOL_RANGE: (f64, f64) = (1e-12, 1e-1);
 pub const ASYMPTOTIC_TURN: f64 = 0.25;
 
 impl Accuracy {
+    /// Whether one pass of this solve may outlast the interrupt poll (see
+    /// [`Settings::has_long_passes`]): it may end at any n up to
+    /// `max_elements`.
+    pub fn has_long_passes(&self, settings: &Settings) -> bool {
+        Settings {
+            n_elements: Some(self.max_elements),
+            ..settings.clone()
+        }
+        .has_long_passes()
+    }
+
     pub fn validate(&self) -> Result<()> {
         check_tolerance("tol", self.tol, ACCURACY_TOL_RANGE)?;
         if self.max_elements == 0 || self.max_elements > MAX_ELEMENTS {

@@ -587,3 +587,55 @@ def test_accuracy_on_demand_of_a_pinned_rod_covers_the_whole_backbone():
     error = np.abs(finest.positions[:: 16] - sol.positions).max()
     assert error <= 1.5 * tol, (n, error)
     assert error / 3 <= sol.error_estimate <= 3 * error, (sol.error_estimate, error)
+
+
+# --- the review of nested iteration and stall detection (stop 18) -----------------------
+
+GUIDED = {
+    "length": 1,
+    "stiffness": {"kx": 1, "ky": 2, "kz": 0.7},
+    "tip_force": [0.5, 0.3, -1],
+    "guides": [{"s": 0.5, "position": [0.2, 0.1, 0.4]}],
+    "tip": {"type": "pinned", "position": [0.5, 0.2, 0.6]},
+}
+
+
+@pytest.mark.parametrize("n", [24, 40, 1000])
+def test_a_held_newton_on_a_plateau_is_not_cut_off(n):
+    """A guided rod's Newton rests on a merit plateau for ten iterations, then
+    converges (18 iterations at n = 24, 9.520 J). Stall detection cut it off:
+    not_converged at n = 24, another equilibrium (about 10.46 J) through the
+    fallback at n = 40, and not_converged at n = 1000 through the coarse rod."""
+    sol = softspine.solve(GUIDED, n_elements=n, check=True)
+    assert sol.stable and 9.5 < sol.energy < 9.56
+    assert sol.iterations <= 30
+
+
+def test_a_coarse_rod_resolves_the_loads_curvature():
+    """A tip moment of 26 EI/L coils the rod four times: 24 coarse elements
+    would turn more than 1 rad each, the coarse solve spent the whole budget
+    and the fine rod (n = 960, solved in 241 iterations before nesting) got
+    none. The coarse rod now resolves the loads' curvature scale and may spend
+    at most half the budget."""
+    scene = {"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1}, "tip_moment": [26, 0, 0]}
+    sol = softspine.solve(scene, n_elements=960)
+    assert sol.converged, sol.message
+
+
+@pytest.mark.parametrize("n", [96, 384])
+def test_a_clamped_tip_half_a_turn_from_rest_keeps_its_side(n):
+    """The clamped quaternion is taken on the side of each rod's rest tip,
+    which moves with n: near half a turn the coarse rod posed a problem a full
+    turn away, and the fine rod ended underresolved (6.2 rad in one element)."""
+    scene = {
+        "length": 1,
+        "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+        "rest_curvature": [[math.pi, 0]],
+        "tip": {
+            "type": "clamped",
+            "position": [0.1, -0.2, 0.8],
+            "quaternion": [0.9999998218752518, 0.0005968663708245479, 0, 0],
+        },
+    }
+    sol = softspine.solve(scene, n_elements=n, check=True)
+    assert sol.stable and abs(sol.energy - 10.16) < 0.01

@@ -235,14 +235,12 @@ pub(crate) fn newton(
     w: &mut Workspace,
     lambda: f64,
     (max_iter, tol): (usize, f64),
-    give_up_when_stalled: bool,
 ) -> (bool, usize) {
     let n = model.n;
     if let Some(tip) = model.clamped_tip_at(lambda) {
         w.q[n] = tip;
     }
     let mut merit_now = evaluate(model, w, lambda, true);
-    let mut progress = super::newton::Progress::new();
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
         let norm = residual_norm(model, w);
@@ -257,8 +255,7 @@ pub(crate) fn newton(
         if super::newton::certified(norm, &w.step, tol) {
             return (true, it);
         }
-        let stalled = give_up_when_stalled && norm > tol && progress.stalled(merit_now);
-        if it == max_iter || stalled {
+        if it == max_iter {
             return (false, it);
         }
         for (i, d) in w.kkt.reaction_step.iter_mut().enumerate() {

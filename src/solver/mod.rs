@@ -64,10 +64,10 @@ pub struct Settings {
     /// round-off floor of the residual (see [`RodModel::roundoff_floor`]), so
     /// that it cannot be defeated at large n.
     pub residual_tol: f64,
-    /// Iteration budget of a solve (default 500), shared by the direct
-    /// attempt (at most 60 of it), every load-continuation step (at most 25
-    /// each) and the Levenberg-Marquardt fallback: `Solution::iterations`
-    /// never exceeds it.
+    /// Iteration budget of a solve (default 500), shared by the coarse rod of
+    /// nested iteration (at most three quarters of it), the direct attempt (at most 60),
+    /// every load-continuation step (at most 25 each) and the
+    /// Levenberg-Marquardt fallback: `Solution::iterations` never exceeds it.
     pub max_iterations: usize,
     /// Smallest load-continuation step before giving up (default 1e-6).
     pub min_continuation_step: f64,
@@ -557,7 +557,9 @@ impl Solver {
         let budget = self.settings.max_iterations;
         let mut spent = 0;
         if initial.is_none() {
-            if let Some(n0) = nested::coarse_elements(&self.scene, &self.settings) {
+            if let Some(n0) =
+                nested::coarse_elements(&self.scene, &self.settings, self.model.load_parameter)
+            {
                 let nested = self.start_from_coarse(n0, budget, tol)?;
                 if nested.converged {
                     let ending = Ending::FromCoarse {

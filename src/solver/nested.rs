@@ -54,14 +54,25 @@ const MAX_CORRECTION: f64 = 0.5;
 /// elements from [`COARSE_ELEMENTS`] (or `n / LEVEL_RATIO`) up that resolve the rest shape (as
 /// accuracy on demand starts), are a multiple of the sections, put every point
 /// load and held point on a node and reach the held points with slack to
-/// spare; at most `n / NEST_FACTOR`.
-pub(crate) fn coarse_elements(scene: &Scene, settings: &Settings) -> Option<usize> {
+/// spare, and resolve the loads' curvature scale (`load_parameter`, see
+/// `RodModel::load_parameter`); at most `n / NEST_FACTOR`.
+pub(crate) fn coarse_elements(
+    scene: &Scene,
+    settings: &Settings,
+    load_parameter: f64,
+) -> Option<usize> {
     let n = settings.elements_for(scene);
     if settings.method != Method::Newton || n < NEST_FACTOR * COARSE_ELEMENTS {
         return None;
     }
     let m = scene.sections();
-    let first = super::adaptive::starting_elements(scene, COARSE_ELEMENTS.max(n / LEVEL_RATIO));
+    // The loads bend the rod too: their curvature scale `kappa L` turns no
+    // coarse element by more than half a radian. A coarse rod near the
+    // scheme's limit of a radian an element (a tip moment of 26 EI/L coils the
+    // rod four times: 24 and 26 elements fail) only spends the budget.
+    let loaded = (2.0 * load_parameter).ceil().min(n as f64) as usize;
+    let requested = COARSE_ELEMENTS.max(n / LEVEL_RATIO).max(loaded);
+    let first = super::adaptive::starting_elements(scene, requested);
     let slack = scene.reach_slack(n);
     (first..=n / NEST_FACTOR).step_by(m).find(|&n0| {
         scene.check_elements(n0).is_ok()
@@ -86,7 +97,8 @@ fn for_each_interpolated(coarse: &[Quat], n: usize, mut f: impl FnMut(usize, Qua
     let mut element = usize::MAX;
     let mut turn = Vector3::zeros();
     for i in 0..=n {
-        let x = (i * n0) as f64 / n as f64;
+        // In floating point: `i * n0` may overflow a 32-bit usize.
+        let x = i as f64 * n0 as f64 / n as f64;
         let j = (x.floor() as usize).min(n0 - 1);
         if j != element {
             element = j;
@@ -133,9 +145,11 @@ impl Solver {
         budget: usize,
         tol: f64,
     ) -> Result<Nested> {
+        // At most three quarters of the budget: a coarse rod that fails
+        // leaves the fine rod's full strategy the rest.
         let coarse_settings = Settings {
             n_elements: Some(n0),
-            max_iterations: budget,
+            max_iterations: (3 * budget / 4).max(1),
             ..self.settings.clone()
         };
         let mut coarse = Solver::new(&self.scene, coarse_settings)?;
@@ -146,7 +160,14 @@ impl Solver {
             continuation_steps: solution.continuation_steps,
             stable: false,
         };
-        if !solution.converged() || solution.iterations >= budget {
+        // A clamped tip's quaternion is taken on the side of each rod's own
+        // rest tip, which moves with n: near a half turn from it the two rods
+        // may pose problems a full turn apart.
+        let same_tip = match (coarse.model.clamped_tip, self.model.clamped_tip) {
+            (Some(a), Some(b)) => a.dot(b) > 0.0,
+            _ => true,
+        };
+        if !solution.converged() || solution.iterations >= budget || !same_tip {
             return Ok(nested);
         }
         let (model, w) = (&self.model, &mut self.work);
@@ -156,7 +177,9 @@ impl Solver {
         let max_iter = FINE_ITERATIONS.min(budget - solution.iterations);
         let out = self.local.run(model, w, 1.0, max_iter, tol);
         nested.iterations += out.iterations;
-        if out.converged && next_to(&solution.quaternions, &w.q) {
+        let resolved =
+            model.max_element_turn(&w.q).max(model.max_rest_turn()) <= super::MAX_RESOLVED_TURN;
+        if out.converged && resolved && next_to(&solution.quaternions, &w.q) {
             // A free rod loaded beyond its stability is answered unstable at
             // every n; otherwise the fine rod must be stable like the coarse.
             nested.stable = is_stable(model, w);
@@ -218,28 +241,28 @@ mod tests {
         let plain = scene(
             r#"{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1}, "tip_force": [1, 0, 0]}"#,
         );
-        assert_eq!(coarse_elements(&plain, &settings(80)), None);
+        assert_eq!(coarse_elements(&plain, &settings(80), 0.2), None);
         assert_eq!(
-            coarse_elements(&plain, &settings(96)),
+            coarse_elements(&plain, &settings(96), 0.2),
             Some(COARSE_ELEMENTS)
         );
         let lm = Settings {
             method: Method::LevenbergMarquardt,
             ..settings(960)
         };
-        assert_eq!(coarse_elements(&plain, &lm), None);
+        assert_eq!(coarse_elements(&plain, &lm, 0.2), None);
         // A point load at 0.35 L is on a node only for multiples of 20.
         let loaded = scene(
             r#"{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1},
                 "point_loads": [{"s": 0.35, "force": [1, 0, 0]}]}"#,
         );
-        assert_eq!(coarse_elements(&loaded, &settings(960)), Some(40));
+        assert_eq!(coarse_elements(&loaded, &settings(960), 0.35), Some(40));
         // A coiled rod: the coarse rod resolves its rest shape (0.25 rad per element).
         let coiled = scene(
             r#"{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1},
                 "rest_curvature": [[0, 20]], "tip_force": [1, 0, 0]}"#,
         );
-        assert_eq!(coarse_elements(&coiled, &settings(960)), Some(80));
+        assert_eq!(coarse_elements(&coiled, &settings(960), 0.2), Some(80));
     }
 
     #[test]
@@ -253,7 +276,7 @@ mod tests {
             r#"{{"length": 1, "stiffness": {{"kx": 1, "ky": 1, "kz": 1}},
                 "tip": {{"type": "pinned", "position": {target:?}}}}}"#
         ));
-        let n0 = coarse_elements(&pinned, &settings(3072)).unwrap();
+        let n0 = coarse_elements(&pinned, &settings(3072), 0.0).unwrap();
         assert!(pinned.reach_slack(n0) >= REACH_SLACK_SHARE * pinned.reach_slack(3072));
         assert!(pinned.reach_slack(COARSE_ELEMENTS) < REACH_SLACK_SHARE * pinned.reach_slack(3072));
     }

@@ -18,10 +18,10 @@ const MAX_NODE_TURN: f64 = 1.0;
 const MAX_ELEMENT_TURN: f64 = 0.3;
 
 /// Iterations over which a run must reduce its merit by `STALL_FACTOR`.
-const STALL_WINDOW: usize = 5;
+const STALL_WINDOW: usize = 8;
 const STALL_FACTOR: f64 = 0.9;
 
-/// Detects a stalled direct attempt: the merit (half the squared residual)
+/// Detects a stalled direct attempt of a free rod: the merit (half the squared residual)
 /// has not dropped below `STALL_FACTOR` of its value `STALL_WINDOW`
 /// iterations ago. From the initial guess, Newton often ends near a local
 /// minimum of the merit that is no equilibrium (the Jacobian nearly
@@ -84,7 +84,7 @@ impl LocalSolver for Newton {
 }
 
 /// Newton from `w.q` within `max_iter` iterations; with `give_up_when_stalled`
-/// it stops once the merit stalls (see [`Progress`]).
+/// a free rod's run stops once the merit stalls (see [`Progress`]).
 fn iterate(
     model: &RodModel,
     w: &mut Workspace,
@@ -93,8 +93,10 @@ fn iterate(
     give_up_when_stalled: bool,
 ) -> LocalOutcome {
     if model.is_constrained() {
-        let (converged, iterations) =
-            super::constrained::newton(model, w, lambda, (max_iter, tol), give_up_when_stalled);
+        // Not judged by its merit: a held rod's Newton often rests on a
+        // plateau for ten iterations and then converges (a guided scene went
+        // from 18 iterations to none, or to another equilibrium by the fallback).
+        let (converged, iterations) = super::constrained::newton(model, w, lambda, (max_iter, tol));
         return LocalOutcome {
             converged,
             iterations,
@@ -255,7 +257,7 @@ mod tests {
         assert!((0..30).all(|k| !damped.stalled(0.95f64.powi(k))));
         // A merit lowered by a hair an iteration stalls after the window.
         let mut flat = Progress::new();
-        let stalled: Vec<bool> = (0..8)
+        let stalled: Vec<bool> = (0..12)
             .map(|k| flat.stalled(1.0 - 1e-3 * k as f64))
             .collect();
         assert_eq!(stalled.iter().position(|&s| s), Some(STALL_WINDOW));

@@ -445,7 +445,7 @@ impl Scene {
                 ));
             }
         }
-        let mut held: Vec<(String, f64, Vector3<f64>)> = Vec::new();
+        let mut previous = 0.0;
         for (i, g) in self.guides.iter().enumerate() {
             let key = format!("guides[{i}].s");
             if !(g.s > 0.0 && g.s < self.length) {
@@ -458,20 +458,12 @@ impl Scene {
                 ));
             }
             check_on_node(&key, g.s, ds)?;
-            if let Some((_, prev, _)) = held.last() {
-                if g.s <= *prev {
-                    return Err(Error::scene(key, "guides must be given by increasing s"));
-                }
+            if i > 0 && g.s <= previous {
+                return Err(Error::scene(key, "guides must be given by increasing s"));
             }
-            held.push((format!("guides[{i}].position"), g.s, g.position));
+            previous = g.s;
         }
-        match &self.tip {
-            TipCondition::Free => {}
-            TipCondition::Pinned { position } | TipCondition::Clamped { position, .. } => {
-                held.push(("tip.position".into(), self.length, *position));
-            }
-        }
-        let spans = self.held_spans(held, n)?;
+        let spans = self.held_spans(n)?;
         let limit = spans.into_iter().find_map(|span| {
             let HeldSpan {
                 key,
@@ -506,17 +498,7 @@ impl Scene {
     /// free tip, 0 at the discrete reach (see [`Scene::check_constraints`]).
     /// A valid scene's held points only; invalid ones count as no slack.
     pub fn reach_slack(&self, n: usize) -> f64 {
-        let mut held: Vec<(String, f64, Vector3<f64>)> = self
-            .guides
-            .iter()
-            .map(|g| (String::new(), g.s, g.position))
-            .collect();
-        if let TipCondition::Pinned { position } | TipCondition::Clamped { position, .. } =
-            &self.tip
-        {
-            held.push((String::new(), self.length, *position));
-        }
-        match self.held_spans(held, n) {
+        match self.held_spans(n) {
             Ok(spans) => spans
                 .iter()
                 .map(|h| (h.reach - h.distance) / h.arc)
@@ -525,17 +507,31 @@ impl Scene {
         }
     }
 
-    /// The spans between consecutive held points `(key, s, position)` (the
+    /// The held points `(key of the position, s, position)`: the guides, then
+    /// a pinned or clamped tip.
+    fn held_points(&self) -> Vec<(String, f64, Vector3<f64>)> {
+        let mut held: Vec<_> = self
+            .guides
+            .iter()
+            .enumerate()
+            .map(|(i, g)| (format!("guides[{i}].position"), g.s, g.position))
+            .collect();
+        if let TipCondition::Pinned { position } | TipCondition::Clamped { position, .. } =
+            &self.tip
+        {
+            held.push(("tip.position".into(), self.length, *position));
+        }
+        held
+    }
+
+    /// The spans between consecutive [held points](Scene::held_points) (the
     /// base first), each with what the rod of `n` elements reaches along it.
     /// A clamped end (the base before the first held point, a clamped tip
     /// after the last) keeps the discrete rod from straightening at once:
     /// its reach falls short of the arc.
-    fn held_spans(
-        &self,
-        held: Vec<(String, f64, Vector3<f64>)>,
-        n: usize,
-    ) -> Result<Vec<HeldSpan>> {
+    fn held_spans(&self, n: usize) -> Result<Vec<HeldSpan>> {
         let ds = self.length / n as f64;
+        let held = self.held_points();
         let held_count = held.len();
         let mut from = (0.0, self.base_position);
         let mut spans = Vec::with_capacity(held_count);

@@ -56,6 +56,20 @@ pub enum Strategy {
     Geometric,
 }
 
+impl std::str::FromStr for Strategy {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "equilibrium" => Ok(Strategy::Equilibrium),
+            "geometric" => Ok(Strategy::Geometric),
+            other => Err(Error::argument(
+                "strategy",
+                format!("unknown strategy '{other}' (expected 'equilibrium' or 'geometric')"),
+            )),
+        }
+    }
+}
+
 /// Options of one inverse solve.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IkOptions {

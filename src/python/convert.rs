@@ -1,0 +1,412 @@
+//! Python values to the core's and back: the value tree, typed arguments
+//! refused by name, arrays.
+
+use crate::value::MAX_DEPTH;
+use crate::{Quat, Value};
+use nalgebra::Vector3;
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple, PyType};
+
+/// Where a value sits in the caller's input, for refusals: a chain of steps on
+/// the stack, rendered only for an error. Inside a dict (a scene, a robot) the
+/// key path names the field as the validators do (`tip.position[1]`); inside an
+/// argument the argument's name comes first, so that every refusal starts with
+/// it (`target: at [1]: ...`).
+pub(super) struct Path<'a> {
+    step: Step<'a>,
+    parent: Option<&'a Path<'a>>,
+    /// Lists, dicts and arrays entered so far.
+    depth: usize,
+}
+
+#[derive(Clone, Copy)]
+pub(super) enum Step<'a> {
+    Input(&'a str),
+    Argument(&'a str),
+    Key(&'a str),
+    Index(usize),
+    /// An array's `tolist()`: one level deeper at the same place.
+    Same,
+}
+
+impl<'a> Path<'a> {
+    pub(super) fn input(name: &'a str) -> Self {
+        Path {
+            step: Step::Input(name),
+            parent: None,
+            depth: 0,
+        }
+    }
+
+    pub(super) fn argument(name: &'a str) -> Self {
+        Path {
+            step: Step::Argument(name),
+            parent: None,
+            depth: 0,
+        }
+    }
+
+    pub(super) fn child(&'a self, step: Step<'a>) -> Path<'a> {
+        Path {
+            step,
+            parent: Some(self),
+            depth: self.depth + 1,
+        }
+    }
+
+    pub(super) fn key(&'a self, key: &'a str) -> Path<'a> {
+        self.child(Step::Key(key))
+    }
+
+    pub(super) fn index(&'a self, i: usize) -> Path<'a> {
+        self.child(Step::Index(i))
+    }
+
+    pub(super) fn error(&self, reason: impl std::fmt::Display) -> PyErr {
+        let mut steps = Vec::new();
+        let mut node = Some(self);
+        while let Some(p) = node {
+            steps.push(p.step);
+            node = p.parent;
+        }
+        let (mut name, mut argument, mut at) = ("", false, String::new());
+        for step in steps.into_iter().rev() {
+            match step {
+                Step::Input(n) => name = n,
+                Step::Argument(n) => (name, argument) = (n, true),
+                Step::Key(k) if at.is_empty() => at.push_str(k),
+                Step::Key(k) => at.push_str(&format!(".{k}")),
+                Step::Index(i) => at.push_str(&format!("[{i}]")),
+                Step::Same => {}
+            }
+        }
+        PyValueError::new_err(match (at.is_empty(), argument) {
+            (true, _) => format!("{name}: {reason}"),
+            (false, false) => format!("{at}: {reason}"),
+            (false, true) => format!("{name}: at {at}: {reason}"),
+        })
+    }
+}
+
+pub(super) fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map_or_else(|_| "?".to_owned(), |n| n.to_string())
+}
+
+pub(super) fn unsupported(obj: &Bound<'_, PyAny>, path: &Path) -> PyErr {
+    path.error(format!("unsupported value of type {}", type_name(obj)))
+}
+
+/// NumPy's scalar types, looked up once.
+pub(super) struct NumpyTypes {
+    generic: Py<PyType>,
+    bool_: Py<PyType>,
+    integer: Py<PyType>,
+    floating: Py<PyType>,
+}
+
+pub(super) fn numpy_types(py: Python<'_>) -> PyResult<&'static NumpyTypes> {
+    static TYPES: PyOnceLock<NumpyTypes> = PyOnceLock::new();
+    TYPES.get_or_try_init(py, || {
+        let np = py.import("numpy")?;
+        let ty = |name: &str| -> PyResult<Py<PyType>> {
+            Ok(np.getattr(name)?.cast_into::<PyType>()?.unbind())
+        };
+        Ok(NumpyTypes {
+            generic: ty("generic")?,
+            bool_: ty("bool_")?,
+            integer: ty("integer")?,
+            floating: ty("floating")?,
+        })
+    })
+}
+
+/// A Python int as a number; one beyond the double range is refused by path.
+pub(super) fn int_number(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
+    obj.extract::<f64>()
+        .map(Value::Number)
+        .map_err(|_| path.error("integer too large for a double"))
+}
+
+/// A scalar (None, bool, str, int, float or a NumPy scalar) as a value, or None
+/// if `obj` is not one. NumPy scalars are converted explicitly: `tolist()` of a
+/// `longdouble` returns the `longdouble` itself.
+pub(super) fn scalar(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Option<Value>> {
+    if obj.is_none() {
+        return Ok(Some(Value::Null));
+    }
+    if let Ok(b) = obj.cast::<PyBool>() {
+        return Ok(Some(Value::Bool(b.is_true())));
+    }
+    if let Ok(s) = obj.cast::<PyString>() {
+        let text = s.to_cow().map_err(|_| path.error("not valid text"))?;
+        return Ok(Some(Value::String(text.into_owned())));
+    }
+    if obj.is_instance_of::<PyInt>() {
+        return int_number(obj, path).map(Some);
+    }
+    if obj.is_instance_of::<PyFloat>() {
+        return Ok(Some(Value::Number(obj.extract()?)));
+    }
+    let py = obj.py();
+    let np = numpy_types(py)?;
+    if !obj.is_instance(np.generic.bind(py))? {
+        return Ok(None);
+    }
+    if obj.is_instance(np.bool_.bind(py))? {
+        return Ok(Some(Value::Bool(obj.is_truthy()?)));
+    }
+    if obj.is_instance(np.integer.bind(py))? {
+        return int_number(&obj.call_method0("__index__")?, path).map(Some);
+    }
+    if obj.is_instance(np.floating.bind(py))? {
+        let x: f64 = obj.extract()?;
+        // A longdouble beyond the double range becomes inf: refuse it rather
+        // than pass on an infinity the input did not hold.
+        if x.is_infinite() && !obj.eq(x)? {
+            return Err(path.error(format!("{} is out of the range of a double", obj.str()?)));
+        }
+        return Ok(Some(Value::Number(x)));
+    }
+    Err(unsupported(obj, path))
+}
+
+/// Python object -> value tree: dicts, lists, tuples, scalars (NumPy's too) and
+/// arrays (anything with `tolist()`, called once per level). At most
+/// `MAX_DEPTH` levels deep, so that a deep or self-containing input is refused
+/// instead of overflowing the stack.
+pub(super) fn to_value(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
+    if let Some(v) = scalar(obj, path)? {
+        return Ok(v);
+    }
+    if path.depth >= MAX_DEPTH {
+        return Err(path.error(format!("nested deeper than {MAX_DEPTH} levels")));
+    }
+    if let Ok(d) = obj.cast::<PyDict>() {
+        // Items first: converting runs Python code that could change the dict.
+        let items: Vec<_> = d.iter().collect();
+        let mut entries = Vec::with_capacity(items.len());
+        for (k, v) in items {
+            let key = match k.cast::<PyString>() {
+                Ok(s) => s
+                    .to_cow()
+                    .map_err(|_| path.error("keys must be valid text"))?,
+                Err(_) => {
+                    return Err(path.error(format!("keys must be strings, got {}", type_name(&k))))
+                }
+            };
+            let value = to_value(&v, &path.key(&key))?;
+            entries.push((key.into_owned(), value));
+        }
+        return Ok(Value::Map(entries));
+    }
+    if let Ok(l) = obj.cast::<PyList>() {
+        return l
+            .iter()
+            .enumerate()
+            .map(|(i, x)| to_value(&x, &path.index(i)))
+            .collect::<PyResult<_>>()
+            .map(Value::List);
+    }
+    if let Ok(t) = obj.cast::<PyTuple>() {
+        return t
+            .iter()
+            .enumerate()
+            .map(|(i, x)| to_value(&x, &path.index(i)))
+            .collect::<PyResult<_>>()
+            .map(Value::List);
+    }
+    if obj.hasattr("tolist")? {
+        let list = obj.call_method0("tolist")?;
+        return to_value(&list, &path.child(Step::Same));
+    }
+    Err(unsupported(obj, path))
+}
+
+/// A string argument, refused by name (pyo3's own refusal does not name it).
+pub(super) fn str_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<String> {
+    let path = Path::argument(name);
+    match obj.cast::<PyString>() {
+        Ok(s) => Ok(s
+            .to_cow()
+            .map_err(|_| path.error("not valid text"))?
+            .into_owned()),
+        Err(_) => Err(path.error(format!("expected a string, got {}", type_name(obj)))),
+    }
+}
+
+/// A count argument: an int or NumPy integer (not a bool or a float) that fits
+/// `usize`, refused by name.
+pub(super) fn int_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let path = Path::argument(name);
+    let py = obj.py();
+    let integer = !obj.is_instance_of::<PyBool>()
+        && (obj.is_instance_of::<PyInt>() || obj.is_instance(numpy_types(py)?.integer.bind(py))?);
+    if !integer {
+        return Err(path.error(format!("expected an integer, got {}", type_name(obj))));
+    }
+    match obj.extract::<usize>() {
+        Ok(n) => Ok(n),
+        Err(_) if obj.lt(0)? => Err(path.error(format!("must not be negative, got {obj}"))),
+        Err(_) => Err(path.error(format!("too large (at most {})", usize::MAX))),
+    }
+}
+
+/// A finite real argument (int, float, NumPy scalar or 0-d array), refused by name.
+pub(super) fn float_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let path = Path::argument(name);
+    match to_value(obj, &path)? {
+        Value::Number(x) if x.is_finite() => Ok(x),
+        Value::Number(x) => Err(path.error(format!("must be finite, got {x}"))),
+        _ => Err(path.error(format!("expected a number, got {}", type_name(obj)))),
+    }
+}
+
+pub(super) fn from_value<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match v {
+        Value::Null => py.None().into_bound(py),
+        Value::Bool(b) => PyBool::new(py, *b).to_owned().into_any(),
+        Value::Number(x) => PyFloat::new(py, *x).into_any(),
+        Value::String(s) => PyString::new(py, s).into_any(),
+        Value::List(items) => {
+            let l = PyList::empty(py);
+            for x in items {
+                l.append(from_value(py, x)?)?;
+            }
+            l.into_any()
+        }
+        Value::Map(entries) => {
+            let d = PyDict::new(py);
+            for (k, x) in entries {
+                d.set_item(k, from_value(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
+}
+
+pub(super) fn vec3_array<'py>(py: Python<'py>, v: &Vector3<f64>) -> Bound<'py, PyArray1<f64>> {
+    vec![v.x, v.y, v.z].into_pyarray(py)
+}
+
+pub(super) fn rows3<'py>(py: Python<'py>, vs: &[Vector3<f64>]) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((vs.len(), 3), |(i, c)| vs[i][c]).into_pyarray(py)
+}
+
+pub(super) fn rows4<'py>(py: Python<'py>, qs: &[Quat]) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((qs.len(), 4), |(i, c)| qs[i].to_array()[c]).into_pyarray(py)
+}
+
+/// An optional argument that was given (Python's None means "the default").
+pub(super) fn given<'py>(x: Option<&Bound<'py, PyAny>>) -> Option<Bound<'py, PyAny>> {
+    x.filter(|o| !o.is_none()).cloned()
+}
+
+pub(super) fn rows_n<'py, const N: usize>(
+    py: Python<'py>,
+    rows: &[[f64; N]],
+) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((rows.len(), N), |(i, c)| rows[i][c]).into_pyarray(py)
+}
+
+/// An (m, N) float argument. A float64 array of that shape is read as it is;
+/// anything else (lists, other dtypes such as longdouble or object, junk) goes
+/// through `to_value`, converted or refused by the rules of a scene's values.
+pub(super) fn rows_arg<const N: usize>(
+    name: &str,
+    obj: &Bound<'_, PyAny>,
+) -> PyResult<Vec<[f64; N]>> {
+    let path = Path::argument(name);
+    let rows: Vec<[f64; N]> = match obj.extract::<PyReadonlyArray2<f64>>() {
+        Ok(a) if a.as_array().ncols() == N => a
+            .as_array()
+            .rows()
+            .into_iter()
+            .map(|r| std::array::from_fn(|c| r[c]))
+            .collect(),
+        _ => match to_value(obj, &path)? {
+            Value::List(items) => items
+                .iter()
+                .enumerate()
+                .map(|(i, row)| numbers::<N>(row, &path.index(i)))
+                .collect::<PyResult<_>>()?,
+            other => {
+                return Err(path.error(format!(
+                    "expected an array of shape (m, {N}), got {}",
+                    other.kind()
+                )))
+            }
+        },
+    };
+    for (i, row) in rows.iter().enumerate() {
+        for (j, x) in row.iter().enumerate() {
+            if !x.is_finite() {
+                return Err(path
+                    .index(i)
+                    .index(j)
+                    .error(format!("must be finite, got {x}")));
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// The N numbers of a list (finiteness is the caller's check).
+pub(super) fn numbers<const N: usize>(v: &Value, path: &Path) -> PyResult<[f64; N]> {
+    let items = match v {
+        Value::List(items) if items.len() == N => items,
+        Value::List(items) => {
+            return Err(path.error(format!("expected {N} numbers, got {}", items.len())))
+        }
+        other => return Err(path.error(format!("expected {N} numbers, got {}", other.kind()))),
+    };
+    let mut out = [0.0; N];
+    for (i, item) in items.iter().enumerate() {
+        out[i] = match item {
+            Value::Number(x) => *x,
+            other => {
+                return Err(path
+                    .index(i)
+                    .error(format!("expected a number, got {}", other.kind())))
+            }
+        };
+    }
+    Ok(out)
+}
+
+/// A 3-vector argument: a row of `rows_arg`'s rules.
+pub(super) fn vec3_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f64>> {
+    let path = Path::argument(name);
+    let v: [f64; 3] = match obj.extract::<PyReadonlyArray1<f64>>() {
+        Ok(a) if a.as_array().len() == 3 => std::array::from_fn(|i| a.as_array()[i]),
+        _ => numbers::<3>(&to_value(obj, &path)?, &path)?,
+    };
+    for (i, x) in v.iter().enumerate() {
+        if !x.is_finite() {
+            return Err(path.index(i).error(format!("must be finite, got {x}")));
+        }
+    }
+    Ok(Vector3::from(v))
+}
+
+// `#[pyo3(from_py_with = ...)]` takes a function path: one converter a name.
+pub(super) fn load_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    float_arg("load", obj)
+}
+
+pub(super) fn tol_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    float_arg("tol", obj)
+}
+
+pub(super) fn max_iterations_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    int_arg("max_iterations", obj)
+}
+
+pub(super) fn points_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    int_arg("points", obj)
+}

@@ -1,0 +1,430 @@
+//! `Robot`, its inverse kinematics (`InverseSolver`, `IkResult`) and the seed's trajectories.
+
+use super::convert::*;
+use super::detach::detach_solve;
+use super::scene::PyScene;
+use super::solution::PySolution;
+use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot, Strategy};
+use crate::{Scene, Settings};
+use nalgebra::Vector3;
+use numpy::{PyArray1, PyArray2};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::sync::{Arc, Mutex};
+
+// `#[pyo3(from_py_with = ...)]` takes a function path: one converter a name.
+fn strategy_arg(obj: &Bound<'_, PyAny>) -> PyResult<Strategy> {
+    Ok(str_arg("strategy", obj)?.parse::<Strategy>()?)
+}
+
+/// A multi-section pneumatic continuum robot (three muscles a section).
+///
+/// ``Robot()`` resembles the seed's prototype (1 m, 10 sections, hanging);
+/// ``Robot({...})`` overrides any field (see ``Robot().to_dict()``).
+#[pyclass(
+    name = "Robot",
+    module = "softspine._core",
+    frozen,
+    skip_from_py_object
+)]
+pub struct PyRobot {
+    pub(super) inner: Robot,
+}
+
+/// The actuation of one inverse solve in every space, with its equilibrium.
+#[pyclass(name = "IkResult", module = "softspine._core", frozen)]
+pub struct PyIkResult {
+    pub(super) inner: IkResult,
+}
+
+#[pymethods]
+impl PyIkResult {
+    /// ``[kappa_x, kappa_y]`` per section, shape (m, 2), 1/m.
+    #[getter]
+    fn rest_curvature<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows_n(py, &self.inner.rest_curvature)
+    }
+    /// Muscle lengths, shape (m, 3), m.
+    #[getter]
+    fn muscle_lengths<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows_n(py, &self.inner.muscle_lengths)
+    }
+    /// Inflation times, shape (m, 3), s.
+    #[getter]
+    fn inflation_times<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows_n(py, &self.inner.inflation_times)
+    }
+    /// The loaded equilibrium with this actuation.
+    #[getter]
+    fn solution(&self) -> PySolution {
+        PySolution {
+            inner: self.inner.solution.clone(),
+        }
+    }
+    #[getter]
+    fn tip_position<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vec3_array(py, &self.inner.tip_position)
+    }
+    /// Distance from the tip to the target, m.
+    #[getter]
+    fn tip_miss(&self) -> f64 {
+        self.inner.tip_miss
+    }
+    #[getter]
+    fn reached(&self) -> bool {
+        self.inner.reached
+    }
+    /// Why the inverse solve ended: "reached", "out_of_reach", "bounds_active",
+    /// "solver_failure", "iteration_limit" or "load_ignored".
+    #[getter]
+    fn ending(&self) -> &'static str {
+        self.inner.ending.name()
+    }
+    /// Starting actuations tried (1: the fast path sufficed).
+    #[getter]
+    fn starts(&self) -> usize {
+        self.inner.starts
+    }
+    #[getter]
+    fn message(&self) -> String {
+        self.inner.message.clone()
+    }
+    #[getter]
+    fn iterations(&self) -> usize {
+        self.inner.iterations
+    }
+    /// Wall-clock time of the inverse solve, s.
+    #[getter]
+    fn time(&self) -> f64 {
+        self.inner.seconds
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "IkResult(reached={}, tip_miss={:.3e}, iterations={}, time={:.1} us, message={:?})",
+            self.inner.reached,
+            self.inner.tip_miss,
+            self.inner.iterations,
+            self.inner.seconds * 1e6,
+            self.inner.message
+        )
+    }
+}
+
+/// Inverse kinematics of one robot under one tip mass, warm from its last answer.
+///
+/// Safe to share between threads: one solve runs at a time (the warm start is
+/// shared state), and a thread waiting for its turn does not hold the GIL.
+#[pyclass(name = "InverseSolver", module = "softspine._core", frozen)]
+pub struct PyInverseSolver {
+    /// Shared with a worker thread during a long solve (see `detach_solve`).
+    pub(super) inner: Arc<Mutex<InverseSolver>>,
+    pub(super) long_passes: bool,
+}
+
+#[pymethods]
+impl PyInverseSolver {
+    /// The actuation whose loaded equilibrium reaches ``target`` (see ``Robot.inverse``).
+    #[pyo3(signature = (target, reference=None, direction=None, tol=1e-9, max_iterations=60))]
+    fn solve(
+        &self,
+        py: Python<'_>,
+        target: &Bound<'_, PyAny>,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = tol_arg)] tol: f64,
+        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
+    ) -> PyResult<PyIkResult> {
+        let target = vec3_arg("target", target)?;
+        let reference = reference
+            .map(|r| rows_arg::<2>("reference", r))
+            .transpose()?;
+        let direction = direction.map(|d| vec3_arg("direction", d)).transpose()?;
+        if tol <= 0.0 {
+            return Err(PyValueError::new_err("tol: must be positive"));
+        }
+        // Locked without the GIL; None if a solve panicked holding the lock.
+        let inner = Arc::clone(&self.inner);
+        let r = detach_solve(py, self.long_passes, move || match inner.lock() {
+            Ok(mut solver) => solver
+                .solve(target, direction, reference.as_deref(), tol, max_iterations)
+                .map(Some),
+            Err(_) => Ok(None),
+        })?;
+        let r = r.ok_or_else(|| {
+            PyRuntimeError::new_err(
+                "InverseSolver: an earlier solve failed with a panic and left this solver \
+                 unusable; make a new one with Robot.inverse_solver",
+            )
+        })?;
+        Ok(PyIkResult { inner: r })
+    }
+}
+
+#[pymethods]
+impl PyRobot {
+    #[new]
+    #[pyo3(signature = (data=None))]
+    fn new(data: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let inner = match data {
+            None => Robot::default(),
+            Some(d) if d.is_instance_of::<PyDict>() => {
+                Robot::from_value(&to_value(d, &Path::input("robot"))?)?
+            }
+            Some(d) => {
+                return Err(PyValueError::new_err(format!(
+                    "robot: expected a dict, got {}",
+                    d.get_type().name()?
+                )))
+            }
+        };
+        Ok(PyRobot { inner })
+    }
+
+    #[getter]
+    fn sections(&self) -> usize {
+        self.inner.sections
+    }
+    #[getter]
+    fn length(&self) -> f64 {
+        self.inner.length
+    }
+    #[getter]
+    fn n_elements(&self) -> usize {
+        self.inner.n_elements
+    }
+    /// ``[min, max]`` muscle length, m.
+    #[getter]
+    fn muscle_length_range(&self) -> (f64, f64) {
+        (
+            self.inner.muscle_length_range[0],
+            self.inner.muscle_length_range[1],
+        )
+    }
+
+    /// Every field as a dict (``Robot(robot.to_dict())`` is the same robot).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let r = &self.inner;
+        let d = PyDict::new(py);
+        d.set_item("length", r.length)?;
+        let stiffness = from_value(
+            py,
+            &Scene {
+                stiffness_spec: r.stiffness.clone(),
+                ..Scene::new(1.0, 1.0, 1.0, 1.0)
+            }
+            .to_value(),
+        )?;
+        d.set_item("stiffness", stiffness.get_item("stiffness")?)?;
+        d.set_item("linear_density", r.linear_density)?;
+        d.set_item("sections", r.sections)?;
+        d.set_item("muscle_radius", r.muscle_radius)?;
+        d.set_item("muscle_angles", r.muscle_angles.to_vec())?;
+        d.set_item("disk_mass", r.disk_mass)?;
+        d.set_item("gravity", vec![r.gravity.x, r.gravity.y, r.gravity.z])?;
+        d.set_item("base_quaternion", r.base_quaternion.to_array().to_vec())?;
+        let p = r.base_position;
+        d.set_item("base_position", vec![p.x, p.y, p.z])?;
+        d.set_item("muscle_rest_length", r.muscle_rest_length)?;
+        d.set_item("inflation_rate", r.inflation_rate)?;
+        d.set_item("muscle_length_range", r.muscle_length_range.to_vec())?;
+        d.set_item("n_elements", r.n_elements)?;
+        Ok(d.into_any())
+    }
+
+    /// The Scene of this robot with an actuation (m, 2) and a tip mass (kg).
+    #[pyo3(signature = (rest_curvature, load=0.0))]
+    fn scene(
+        &self,
+        rest_curvature: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+    ) -> PyResult<PyScene> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        Ok(PyScene {
+            inner: self.inner.scene(&k, load)?,
+        })
+    }
+
+    /// Joint space from rest curvature: muscle lengths (m, 3).
+    fn muscle_lengths<'py>(
+        &self,
+        py: Python<'py>,
+        rest_curvature: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        Ok(rows_n(py, &self.inner.muscle_lengths(&k)))
+    }
+
+    /// Rest curvature (m, 2) from muscle lengths (m, 3).
+    fn rest_curvature<'py>(
+        &self,
+        py: Python<'py>,
+        muscle_lengths: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let l = rows_arg::<3>("muscle_lengths", muscle_lengths)?;
+        Ok(rows_n(py, &self.inner.rest_curvature(&l)?))
+    }
+
+    /// Actuator space: inflation times (m, 3) from muscle lengths.
+    fn inflation_times<'py>(
+        &self,
+        py: Python<'py>,
+        muscle_lengths: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let l = rows_arg::<3>("muscle_lengths", muscle_lengths)?;
+        Ok(rows_n(py, &self.inner.inflation_times(&l)))
+    }
+
+    /// Joint space from actuator space: muscle lengths from inflation times.
+    fn muscle_lengths_from_times<'py>(
+        &self,
+        py: Python<'py>,
+        times: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let t = rows_arg::<3>("times", times)?;
+        Ok(rows_n(py, &self.inner.muscle_lengths_from_times(&t)))
+    }
+
+    /// Whether every muscle length lies in the range for this actuation.
+    fn within_bounds(&self, rest_curvature: &Bound<'_, PyAny>) -> PyResult<bool> {
+        Ok(self
+            .inner
+            .within_bounds(&rows_arg::<2>("rest_curvature", rest_curvature)?))
+    }
+
+    /// Forward statics: the loaded equilibrium of an actuation.
+    #[pyo3(signature = (rest_curvature, load=0.0))]
+    fn forward(
+        &self,
+        py: Python<'_>,
+        rest_curvature: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+    ) -> PyResult<PySolution> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        let scene = self.inner.scene(&k, load)?;
+        let settings = Settings {
+            n_elements: Some(self.inner.n_elements),
+            ..Settings::default()
+        };
+        let long = self.inner.has_long_passes();
+        let sol = detach_solve(py, long, move || crate::solve(&scene, settings, None))?;
+        Ok(PySolution { inner: sol })
+    }
+
+    /// A reusable inverse solver for one tip mass (warm starts between calls).
+    #[pyo3(signature = (load=0.0))]
+    fn inverse_solver(
+        &self,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+    ) -> PyResult<PyInverseSolver> {
+        Ok(PyInverseSolver {
+            inner: Arc::new(Mutex::new(InverseSolver::new(&self.inner, load)?)),
+            long_passes: self.inner.has_long_passes(),
+        })
+    }
+
+    /// Load-aware inverse kinematics of one target.
+    #[pyo3(
+        signature = (target, load=0.0, reference=None, direction=None, strategy=Strategy::Equilibrium, tol=1e-9, max_iterations=60),
+        text_signature = "($self, target, load=0.0, reference=None, direction=None, strategy='equilibrium', tol=1e-9, max_iterations=60)"
+    )]
+    #[allow(clippy::too_many_arguments)]
+    fn inverse(
+        &self,
+        py: Python<'_>,
+        target: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = strategy_arg)] strategy: Strategy,
+        #[pyo3(from_py_with = tol_arg)] tol: f64,
+        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
+    ) -> PyResult<PyIkResult> {
+        let target = vec3_arg("target", target)?;
+        let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
+        let robot = self.inner.clone();
+        let long = robot.has_long_passes();
+        let r = detach_solve(py, long, move || robot.inverse(target, &options))?;
+        Ok(PyIkResult { inner: r })
+    }
+
+    /// Inverse kinematics of a sequence of targets (N, 3), each warm from the
+    /// previous one and closest to its actuation.
+    #[pyo3(
+        signature = (points, load=0.0, reference=None, direction=None, strategy=Strategy::Equilibrium, tol=1e-9, max_iterations=60),
+        text_signature = "($self, points, load=0.0, reference=None, direction=None, strategy='equilibrium', tol=1e-9, max_iterations=60)"
+    )]
+    #[allow(clippy::too_many_arguments)]
+    fn track(
+        &self,
+        py: Python<'_>,
+        points: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = strategy_arg)] strategy: Strategy,
+        #[pyo3(from_py_with = tol_arg)] tol: f64,
+        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
+    ) -> PyResult<Vec<PyIkResult>> {
+        let pts: Vec<Vector3<f64>> = rows_arg::<3>("points", points)?
+            .into_iter()
+            .map(Vector3::from)
+            .collect();
+        let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
+        let robot = self.inner.clone();
+        let long = robot.has_long_passes();
+        let rs = detach_solve(py, long, move || robot.track(&pts, &options))?;
+        Ok(rs.into_iter().map(|inner| PyIkResult { inner }).collect())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot(length={}, sections={}, n_elements={})",
+            self.inner.length, self.inner.sections, self.inner.n_elements
+        )
+    }
+}
+
+impl PyRobot {
+    fn ik_options(
+        &self,
+        load: f64,
+        reference: Option<&Bound<'_, PyAny>>,
+        direction: Option<&Bound<'_, PyAny>>,
+        strategy: Strategy,
+        tol: f64,
+        max_iterations: usize,
+    ) -> PyResult<IkOptions> {
+        Ok(IkOptions {
+            tip_mass: load,
+            reference: reference
+                .map(|r| rows_arg::<2>("reference", r))
+                .transpose()?,
+            direction: direction.map(|d| vec3_arg("direction", d)).transpose()?,
+            strategy,
+            tol,
+            max_iterations,
+        })
+    }
+}
+
+/// One of the seed's trajectories for the default robot: "pentagram", "circle"
+/// or "spiral", shape (points, 3), m.
+#[pyfunction]
+#[pyo3(signature = (name, points=60))]
+pub(super) fn trajectory_points<'py>(
+    py: Python<'py>,
+    name: &Bound<'py, PyAny>,
+    #[pyo3(from_py_with = points_arg)] points: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let name = str_arg("trajectory", name)?;
+    if points == 0 {
+        return Err(PyValueError::new_err("points: must be positive"));
+    }
+    let pts = trajectory::by_name(&name, points).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "trajectory: unknown '{name}' (expected pentagram, circle or spiral)"
+        ))
+    })?;
+    Ok(rows3(py, &pts))
+}

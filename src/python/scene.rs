@@ -1,0 +1,108 @@
+//! `Scene`: the core's scene, built from a dict or a file's text.
+
+use super::convert::*;
+use crate::Scene;
+use numpy::PyArray1;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// What is being solved: a rod or robot backbone, its loads and boundary conditions.
+///
+/// Build it from a dict (``Scene({...})``), a JSON or TOML file
+/// (``Scene.from_file(path)``); invalid input raises ``ValueError`` naming the key.
+#[pyclass(
+    name = "Scene",
+    module = "softspine._core",
+    frozen,
+    skip_from_py_object
+)]
+#[derive(Clone)]
+pub struct PyScene {
+    pub(super) inner: Scene,
+}
+
+#[pymethods]
+impl PyScene {
+    #[new]
+    fn new(data: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(s) = data.cast::<PyScene>() {
+            return Ok(s.get().clone());
+        }
+        if !data.is_instance_of::<PyDict>() {
+            return Err(PyValueError::new_err(format!(
+                "scene: expected a dict, got {}",
+                data.get_type().name()?
+            )));
+        }
+        Ok(PyScene {
+            inner: Scene::from_value(&to_value(data, &Path::input("scene"))?)?,
+        })
+    }
+
+    /// Read a scene from a JSON string.
+    #[staticmethod]
+    fn from_json(text: &str) -> PyResult<Self> {
+        Ok(PyScene {
+            inner: Scene::from_json_str(text)?,
+        })
+    }
+
+    /// Read a scene from a TOML string.
+    #[staticmethod]
+    fn from_toml(text: &str) -> PyResult<Self> {
+        Ok(PyScene {
+            inner: Scene::from_toml_str(text)?,
+        })
+    }
+
+    /// The scene as a plain dict (round-trips through ``Scene(d)``).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        from_value(py, &self.inner.to_value())
+    }
+
+    #[getter]
+    fn length(&self) -> f64 {
+        self.inner.length
+    }
+
+    /// ``(kx, ky, kz)`` in N m^2.
+    #[getter]
+    fn stiffness(&self) -> (f64, f64, f64) {
+        let k = self.inner.stiffness();
+        (k.x, k.y, k.z)
+    }
+
+    #[getter]
+    fn sections(&self) -> usize {
+        self.inner.sections()
+    }
+
+    #[getter]
+    fn name(&self) -> Option<String> {
+        self.inner.name.clone()
+    }
+
+    /// Total distributed force, gravity included (N/m).
+    #[getter]
+    fn distributed_force<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vec3_array(py, &self.inner.distributed_force())
+    }
+
+    fn __repr__(&self) -> String {
+        let k = self.inner.stiffness();
+        format!(
+            "Scene(name={:?}, length={}, stiffness=({:.4e}, {:.4e}, {:.4e}), sections={})",
+            self.inner.name.as_deref().unwrap_or(""),
+            self.inner.length,
+            k.x,
+            k.y,
+            k.z,
+            self.inner.sections()
+        )
+    }
+}
+
+pub(super) fn scene_arg(scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
+    Ok(PyScene::new(scene)?.inner)
+}

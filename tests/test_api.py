@@ -125,7 +125,7 @@ def test_straight_rod_is_solved_without_iterating():
 
 def test_non_convergence_is_reported_and_raised_on_request():
     sol = softspine.solve(cantilever(10.0), n_elements=20, max_iterations=1)
-    assert not sol.converged and sol.status == "not_converged"
+    assert not sol.converged and sol.status == "iteration_limit"
     assert not sol.stable
     assert sol.residual_norm > 1e-10
     with pytest.raises(SolverError, match="did not converge"):

@@ -38,6 +38,7 @@ RESIDUAL_TOL = 1e-10  # softspine's default residual_tol
 STATUSES = {
     "converged",
     "not_converged",
+    "iteration_limit",
     "tolerance_not_met",
     "underresolved",
     "numerical_error",

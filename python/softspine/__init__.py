@@ -20,14 +20,17 @@ from . import trajectories
 from ._core import IkResult, InverseSolver, Robot, Scene, Solution, SolverError, __version__
 from ._core import solve as _solve
 from .scenes import load_scene
+from .status import IkEnding, Status
 
 __all__ = [
+    "IkEnding",
     "IkResult",
     "InverseSolver",
     "Robot",
     "Scene",
     "Solution",
     "SolverError",
+    "Status",
     "load_scene",
     "solve",
     "trajectories",

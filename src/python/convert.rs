@@ -321,8 +321,29 @@ pub(super) fn rows_arg<const N: usize>(
     name: &str,
     obj: &Bound<'_, PyAny>,
 ) -> PyResult<Vec<[f64; N]>> {
+    let rows = rows_of::<N>(name, obj)?;
     let path = Path::argument(name);
-    let rows: Vec<[f64; N]> = match obj.extract::<PyReadonlyArray2<f64>>() {
+    for (i, row) in rows.iter().enumerate() {
+        for (j, x) in row.iter().enumerate() {
+            if !x.is_finite() {
+                return Err(path
+                    .index(i)
+                    .index(j)
+                    .error(format!("must be finite, got {x}")));
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// The rows of an (m, N) array by `rows_arg`'s rules, finite or not (a
+/// stored state may hold the overflow that ended its solve).
+pub(super) fn rows_of<const N: usize>(
+    name: &str,
+    obj: &Bound<'_, PyAny>,
+) -> PyResult<Vec<[f64; N]>> {
+    let path = Path::argument(name);
+    Ok(match obj.extract::<PyReadonlyArray2<f64>>() {
         Ok(a) if a.as_array().ncols() == N => a
             .as_array()
             .rows()
@@ -342,18 +363,104 @@ pub(super) fn rows_arg<const N: usize>(
                 )))
             }
         },
-    };
-    for (i, row) in rows.iter().enumerate() {
-        for (j, x) in row.iter().enumerate() {
-            if !x.is_finite() {
-                return Err(path
-                    .index(i)
-                    .index(j)
-                    .error(format!("must be finite, got {x}")));
-            }
+    })
+}
+
+/// A real argument that may be infinite or NaN (a stored residual), refused by name.
+pub(super) fn number_or_infinite(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let path = Path::argument(name);
+    match to_value(obj, &path)? {
+        Value::Number(x) => Ok(x),
+        _ => Err(path.error(format!("expected a number, got {}", type_name(obj)))),
+    }
+}
+
+/// A bool argument (not an int), refused by name.
+pub(super) fn bool_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    match obj.cast::<PyBool>() {
+        Ok(b) => Ok(b.is_true()),
+        Err(_) => {
+            Err(Path::argument(name).error(format!("expected a bool, got {}", type_name(obj))))
         }
     }
-    Ok(rows)
+}
+
+/// Python's spelling of a bool, for a `repr`.
+pub(super) fn python_bool(b: bool) -> &'static str {
+    if b {
+        "True"
+    } else {
+        "False"
+    }
+}
+
+/// The member `name` of the string enum `class` of `softspine.status`
+/// (`Status`, `IkEnding`), which mirrors the core's endings.
+pub(super) fn status_member<'py>(
+    py: Python<'py>,
+    class: &str,
+    name: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    static MODULE: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
+    let module = MODULE.get_or_try_init(py, || py.import("softspine.status").map(Bound::unbind))?;
+    module.bind(py).getattr(class)?.call1((name,))
+}
+
+/// The fields of a dict that stores a result (`Solution.to_dict()`), read by
+/// name: a missing key is refused as `owner.key`.
+pub(super) struct Fields<'py> {
+    owner: &'static str,
+    dict: Bound<'py, PyDict>,
+}
+
+impl<'py> Fields<'py> {
+    pub(super) fn new(owner: &'static str, data: &Bound<'py, PyAny>) -> PyResult<Self> {
+        match data.cast::<PyDict>() {
+            Ok(d) => Ok(Fields {
+                owner,
+                dict: d.clone(),
+            }),
+            Err(_) => Err(Path::input(owner).error(format!(
+                "expected a dict (from to_dict()), got {}",
+                type_name(data)
+            ))),
+        }
+    }
+
+    fn name(&self, key: &str) -> String {
+        format!("{}.{key}", self.owner)
+    }
+
+    pub(super) fn get(&self, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        self.dict.get_item(key)?.ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "{}: missing (every key of to_dict() is needed)",
+                self.name(key)
+            ))
+        })
+    }
+
+    pub(super) fn rows<const N: usize>(&self, key: &str) -> PyResult<Vec<[f64; N]>> {
+        rows_of::<N>(&self.name(key), &self.get(key)?)
+    }
+
+    pub(super) fn vectors(&self, key: &str) -> PyResult<Vec<Vector3<f64>>> {
+        Ok(self
+            .rows::<3>(key)?
+            .into_iter()
+            .map(Vector3::from)
+            .collect())
+    }
+
+    pub(super) fn vector(&self, key: &str) -> PyResult<Vector3<f64>> {
+        vector_of(&self.name(key), &self.get(key)?)
+    }
+
+    pub(super) fn optional_vector(&self, key: &str) -> PyResult<Option<Vector3<f64>>> {
+        given(Some(&self.get(key)?))
+            .map(|v| vector_of(&self.name(key), &v))
+            .transpose()
+    }
 }
 
 /// The N numbers of a list (finiteness is the caller's check).
@@ -381,16 +488,24 @@ pub(super) fn numbers<const N: usize>(v: &Value, path: &Path) -> PyResult<[f64; 
 
 /// A 3-vector argument: a row of `rows_arg`'s rules.
 pub(super) fn vec3_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f64>> {
+    let v = vector_of(name, obj)?;
+    for (i, x) in v.iter().enumerate() {
+        if !x.is_finite() {
+            return Err(Path::argument(name)
+                .index(i)
+                .error(format!("must be finite, got {x}")));
+        }
+    }
+    Ok(v)
+}
+
+/// A 3-vector by `vec3_arg`'s rules, finite or not.
+pub(super) fn vector_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f64>> {
     let path = Path::argument(name);
     let v: [f64; 3] = match obj.extract::<PyReadonlyArray1<f64>>() {
         Ok(a) if a.as_array().len() == 3 => std::array::from_fn(|i| a.as_array()[i]),
         _ => numbers::<3>(&to_value(obj, &path)?, &path)?,
     };
-    for (i, x) in v.iter().enumerate() {
-        if !x.is_finite() {
-            return Err(path.index(i).error(format!("must be finite, got {x}")));
-        }
-    }
     Ok(Vector3::from(v))
 }
 

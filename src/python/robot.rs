@@ -75,11 +75,11 @@ impl PyIkResult {
     fn reached(&self) -> bool {
         self.inner.reached
     }
-    /// Why the inverse solve ended: "reached", "out_of_reach", "bounds_active",
-    /// "solver_failure", "iteration_limit" or "load_ignored".
+    /// Why the inverse solve ended, a ``softspine.IkEnding`` (a string enum:
+    /// it equals its name, e.g. ``"reached"``).
     #[getter]
-    fn ending(&self) -> &'static str {
-        self.inner.ending.name()
+    fn ending<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        status_member(py, "IkEnding", self.inner.ending.name())
     }
     /// Starting actuations tried (1: the fast path sufficed).
     #[getter]
@@ -99,10 +99,65 @@ impl PyIkResult {
     fn time(&self) -> f64 {
         self.inner.seconds
     }
+    /// Every field as a dict of NumPy arrays and scalars (``solution`` as its
+    /// own ``to_dict()``, ``ending`` as its name); ``IkResult.from_dict``
+    /// rebuilds the result.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let r = &self.inner;
+        let d = PyDict::new(py);
+        d.set_item("rest_curvature", rows_n(py, &r.rest_curvature))?;
+        d.set_item("muscle_lengths", rows_n(py, &r.muscle_lengths))?;
+        d.set_item("inflation_times", rows_n(py, &r.inflation_times))?;
+        let solution = PySolution {
+            inner: r.solution.clone(),
+        };
+        d.set_item("solution", solution.to_dict(py)?)?;
+        d.set_item("tip_position", vec3_array(py, &r.tip_position))?;
+        d.set_item("tip_miss", r.tip_miss)?;
+        d.set_item("reached", r.reached)?;
+        d.set_item("ending", r.ending.name())?;
+        d.set_item("message", &r.message)?;
+        d.set_item("iterations", r.iterations)?;
+        d.set_item("starts", r.starts)?;
+        d.set_item("time", r.seconds)?;
+        Ok(d)
+    }
+
+    /// An IkResult from ``to_dict()``'s dict (every key required).
+    #[staticmethod]
+    fn from_dict(data: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let d = Fields::new("ik_result", data)?;
+        let inner = IkResult {
+            rest_curvature: d.rows::<2>("rest_curvature")?,
+            muscle_lengths: d.rows::<3>("muscle_lengths")?,
+            inflation_times: d.rows::<3>("inflation_times")?,
+            solution: PySolution::from_dict(&d.get("solution")?)?.inner,
+            tip_position: d.vector("tip_position")?,
+            tip_miss: number_or_infinite("ik_result.tip_miss", &d.get("tip_miss")?)?,
+            reached: bool_arg("ik_result.reached", &d.get("reached")?)?,
+            ending: str_arg("ik_result.ending", &d.get("ending")?)?.parse()?,
+            message: str_arg("ik_result.message", &d.get("message")?)?,
+            iterations: int_arg("ik_result.iterations", &d.get("iterations")?)?,
+            starts: int_arg("ik_result.starts", &d.get("starts")?)?,
+            seconds: float_arg("ik_result.time", &d.get("time")?)?,
+        };
+        Ok(PyIkResult { inner })
+    }
+
+    /// Pickling goes through ``to_dict`` and ``from_dict``.
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        Ok((
+            slf.get_type().getattr("from_dict")?,
+            (slf.get().to_dict(slf.py())?,),
+        ))
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "IkResult(reached={}, tip_miss={:.3e}, iterations={}, time={:.1} us, message={:?})",
-            self.inner.reached,
+            python_bool(self.inner.reached),
             self.inner.tip_miss,
             self.inner.iterations,
             self.inner.seconds * 1e6,
@@ -164,7 +219,7 @@ impl PyInverseSolver {
 #[pymethods]
 impl PyRobot {
     #[new]
-    #[pyo3(signature = (data=None))]
+    #[pyo3(signature = (data=None), text_signature = "(data=None)")]
     fn new(data: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
         let inner = match data {
             None => Robot::default(),
@@ -200,6 +255,13 @@ impl PyRobot {
             self.inner.muscle_length_range[0],
             self.inner.muscle_length_range[1],
         )
+    }
+
+    /// Pickling goes through ``to_dict``.
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyAny>,))> {
+        Ok((slf.get_type().into_any(), (slf.get().to_dict(slf.py())?,)))
     }
 
     /// Every field as a dict (``Robot(robot.to_dict())`` is the same robot).

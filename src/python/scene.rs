@@ -25,6 +25,7 @@ pub struct PyScene {
 #[pymethods]
 impl PyScene {
     #[new]
+    #[pyo3(text_signature = "(data)")]
     fn new(data: &Bound<'_, PyAny>) -> PyResult<Self> {
         if let Ok(s) = data.cast::<PyScene>() {
             return Ok(s.get().clone());
@@ -54,6 +55,13 @@ impl PyScene {
         Ok(PyScene {
             inner: Scene::from_toml_str(text)?,
         })
+    }
+
+    /// Pickling goes through ``to_dict``.
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyAny>,))> {
+        Ok((slf.get_type().into_any(), (slf.get().to_dict(slf.py())?,)))
     }
 
     /// The scene as a plain dict (round-trips through ``Scene(d)``).

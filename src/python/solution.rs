@@ -2,10 +2,18 @@
 
 use super::convert::*;
 use crate::{Quat, Solution};
-use numpy::{IntoPyArray, PyArray1, PyArray2};
+use nalgebra::Vector3;
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 /// An equilibrium (or the best state reached) with its status.
+///
+/// Arrays are in SI units and the world frame unless a property says
+/// otherwise; quaternions are scalar-first ``[w, x, y, z]`` (SciPy's
+/// ``Rotation.from_quat`` takes scalar-last: ``q[:, [1, 2, 3, 0]]``).
+/// ``to_dict()`` gives every stored field; a Solution pickles.
 #[pyclass(name = "Solution", module = "softspine._core", frozen)]
 pub struct PySolution {
     pub(super) inner: Solution,
@@ -13,19 +21,37 @@ pub struct PySolution {
 
 #[pymethods]
 impl PySolution {
+    /// Number of elements ``n``.
     #[getter]
     fn n_elements(&self) -> usize {
         self.inner.n_elements
+    }
+    /// Length of the rod, m.
+    #[getter]
+    fn length(&self) -> f64 {
+        self.inner.length
+    }
+    /// Arc length of the nodes, ``s_i = i L / n``, shape (n+1,), m.
+    #[getter]
+    fn arc_length<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.arc_length().into_pyarray(py)
     }
     /// Node positions, shape (n+1, 3), m.
     #[getter]
     fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows3(py, &self.inner.positions)
     }
-    /// Node quaternions [w, x, y, z], shape (n+1, 4).
+    /// Node quaternions ``[w, x, y, z]`` (material frame to world frame), shape (n+1, 4).
     #[getter]
     fn quaternions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows4(py, &self.inner.quaternions)
+    }
+    /// Node rotation matrices (material frame to world frame; column 3 is the
+    /// tangent), shape (n+1, 3, 3).
+    #[getter]
+    fn rotation_matrices<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray3<f64>> {
+        let r = self.inner.rotation_matrices();
+        Array3::from_shape_fn((r.len(), 3, 3), |(i, a, b)| r[i][(a, b)]).into_pyarray(py)
     }
     /// Internal force at the nodes, world frame, shape (n+1, 3), N: the force
     /// that the rod beyond node j exerts on the rod before it. ``forces[0]`` is
@@ -35,10 +61,28 @@ impl PySolution {
     fn forces<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows3(py, &self.inner.forces)
     }
+    /// Internal moment at the nodes, world frame, shape (n+1, 3), N m: the
+    /// moment that the rod beyond node j exerts on the rod before it.
+    /// ``moments[0]`` is the moment of the rod on its base support;
+    /// ``moments[-1]`` is the tip's applied moment (plus a clamp's reaction).
+    /// Interior nodes: the mean of the two elements' moments (second order).
+    #[getter]
+    fn moments<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows3(py, &self.inner.moments)
+    }
+    /// Curvature and twist ``(kappa_x, kappa_y, tau)`` of each element in its
+    /// material frame, shape (n, 3), 1/m (the scheme's discrete curvature).
+    #[getter]
+    fn curvatures<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows3(py, &self.inner.curvatures)
+    }
+    /// The tip position, shape (3,), m: the last node, or the
+    /// Richardson-extrapolated tip when ``extrapolated``.
     #[getter]
     fn tip_position<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         vec3_array(py, &self.inner.tip_position())
     }
+    /// The tip quaternion ``[w, x, y, z]``, shape (4,).
     #[getter]
     fn tip_quaternion<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         self.inner
@@ -47,12 +91,14 @@ impl PySolution {
             .to_vec()
             .into_pyarray(py)
     }
-    /// Force of a pinned or clamped tip's support on the rod, world frame (N); None if free.
+    /// Force of a pinned or clamped tip's support on the rod, world frame, shape (3,), N;
+    /// None if the tip is free.
     #[getter]
     fn tip_reaction_force<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
         self.inner.tip_reaction_force.map(|f| vec3_array(py, &f))
     }
-    /// Moment of a clamped tip's support on the rod, world frame (N m); None otherwise.
+    /// Moment of a clamped tip's support on the rod, world frame, shape (3,), N m;
+    /// None otherwise.
     #[getter]
     fn tip_reaction_moment<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
         self.inner.tip_reaction_moment.map(|m| vec3_array(py, &m))
@@ -62,20 +108,23 @@ impl PySolution {
     fn guide_reactions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows3(py, &self.inner.guide_reactions)
     }
+    /// Whether ``status`` is ``Status.CONVERGED``: the only ending that is an answer.
     #[getter]
     fn converged(&self) -> bool {
         self.inner.converged()
     }
-    /// How the solve ended: "converged", "not_converged", "tolerance_not_met",
-    /// "underresolved", "numerical_error" or "indeterminate".
+    /// How the solve ended, a ``softspine.Status`` (a string enum: it equals
+    /// its name, e.g. ``"converged"``); ``message`` says more.
     #[getter]
-    fn status(&self) -> &'static str {
-        self.inner.status.name()
+    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        status_member(py, "Status", self.inner.status.name())
     }
+    /// Newton or LM iterations, every continuation step included.
     #[getter]
     fn iterations(&self) -> usize {
         self.inner.iterations
     }
+    /// Load-continuation steps taken (0: solved directly).
     #[getter]
     fn continuation_steps(&self) -> usize {
         self.inner.continuation_steps
@@ -90,11 +139,13 @@ impl PySolution {
     fn energy(&self) -> f64 {
         self.inner.energy
     }
-    /// Whether the equilibrium is stable (positive definite reduced Hessian).
+    /// Whether the equilibrium is stable (positive definite reduced Hessian);
+    /// False when not converged.
     #[getter]
     fn stable(&self) -> bool {
         self.inner.stable
     }
+    /// A short account of how the solve ended.
     #[getter]
     fn message(&self) -> String {
         self.inner.message.clone()
@@ -110,15 +161,103 @@ impl PySolution {
     fn extrapolated(&self) -> bool {
         self.inner.extrapolated_tip.is_some()
     }
+    /// Wall-clock time of the solve, s (the set-up of the discretisation and
+    /// every n of accuracy on demand included).
+    #[getter]
+    fn solve_time(&self) -> f64 {
+        self.inner.solve_time
+    }
+
+    /// Every stored field as a dict of NumPy arrays and scalars (``status`` as
+    /// its name); ``Solution.from_dict`` rebuilds the Solution. Derived
+    /// properties (``arc_length``, ``rotation_matrices``, ``tip_position``,
+    /// ``tip_quaternion``, ``converged``) are not in it.
+    pub(super) fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = &self.inner;
+        let d = PyDict::new(py);
+        d.set_item("n_elements", s.n_elements)?;
+        d.set_item("length", s.length)?;
+        d.set_item("positions", rows3(py, &s.positions))?;
+        d.set_item("quaternions", rows4(py, &s.quaternions))?;
+        d.set_item("forces", rows3(py, &s.forces))?;
+        d.set_item("moments", rows3(py, &s.moments))?;
+        d.set_item("curvatures", rows3(py, &s.curvatures))?;
+        let optional = |v: Option<Vector3<f64>>| v.map(|v| vec3_array(py, &v));
+        d.set_item("tip_reaction_force", optional(s.tip_reaction_force))?;
+        d.set_item("tip_reaction_moment", optional(s.tip_reaction_moment))?;
+        d.set_item("guide_reactions", rows3(py, &s.guide_reactions))?;
+        d.set_item("status", s.status.name())?;
+        d.set_item("iterations", s.iterations)?;
+        d.set_item("continuation_steps", s.continuation_steps)?;
+        d.set_item("residual_norm", s.residual_norm)?;
+        d.set_item("energy", s.energy)?;
+        d.set_item("stable", s.stable)?;
+        d.set_item("message", &s.message)?;
+        d.set_item("error_estimate", s.error_estimate)?;
+        d.set_item("extrapolated_tip", optional(s.extrapolated_tip))?;
+        d.set_item("solve_time", s.solve_time)?;
+        Ok(d)
+    }
+
+    /// A Solution from ``to_dict()``'s dict (every key required);
+    /// ``ValueError`` names a missing, malformed or inconsistent field.
+    #[staticmethod]
+    pub(super) fn from_dict(data: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let d = Fields::new("solution", data)?;
+        let solution = Solution {
+            n_elements: int_arg("solution.n_elements", &d.get("n_elements")?)?,
+            length: float_arg("solution.length", &d.get("length")?)?,
+            positions: d.vectors("positions")?,
+            quaternions: d
+                .rows::<4>("quaternions")?
+                .into_iter()
+                .map(Quat::from_array)
+                .collect(),
+            forces: d.vectors("forces")?,
+            moments: d.vectors("moments")?,
+            curvatures: d.vectors("curvatures")?,
+            tip_reaction_force: d.optional_vector("tip_reaction_force")?,
+            tip_reaction_moment: d.optional_vector("tip_reaction_moment")?,
+            guide_reactions: d.vectors("guide_reactions")?,
+            status: str_arg("solution.status", &d.get("status")?)?.parse()?,
+            iterations: int_arg("solution.iterations", &d.get("iterations")?)?,
+            continuation_steps: int_arg(
+                "solution.continuation_steps",
+                &d.get("continuation_steps")?,
+            )?,
+            residual_norm: number_or_infinite("solution.residual_norm", &d.get("residual_norm")?)?,
+            energy: number_or_infinite("solution.energy", &d.get("energy")?)?,
+            stable: bool_arg("solution.stable", &d.get("stable")?)?,
+            message: str_arg("solution.message", &d.get("message")?)?,
+            error_estimate: given(Some(&d.get("error_estimate")?))
+                .map(|e| float_arg("solution.error_estimate", &e))
+                .transpose()?,
+            extrapolated_tip: d.optional_vector("extrapolated_tip")?,
+            solve_time: float_arg("solution.solve_time", &d.get("solve_time")?)?,
+        };
+        solution.check_layout()?;
+        Ok(PySolution { inner: solution })
+    }
+
+    /// Pickling goes through ``to_dict`` and ``from_dict``.
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        Ok((
+            slf.get_type().getattr("from_dict")?,
+            (slf.get().to_dict(slf.py())?,),
+        ))
+    }
+
     fn __repr__(&self) -> String {
         let t = self.inner.tip_position();
         format!(
             "Solution(status={}, n_elements={}, iterations={}, residual_norm={:.2e}, stable={}, tip_position=[{:.6}, {:.6}, {:.6}])",
-            self.status(),
+            self.inner.status.name(),
             self.inner.n_elements,
             self.inner.iterations,
             self.inner.residual_norm,
-            self.inner.stable,
+            python_bool(self.inner.stable),
             t.x,
             t.y,
             t.z

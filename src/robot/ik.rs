@@ -121,6 +121,16 @@ pub enum IkEnding {
 }
 
 impl IkEnding {
+    /// Every ending, in the order of the declaration.
+    pub const ALL: [IkEnding; 6] = [
+        IkEnding::Reached,
+        IkEnding::OutOfReach,
+        IkEnding::BoundsActive,
+        IkEnding::SolverFailure,
+        IkEnding::IterationLimit,
+        IkEnding::LoadIgnored,
+    ];
+
     /// The snake_case name used by the Python API.
     pub fn name(self) -> &'static str {
         match self {
@@ -131,6 +141,16 @@ impl IkEnding {
             IkEnding::IterationLimit => "iteration_limit",
             IkEnding::LoadIgnored => "load_ignored",
         }
+    }
+}
+
+impl std::str::FromStr for IkEnding {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        IkEnding::ALL
+            .into_iter()
+            .find(|ending| ending.name() == s)
+            .ok_or_else(|| Error::argument("ending", format!("unknown ending '{s}'")))
     }
 }
 

@@ -89,6 +89,14 @@ pub fn solve_to_accuracy(
     settings: Settings,
     accuracy: &Accuracy,
 ) -> Result<Solution> {
+    let started = std::time::Instant::now();
+    let mut solution = refine_until_met(scene, settings, accuracy)?;
+    solution.solve_time = started.elapsed().as_secs_f64();
+    Ok(solution)
+}
+
+/// The doubling of [`solve_to_accuracy`].
+fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> Result<Solution> {
     accuracy.validate()?;
     let length = scene.length;
     let mut n = starting_elements(scene, settings.elements_for(scene));

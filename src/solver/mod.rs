@@ -18,7 +18,8 @@ use crate::model::RodModel;
 use crate::paper_method::{solve_paper, PaperSettings};
 use crate::quat::Quat;
 use crate::scene::{ReachLimit, Scene};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
+use std::time::Instant;
 
 /// The numerical method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -203,8 +204,12 @@ pub enum Status {
     /// The relative residual is below `residual_tol`, the state is finite and
     /// every element turns within what the scheme resolves.
     Converged,
-    /// The iteration or continuation budget ran out, or the line search stalled.
+    /// The methods stalled before the iteration budget ran out: the line
+    /// search or the load continuation (below `min_continuation_step`) could
+    /// not progress, or the paper's method ended above its tolerance.
     NotConverged,
+    /// The iteration budget (`max_iterations`) ran out before convergence.
+    IterationLimit,
     /// Accuracy on demand stopped at its largest `n` with the error estimate
     /// above the tolerance (the state is a converged equilibrium at that `n`).
     ToleranceNotMet,
@@ -223,16 +228,38 @@ pub enum Status {
 }
 
 impl Status {
+    /// Every status, in the order of the declaration.
+    pub const ALL: [Status; 7] = [
+        Status::Converged,
+        Status::NotConverged,
+        Status::IterationLimit,
+        Status::ToleranceNotMet,
+        Status::Underresolved,
+        Status::NumericalError,
+        Status::Indeterminate,
+    ];
+
     /// The snake_case name used by the Python API and in messages.
     pub fn name(self) -> &'static str {
         match self {
             Status::Converged => "converged",
             Status::NotConverged => "not_converged",
+            Status::IterationLimit => "iteration_limit",
             Status::ToleranceNotMet => "tolerance_not_met",
             Status::Underresolved => "underresolved",
             Status::NumericalError => "numerical_error",
             Status::Indeterminate => "indeterminate",
         }
+    }
+}
+
+impl std::str::FromStr for Status {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Status::ALL
+            .into_iter()
+            .find(|status| status.name() == s)
+            .ok_or_else(|| Error::argument("status", format!("unknown status '{s}'")))
     }
 }
 
@@ -246,12 +273,22 @@ pub const MAX_RESOLVED_TURN: f64 = 1.0;
 #[derive(Debug, Clone)]
 pub struct Solution {
     pub n_elements: usize,
+    /// Length of the rod [m]: node `i` sits at arc length `i L / n`.
+    pub length: f64,
     /// Node quaternions `q_0..q_n`, `q_0` the base.
     pub quaternions: Vec<Quat>,
     /// Node positions `r_0..r_n` [m], `r_0` the scene's base position.
     pub positions: Vec<Vector3<f64>>,
     /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
     pub forces: Vec<Vector3<f64>>,
+    /// Curvature and twist of each element in its own (material) frame
+    /// [1/m], `n` entries: `(2/ds) vec(conj(q_{i-1}) q_i)`, the scheme's
+    /// discrete curvature (see [`RodModel::curvatures_and_moments`]).
+    pub curvatures: Vec<Vector3<f64>>,
+    /// Internal moment at the nodes, world frame [N m]: the moment the distal
+    /// part exerts on the proximal one (`moments[0]` is the moment of the rod
+    /// on its base support; see [`RodModel::curvatures_and_moments`]).
+    pub moments: Vec<Vector3<f64>>,
     /// Force that a pinned or clamped tip's support exerts on the rod, world frame [N].
     pub tip_reaction_force: Option<Vector3<f64>>,
     /// Moment that a clamped tip's support exerts on the rod, world frame [N m].
@@ -279,6 +316,9 @@ pub struct Solution {
     /// Accuracy on demand with Richardson extrapolation: `(4 r_n - r_{n/2}) / 3`,
     /// returned by [`Solution::tip_position`] in place of the last node.
     pub extrapolated_tip: Option<Vector3<f64>>,
+    /// Wall-clock time of the solve [s], the set-up of the discretisation
+    /// included (every n of accuracy on demand).
+    pub solve_time: f64,
 }
 
 impl Solution {
@@ -294,6 +334,49 @@ impl Solution {
 
     pub fn tip_quaternion(&self) -> Quat {
         self.quaternions[self.quaternions.len() - 1]
+    }
+
+    /// Arc length of the nodes, `s_i = i L / n` [m].
+    pub fn arc_length(&self) -> Vec<f64> {
+        let n = self.n_elements as f64;
+        (0..=self.n_elements)
+            .map(|i| self.length * i as f64 / n)
+            .collect()
+    }
+
+    /// The nodes' rotation matrices (material frame to world frame).
+    pub fn rotation_matrices(&self) -> Vec<Matrix3<f64>> {
+        self.quaternions.iter().map(|q| q.rotation()).collect()
+    }
+
+    /// Refuse a Solution whose arrays do not fit its `n_elements` (one
+    /// rebuilt from stored fields), naming the field.
+    pub fn check_layout(&self) -> Result<()> {
+        let n = self.n_elements;
+        if n == 0 {
+            return Err(Error::argument("solution.n_elements", "must be positive"));
+        }
+        if !(self.length.is_finite() && self.length > 0.0) {
+            return Err(Error::argument(
+                "solution.length",
+                format!("must be positive and finite, got {}", self.length),
+            ));
+        }
+        for (name, len, expected) in [
+            ("positions", self.positions.len(), n + 1),
+            ("quaternions", self.quaternions.len(), n + 1),
+            ("forces", self.forces.len(), n + 1),
+            ("moments", self.moments.len(), n + 1),
+            ("curvatures", self.curvatures.len(), n),
+        ] {
+            if len != expected {
+                return Err(Error::argument(
+                    format!("solution.{name}"),
+                    format!("has {len} rows, n_elements = {n} needs {expected}"),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The solution if it converged, otherwise [`Error::NotConverged`].
@@ -501,10 +584,13 @@ impl Solver {
     /// the tip orientation). Errors only on invalid `initial`; otherwise the
     /// Solution's status says how the solve ended.
     pub fn solve(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
+        let started = Instant::now();
         let solution = self.solve_uninterrupted(initial);
         // An interrupt winds every loop down; its partial state is no answer.
         interrupt::check()?;
-        solution
+        let mut solution = solution?;
+        solution.solve_time = started.elapsed().as_secs_f64();
+        Ok(solution)
     }
 
     fn solve_uninterrupted(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
@@ -732,13 +818,21 @@ impl Solver {
         let message = note.unwrap_or(message);
         let stable = status == Status::Converged && is_stable(model, w);
         let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
+        let tip_reaction_moment = model.clamped_tip.map(|_| w.q[n].rotate(w.kkt.tip_torque));
+        let (curvatures, moments) = model.curvatures_and_moments(
+            &out.quaternions,
+            model.tip_moment + tip_reaction_moment.unwrap_or_default(),
+        );
         Ok(Solution {
             n_elements: n,
+            length: model.length,
             quaternions: out.quaternions.clone(),
             positions: out.positions,
             forces: out.forces.clone(),
+            curvatures,
+            moments,
             tip_reaction_force: tip_held.then(|| out.forces[n] - self.scene.tip_force),
-            tip_reaction_moment: model.clamped_tip.map(|_| w.q[n].rotate(w.kkt.tip_torque)),
+            tip_reaction_moment,
             guide_reactions: Vec::new(),
             status,
             iterations: out.pso_iterations + out.lm_iterations,
@@ -749,6 +843,7 @@ impl Solver {
             message,
             error_estimate: None,
             extrapolated_tip: None,
+            solve_time: 0.0,
         })
     }
 
@@ -760,6 +855,9 @@ impl Solver {
         model.positions(&w.q, &mut positions);
         let solved = match &ending {
             Ending::Refused(status, _) => Err(*status),
+            Ending::Failed(_) if iterations >= self.settings.max_iterations => {
+                Err(Status::IterationLimit)
+            }
             Ending::Failed(_) => Err(Status::NotConverged),
             _ => Ok(()),
         };
@@ -789,13 +887,21 @@ impl Solver {
         let tip_held = model.constraints.last().is_some_and(|c| c.node == model.n);
         let guides = model.constraints.len() - usize::from(tip_held);
         let tip_q = w.q[model.n];
+        let tip_reaction_moment = model.clamped_tip.map(|_| tip_q.rotate(w.kkt.tip_torque));
+        let (curvatures, moments) = model.curvatures_and_moments(
+            &w.q,
+            model.tip_moment + tip_reaction_moment.unwrap_or_default(),
+        );
         Solution {
             n_elements: model.n,
+            length: model.length,
             quaternions: w.q.clone(),
             positions,
             forces: model.node_forces(reactions),
+            curvatures,
+            moments,
             tip_reaction_force: tip_held.then(|| reactions[guides]),
-            tip_reaction_moment: model.clamped_tip.map(|_| tip_q.rotate(w.kkt.tip_torque)),
+            tip_reaction_moment,
             guide_reactions: reactions[..guides].to_vec(),
             status,
             iterations,
@@ -806,6 +912,7 @@ impl Solver {
             message,
             error_estimate: None,
             extrapolated_tip: None,
+            solve_time: 0.0,
         }
     }
 }
@@ -937,8 +1044,12 @@ const LM_FALLBACK_UNKNOWNS: usize = 600;
 const DIRECT_ITERATIONS: usize = 60;
 
 /// Solve a scene once (see [`Solver`] to reuse the workspace).
+/// `solve_time` counts the set-up of the discretisation.
 pub fn solve(scene: &Scene, settings: Settings, initial: Option<&[Quat]>) -> Result<Solution> {
-    Solver::new(scene, settings)?.solve(initial)
+    let started = Instant::now();
+    let mut solution = Solver::new(scene, settings)?.solve(initial)?;
+    solution.solve_time = started.elapsed().as_secs_f64();
+    Ok(solution)
 }
 
 /// Scale the step so that no node turns by more than `max_node` and no element

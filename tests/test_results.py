@@ -1,0 +1,187 @@
+"""What a Solution and an IkResult give a user: arc length, moments, curvatures,
+rotation matrices, the status enums, to_dict / from_dict, pickling (for
+multiprocessing and distributed engines) and Python-style reprs."""
+
+from __future__ import annotations
+
+import inspect
+import pickle
+import subprocess
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import softspine
+from softspine import IkEnding, Status, _core
+
+UNIT = {"kx": 1.0, "ky": 1.0, "kz": 1.0}
+
+
+def loaded_cantilever(force=(3.0, 0.0, 0.0), moment=(0.0, 0.5, 0.0)):
+    return {"length": 1.0, "stiffness": UNIT, "tip_force": list(force), "tip_moment": list(moment)}
+
+
+def load_moment_about_nodes(sol, force, moment):
+    """The continuous rod's internal moment at each node from the balance of the
+    part beyond it, (r_tip - r_j) x P + M, at the solved positions: independent
+    of how the solver forms its moments."""
+    r = sol.positions
+    return np.cross(r[-1] - r, np.asarray(force)) + np.asarray(moment)
+
+
+def test_moments_balance_the_loads_beyond_each_node_to_second_order():
+    force, moment = (3.0, 0.0, -1.0), (0.2, 0.5, 0.1)
+    errors = []
+    for n in (40, 80, 160):
+        sol = softspine.solve(loaded_cantilever(force, moment), n_elements=n, check=True)
+        assert sol.moments.shape == (n + 1, 3)
+        exact = load_moment_about_nodes(sol, force, moment)
+        # The tip is the boundary condition itself.
+        assert np.allclose(sol.moments[-1], moment, atol=1e-12)
+        errors.append(np.abs(sol.moments - exact).max())
+    assert errors[-1] < 1e-4
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(orders > 1.8), (errors, orders)
+
+
+def test_base_moment_under_gravity_is_the_weight_moment():
+    """A horizontal cantilever under its own weight q: the support carries
+    q x_c L about the base, x_c the centroid's reach, to second order."""
+    scene = {
+        "length": 1.0,
+        "stiffness": UNIT,
+        "base_quaternion": Rotation.from_euler("y", 90, degrees=True).as_quat()[[3, 0, 1, 2]],
+        "gravity": {"linear_density": 0.1, "vector": [0.0, 0.0, -9.81]},
+    }
+    sol = softspine.solve(scene, n_elements=200, check=True)
+    q = np.array([0.0, 0.0, -0.981])
+    mid = 0.5 * (sol.positions[1:] + sol.positions[:-1])
+    exact = np.cross(mid - sol.positions[0], q).sum(axis=0) / 200
+    assert np.allclose(sol.moments[0], exact, atol=1e-5 * np.abs(exact).max())
+
+
+def test_a_pure_moment_is_transmitted_exactly_by_every_element():
+    """A tip moment M alone bends the discrete rod into an arc whose elements
+    turn by theta = asin(ds M / EI) (the node balance (2/ds) sin(theta/2)
+    cos(theta/2) EI = M): its discrete curvature (2/ds) sin(theta/2) is M/EI
+    to second order, and the moment every element transmits is M exactly."""
+    m, k, n = 0.7, 2.0, 30
+    scene = {"length": 1.0, "stiffness": {"kx": k, "ky": k, "kz": 1.0}, "tip_moment": [0, m, 0]}
+    sol = softspine.solve(scene, n_elements=n, check=True)
+    assert sol.curvatures.shape == (n, 3)
+    theta = np.arcsin(m / k / n)
+    assert np.allclose(sol.curvatures, [0.0, 2 * n * np.sin(theta / 2), 0.0], atol=1e-12)
+    assert np.allclose(sol.moments, [0.0, m, 0.0], atol=1e-12)
+
+
+def test_rotation_matrices_are_the_quaternions_and_arc_length_the_nodes():
+    sol = softspine.solve(loaded_cantilever(), n_elements=20, check=True)
+    R = sol.rotation_matrices
+    assert R.shape == (21, 3, 3)
+    scipy_R = Rotation.from_quat(sol.quaternions[:, [1, 2, 3, 0]]).as_matrix()
+    assert np.allclose(R, scipy_R, atol=1e-12)
+    assert np.allclose(sol.arc_length, np.linspace(0.0, 1.0, 21), atol=1e-15)
+    assert sol.length == 1.0
+    # The tangent (third column) follows the backbone: each chord lies
+    # between its two nodes' tangents.
+    chords = np.diff(sol.positions, axis=0) * 20
+    assert np.allclose(chords, 0.5 * (R[:-1, :, 2] + R[1:, :, 2]), atol=1e-2)
+
+
+def test_status_is_the_exported_enum_that_equals_its_name():
+    sol = softspine.solve(loaded_cantilever(), n_elements=20)
+    assert sol.status is Status.CONVERGED
+    assert sol.status == "converged" and f"{sol.status}" == "converged"
+    limited = softspine.solve(loaded_cantilever((30.0, 0, 0)), n_elements=20, max_iterations=1)
+    assert limited.status is Status.ITERATION_LIMIT and not limited.converged
+
+
+def test_the_enums_mirror_the_core():
+    assert [s.value for s in Status] == list(_core._STATUS_NAMES)
+    assert [e.value for e in IkEnding] == list(_core._IK_ENDING_NAMES)
+
+
+def test_reprs_use_python_booleans():
+    sol = softspine.solve(loaded_cantilever(), n_elements=20)
+    assert "stable=True" in repr(sol)
+    ik = softspine.Robot().inverse([0.3, 0.0, -0.8], load=0.03)
+    assert ik.ending is IkEnding.REACHED
+    assert "reached=True" in repr(ik)
+
+
+def test_solution_round_trips_through_to_dict_and_pickle():
+    sol = softspine.solve({**loaded_cantilever(), "tip": {"type": "pinned", "position": [0.5, 0.0, 0.7]}},
+                          n_elements=24)
+    assert sol.converged and sol.tip_reaction_force is not None
+    assert sol.solve_time > 0.0
+    for copy in (softspine.Solution.from_dict(sol.to_dict()), pickle.loads(pickle.dumps(sol))):
+        for key, value in sol.to_dict().items():
+            other = copy.to_dict()[key]
+            if isinstance(value, np.ndarray):
+                assert np.array_equal(value, other), key
+            else:
+                assert value == other, key
+        assert copy.status is sol.status and repr(copy) == repr(sol)
+
+
+def test_a_failed_state_with_non_finite_values_still_pickles():
+    d = softspine.solve(loaded_cantilever(), n_elements=10).to_dict()
+    d["positions"][3] = np.nan
+    d["residual_norm"] = float("inf")
+    d["status"] = "numerical_error"
+    copy = pickle.loads(pickle.dumps(softspine.Solution.from_dict(d)))
+    assert copy.status is Status.NUMERICAL_ERROR and np.isnan(copy.positions[3]).all()
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda d: d.pop("moments"), "solution.moments: missing"),
+        (lambda d: d.update(curvatures=d["curvatures"][:-1]), "solution.curvatures: has 9 rows"),
+        (lambda d: d.update(status="fine"), "status: unknown status 'fine'"),
+        (lambda d: d.update(stable=1), "solution.stable: expected a bool"),
+    ],
+)
+def test_from_dict_names_a_bad_field(change, message):
+    d = softspine.solve(loaded_cantilever(), n_elements=10).to_dict()
+    change(d)
+    with pytest.raises(ValueError, match=message):
+        softspine.Solution.from_dict(d)
+
+
+def test_scene_robot_and_ik_result_pickle():
+    scene = softspine.Scene({**loaded_cantilever(), "name": "c", "base_position": [1, 2, 3]})
+    assert pickle.loads(pickle.dumps(scene)).to_dict() == scene.to_dict()
+    robot = softspine.Robot({"sections": 3, "length": 0.6})
+    assert pickle.loads(pickle.dumps(robot)).to_dict() == robot.to_dict()
+    ik = robot.inverse([0.1, 0.0, 0.55])
+    copy = pickle.loads(pickle.dumps(ik))
+    assert copy.ending is ik.ending and np.array_equal(copy.rest_curvature, ik.rest_curvature)
+    assert np.array_equal(copy.solution.positions, ik.solution.positions)
+
+
+def _tip_of(scene):
+    return softspine.solve(scene, n_elements=20)
+
+
+def test_solves_run_in_worker_processes():
+    """multiprocessing pickles the arguments and the results both ways."""
+    scenes = [softspine.Scene(loaded_cantilever((p, 0.0, 0.0))) for p in (1.0, 2.0)]
+    with ProcessPoolExecutor(2, mp_context=get_context("spawn")) as pool:
+        results = list(pool.map(_tip_of, scenes))
+    for scene, sol in zip(scenes, results, strict=True):
+        assert np.array_equal(sol.positions, _tip_of(scene).positions)
+
+
+def test_help_shows_the_constructors_signatures():
+    assert str(inspect.signature(softspine.Robot)) == "(data=None)"
+    assert str(inspect.signature(softspine.Scene)) == "(data)"
+    out = subprocess.run(
+        [sys.executable, "-c", "import softspine; help(softspine.Robot)"],
+        capture_output=True, text=True, check=True,
+    ).stdout
+    assert "Robot(data=None)" in out

@@ -21,11 +21,19 @@ demo: $(PY)
 # input, hard cases, properties) and cargo test.
 test: $(PY)
 	$(PY) -m pip install -q ".[test]"
-	$(PY) -m ruff check python tests
+	$(PY) -m ruff check python tests tools
+	$(PY) -m mypy.stubtest softspine._core
+	$(PY) -m mypy python/softspine examples
 	cargo fmt --all -- --check
 	cargo clippy --all-targets --features python -- -D warnings
 	$(PY) -m pytest -q
 	cargo test
+
+# Speed against error of every method (docs/report.*, the README's table); a
+# development tool: the references it compares with are in tools/validation.
+report: $(PY)
+	$(PY) -m pip install -q ".[test]"
+	$(PY) tools/report.py --out docs --readme README.md
 
 # Criterion benchmarks (medians in the README): forward statics, IK, the paper.
 bench:

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import softspine
-from softspine import shooting
 from softspine.scenes import cantilever
 
 from closed_forms import BISSHOPP_DRUCKER
+from validation import shooting
 
 SCENE_3D = {
     "length": 0.8,

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import softspine
-from softspine import reference, shooting
 
 from closed_forms import observed_orders
+from validation import reference, shooting
 
 
 def random_unit_quaternion(rng):

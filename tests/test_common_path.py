@@ -137,7 +137,7 @@ def test_a_bad_orientation_is_refused_naming_the_key(orientation, reason):
 
 
 def test_a_base_position_translates_the_rod_and_its_held_points():
-    from softspine import reference
+    from validation import reference
 
     offset = np.array([0.4, -1.5, 2.0])
     free = dict(BASE, rest_curvature=[[1.0, -0.5]],

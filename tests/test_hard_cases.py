@@ -11,10 +11,10 @@ from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 import softspine
-from softspine import shooting
 from softspine.scenes import cantilever, end_moment
 
 from closed_forms import observed_orders
+from validation import shooting
 
 ROUND = {"kx": 1.0, "ky": 1.0, "kz": 1.0}
 EULER_CLAMPED_FREE = math.pi**2 / 4  # P_cr L^2 / EI

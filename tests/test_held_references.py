@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import softspine
-from softspine import shooting, shooting_held
 
 from closed_forms import observed_orders, quat_mul
+from validation import shooting, shooting_held
 
 ROD = {
     "length": 0.9,

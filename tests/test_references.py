@@ -1,7 +1,7 @@
 """Self-tests of the two pure-Python references.
 
-* ``softspine.shooting`` (continuous Kirchhoff rod) against closed forms.
-* ``softspine.reference`` (the discrete quaternion model) against closed forms,
+* ``validation.shooting`` (continuous Kirchhoff rod) against closed forms.
+* ``validation.reference`` (the discrete quaternion model) against closed forms,
   with its second-order convergence, and against the shooting solution on a 3D
   scene.
 

@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 
 import softspine
-from softspine import SolverError, reference
+from softspine import SolverError
 
 from closed_forms import BISSHOPP_DRUCKER
+from validation import reference
 
 ROUND = {"kx": 1.0, "ky": 1.0, "kz": 1.0}
 

@@ -2,7 +2,7 @@
 
 * Hypothesis over valid free-tip scenes at n = 2 400 and 4 800: a converged
   answer is checked against the independent NumPy reference of the discrete
-  model (``softspine.reference``): unit quaternions, the reference's positions
+  model (``validation.reference``): unit quaternions, the reference's positions
   from the returned quaternions, the reference's residual at the returned state
   (each row over its own scale ``k_c / L``), and one Newton step of the
   reference system from the returned state (small: the residual alone would let
@@ -31,7 +31,8 @@ from hypothesis import strategies as st
 from scipy.linalg import solve_banded
 
 import softspine
-from softspine import reference
+
+from validation import reference
 
 EPS = np.finfo(float).eps
 RESIDUAL_TOL = 1e-10  # softspine's default residual_tol

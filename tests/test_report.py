@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from softspine import report
+import report
 
 
 def test_report_runs_and_writes_table_plot_and_readme(tmp_path):

@@ -114,8 +114,8 @@ def test_reprs_use_python_booleans():
 
 
 def test_solution_round_trips_through_to_dict_and_pickle():
-    sol = softspine.solve({**loaded_cantilever(), "tip": {"type": "pinned", "position": [0.5, 0.0, 0.7]}},
-                          n_elements=24)
+    pinned = {"type": "pinned", "position": [0.5, 0.0, 0.7]}
+    sol = softspine.solve({**loaded_cantilever(), "tip": pinned}, n_elements=24)
     assert sol.converged and sol.tip_reaction_force is not None
     assert sol.solve_time > 0.0
     for copy in (softspine.Solution.from_dict(sol.to_dict()), pickle.loads(pickle.dumps(sol))):

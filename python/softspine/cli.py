@@ -10,10 +10,12 @@ import time
 import numpy as np
 
 from . import SolverError, solve
+from .plotting import require_matplotlib
 from .scenes import demo_robot_scene, load_scene
 
 
 def _demo(args: argparse.Namespace) -> int:
+    require_matplotlib()  # before the work, not after it
     scene = load_scene(args.scene) if args.scene else demo_robot_scene()
     print(f"scene: {scene.name or args.scene}")
     print(f"  length {scene.length} m, sections {scene.sections}, "
@@ -76,6 +78,7 @@ def _progress(done: int, total: int, width: int = 30) -> None:
 def _track(args: argparse.Namespace) -> int:
     from . import Robot, trajectories
 
+    require_matplotlib()
     robot = Robot()
     points = trajectories.by_name(args.trajectory, args.points)
     print(f"{args.trajectory}: {len(points)} points, {args.load * 1e3:.0f} g at the tip, "
@@ -171,16 +174,12 @@ def main(argv: list[str] | None = None) -> int:
     table = sub.add_parser("track-table", help="all trajectories and loads: a Markdown table")
     table.add_argument("--points", type=int, default=60)
     table.set_defaults(func=_table)
-    report = sub.add_parser("report", help="speed against error of every method (docs/report.*)")
-    report.add_argument("--out", default="docs")
-    report.add_argument("--quick", action="store_true")
-    report.set_defaults(func=lambda a: __import__("softspine.report").report.main(
-        ["--out", a.out] + (["--quick"] if a.quick else [])))
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, OSError, SolverError) as e:
-        # A user error (bad scene or argument, missing file): one line, like argparse.
+    except (ValueError, OSError, SolverError, ImportError) as e:
+        # A user error (bad scene or argument, missing file, a missing extra):
+        # one line, like argparse.
         message = " ".join(str(e).split()) or type(e).__name__
         print(f"{parser.prog}: error: {message}", file=sys.stderr)
         return 2

@@ -29,7 +29,8 @@ def load_scene(source: Scene | dict | str | PathLike) -> Scene:
 
 def demo_robot_scene() -> Scene:
     """The demo scene: a hanging 1 m, 10-section robot under its own weight and 30 g."""
-    return load_scene(resources.files("softspine") / "data" / "demo_robot.toml")
+    toml = resources.files("softspine") / "data" / "demo_robot.toml"
+    return Scene.from_toml(toml.read_text(encoding="utf-8"))
 
 
 def cantilever(alpha: float, length: float = 1.0, ei: float = 1.0) -> dict:

@@ -1,6 +1,6 @@
 """Speed against error: every method on a fixed suite of scenes.
 
-``python -m softspine.report [--out docs]`` solves each scene with ``newton``,
+``python tools/report.py [--out docs] [--readme README.md]`` solves each scene with ``newton``,
 ``lm``, ``paper`` (when the build has it) and the NumPy reference at
 n = 5 ... 160, and with accuracy on demand at tol = 1e-3 ... 1e-6; it measures
 the median wall time of a solve (Python call included) and the tip error
@@ -18,8 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import reference, shooting, solve
-from .scenes import cantilever, end_moment
+from softspine import solve
+from softspine.scenes import cantilever, end_moment
+
+from validation import reference, shooting
 
 NS = (5, 10, 20, 40, 80, 160)
 TOLS = (1e-3, 1e-4, 1e-5, 1e-6)
@@ -181,18 +183,22 @@ def update_readme(readme: Path, table: str) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="softspine report", description=__doc__)
+    parser = argparse.ArgumentParser(prog="tools/report.py", description=__doc__)
     parser.add_argument("--out", default="docs", help="folder for report.md and report.png")
-    parser.add_argument("--readme", default="README.md",
-                        help="README to update (if it has the markers)")
+    parser.add_argument("--readme", default=None,
+                        help="also put the table in this README (between its report markers)")
     parser.add_argument("--quick", action="store_true", help="one repetition per timing")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = run(out, quick=args.quick)
     print(f"{len(rows)} rows written to {out / 'report.md'}, plot {out / 'report.png'}")
-    if update_readme(Path(args.readme), (out / "report.md").read_text()):
-        print(f"table updated in {args.readme}")
+    if args.readme is None:
+        return 0
+    if not update_readme(Path(args.readme), (out / "report.md").read_text()):
+        print(f"{args.readme}: no report markers ({START} ... {END}), not updated")
+        return 1
+    print(f"table updated in {args.readme}")
     return 0
 
 

@@ -34,6 +34,7 @@ pub mod interrupt;
 pub mod model;
 pub mod paper_method;
 pub mod quat;
+mod read;
 pub mod robot;
 pub mod scene;
 pub mod solver;

@@ -21,6 +21,7 @@
 use crate::error::{Error, Result};
 use crate::model::clamped_end_deficit;
 use crate::quat::Quat;
+use crate::read::{finite, numbers, positive, vec3, Table};
 use crate::value::Value;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
@@ -179,7 +180,7 @@ impl Scene {
 
     /// Validate and build a scene from a value tree.
     pub fn from_value(v: &Value) -> Result<Self> {
-        let top = Table::new(v, "scene")?;
+        let top = Table::top(v, "scene")?;
         top.only(&[
             "name",
             "length",
@@ -601,109 +602,6 @@ pub enum ReachLimit {
 /// (1e-10 L) is as large as the gap itself: the straight rod would pass as
 /// "converged" with a reaction of 0.
 pub const FULL_REACH_BAND: f64 = 1e-8;
-
-/// A map with the path of its key, for error messages.
-struct Table<'a> {
-    entries: &'a [(String, Value)],
-    path: String,
-}
-
-impl<'a> Table<'a> {
-    fn new(v: &'a Value, path: &str) -> Result<Self> {
-        match v {
-            Value::Map(entries) => Ok(Table {
-                entries,
-                path: path.to_string(),
-            }),
-            other => Err(Error::scene(
-                path,
-                format!("expected a table, got {}", other.kind()),
-            )),
-        }
-    }
-
-    fn key(&self, k: &str) -> String {
-        if self.path == "scene" {
-            k.to_string()
-        } else {
-            format!("{}.{k}", self.path)
-        }
-    }
-
-    fn get(&self, k: &str) -> Option<&'a Value> {
-        self.entries
-            .iter()
-            .find(|(key, _)| key == k)
-            .map(|(_, v)| v)
-    }
-
-    fn require(&self, k: &str) -> Result<&'a Value> {
-        self.get(k)
-            .ok_or_else(|| Error::scene(self.key(k), "missing"))
-    }
-
-    fn only(&self, allowed: &[&str]) -> Result<()> {
-        for (k, _) in self.entries {
-            if !allowed.contains(&k.as_str()) {
-                return Err(Error::scene(
-                    self.key(k),
-                    format!("unknown key (expected one of: {})", allowed.join(", ")),
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// A finite number at `key` (shared by every reader of value trees).
-pub(crate) fn finite(v: &Value, key: &str) -> Result<f64> {
-    match v {
-        Value::Number(x) if x.is_finite() => Ok(*x),
-        Value::Number(x) => Err(Error::scene(key, format!("must be finite, got {x}"))),
-        other => Err(Error::scene(
-            key,
-            format!("expected a number, got {}", other.kind()),
-        )),
-    }
-}
-
-fn positive(v: &Value, key: &str) -> Result<f64> {
-    let x = finite(v, key)?;
-    if x <= 0.0 {
-        return Err(Error::scene(key, format!("must be positive, got {x}")));
-    }
-    Ok(x)
-}
-
-fn numbers<const N: usize>(v: &Value, key: &str) -> Result<[f64; N]> {
-    let items = match v {
-        Value::List(items) => items,
-        other => {
-            return Err(Error::scene(
-                key,
-                format!("expected a list of {N} numbers, got {}", other.kind()),
-            ))
-        }
-    };
-    if items.len() != N {
-        return Err(Error::scene(
-            key,
-            format!(
-                "expected a list of {N} numbers, got {} entries",
-                items.len()
-            ),
-        ));
-    }
-    let mut out = [0.0; N];
-    for (i, item) in items.iter().enumerate() {
-        out[i] = finite(item, &format!("{key}[{i}]"))?;
-    }
-    Ok(out)
-}
-
-fn vec3(v: &Value, key: &str) -> Result<Vector3<f64>> {
-    Ok(Vector3::from(numbers::<3>(v, key)?))
-}
 
 /// How far from unit norm a given quaternion may be (it is normalised): four
 /// printed digits, `[0.924, 0, 0.383, 0]` for a turn of 45 degrees, are 2e-4 off.

@@ -65,16 +65,16 @@ def test_held_tips_by_the_paper_method():
 
 def test_seeded_swarm_is_deterministic():
     options = {"seed": 7, "particles": 16, "iterations": 20}
-    a = softspine.solve(cantilever(3.0), method="paper", paper_options=options)
-    b = softspine.solve(cantilever(3.0), method="paper", paper_options=options)
+    a = softspine.solve(cantilever(3.0), method="paper", paper=options)
+    b = softspine.solve(cantilever(3.0), method="paper", paper=options)
     assert np.array_equal(a.positions, b.positions)
 
 
 def test_bad_paper_input():
-    with pytest.raises(ValueError, match="^paper_options.swarm_size:"):
-        softspine.solve(cantilever(1.0), method="paper", paper_options={"swarm_size": 3})
-    with pytest.raises(ValueError, match="^paper_options.chi:"):
-        softspine.solve(cantilever(1.0), method="paper", paper_options={"chi": float("nan")})
+    with pytest.raises(ValueError, match="^paper.swarm_size: unknown setting"):
+        softspine.solve(cantilever(1.0), method="paper", paper={"swarm_size": 3})
+    with pytest.raises(ValueError, match="^paper.chi:"):
+        softspine.solve(cantilever(1.0), method="paper", paper={"chi": float("nan")})
     guided = {**cantilever(1.0), "guides": [{"s": 0.5, "position": [0.1, 0.0, 0.4]}]}
     with pytest.raises(ValueError, match="^method:"):
         softspine.solve(guided, method="paper")

@@ -5,33 +5,18 @@
   with its second-order convergence, and against the shooting solution on a 3D
   scene.
 
-The two modules are loaded from their source files, so these tests neither
-need nor touch the compiled extension.
+The two modules (tools/validation) import neither softspine nor its compiled
+extension.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-SRC = Path(__file__).resolve().parents[1] / "python" / "softspine"
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(f"_softspine_src_{name}", SRC / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-reference = _load("reference")
-shooting = _load("shooting")
+from validation import reference, shooting
 
 # ---------------------------------------------------------------------------
 # Closed forms (independent of both modules: rotation matrices only)

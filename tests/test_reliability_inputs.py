@@ -231,16 +231,16 @@ def test_numpy_scalars_as_arguments(robot):
 @pytest.mark.parametrize(
     "options,message",
     [
-        ({"particles": HUGE}, "paper_options.particles: too large"),
-        ({"seed": -1}, "paper_options.seed: must not be negative"),
-        ({"chi": HUGE}, "paper_options.chi: integer too large"),
-        ({"tol": None}, "paper_options.tol: expected a number"),
-        ({1: 2}, "paper_options: keys must be strings, got int"),
+        ({"particles": HUGE}, "paper.particles: integer too large"),
+        ({"seed": -1}, "paper.seed: must be a whole number in [0, 9007199254740992], got -1"),
+        ({"chi": HUGE}, "paper.chi: integer too large"),
+        ({"tol": None}, "paper.tol: expected a number, got null"),
+        ({1: 2}, "paper: keys must be strings, got int"),
     ],
 )
-def test_paper_options_name_the_option(options, message):
+def test_paper_settings_name_the_field(options, message):
     with pytest.raises(ValueError, match="^" + re.escape(message)):
-        softspine.solve(GOOD, method="paper", paper_options=options)
+        softspine.solve(GOOD, method="paper", paper=options)
 
 
 @pytest.mark.parametrize(
@@ -445,13 +445,13 @@ def test_inverse_solver_shared_between_threads():
 @pytest.mark.parametrize(
     "kwargs,message",
     [
-        ({"n_elements": HUGE}, "n_elements: too large"),
-        ({"max_iterations": HUGE}, "max_iterations: too large"),
+        ({"n_elements": HUGE}, "n_elements: integer too large"),
+        ({"max_iterations": HUGE}, "max_iterations: integer too large"),
         ({"tol": HUGE}, "tol: integer too large"),
         ({"residual_tol": HUGE}, "residual_tol: integer too large"),
-        ({"method": 3}, "method: expected a string, got int"),
+        ({"method": 3}, "method: expected a string, got a number"),
         ({"method": "nope"}, "method: unknown method"),
-        ({"refine": 3, "tol": 1e-3}, "refine: expected a string, got int"),
+        ({"refine": 3, "tol": 1e-3}, "refine: expected 'richardson' or None, got a number"),
     ],
 )
 def test_bad_solve_arguments_name_the_argument(kwargs, message):

@@ -15,19 +15,36 @@ by Newton's method on a block-tridiagonal system (O(n) per iteration) in Rust.
 from __future__ import annotations
 
 from os import PathLike
+from typing import Any
+
+import numpy.typing as npt
 
 from . import trajectories
-from ._core import IkResult, InverseSolver, Robot, Scene, Solution, SolverError, __version__
+from ._core import (
+    Accuracy,
+    IkResult,
+    InverseSolver,
+    PaperSettings,
+    Robot,
+    Scene,
+    Settings,
+    Solution,
+    SolverError,
+    __version__,
+)
 from ._core import solve as _solve
 from .scenes import load_scene
 from .status import IkEnding, Status
 
 __all__ = [
+    "Accuracy",
     "IkEnding",
     "IkResult",
     "InverseSolver",
+    "PaperSettings",
     "Robot",
     "Scene",
+    "Settings",
     "Solution",
     "SolverError",
     "Status",
@@ -39,16 +56,19 @@ __all__ = [
 
 
 def solve(
-    scene: Scene | dict | str | PathLike,
+    scene: Scene | dict[str, Any] | str | PathLike[str],
+    settings: Settings | dict[str, Any] | None = None,
+    *,
     n_elements: int | None = None,
     method: str | None = None,
-    initial: Solution | None = None,
+    initial: Solution | npt.ArrayLike | None = None,
+    accuracy: Accuracy | dict[str, Any] | None = None,
     tol: float | None = None,
     refine: str | None = None,
     residual_tol: float | None = None,
     max_iterations: int | None = None,
     check: bool = False,
-    paper_options: dict | None = None,
+    paper: PaperSettings | dict[str, Any] | None = None,
 ) -> Solution:
     """Solve the statics of ``scene``.
 
@@ -56,12 +76,15 @@ def solve(
     ----------
     scene : Scene, dict, or path of a ``.json`` / ``.toml`` file
         What is solved (see ``softspine.Scene``).
+    settings : Settings or dict, optional
+        The solver's settings (``softspine.Settings``: every field with its unit
+        and default); the keywords below override them.
     n_elements : int, optional
         Number of elements ``n``, a multiple of the number of sections. Default:
         the smallest multiple of the sections that is at least 20 (20 for one to
-        four, five, ten or twenty sections, 21 for three). With ``tol``, the first
-        ``n`` tried (the same default, raised to an ``n`` that resolves the rest
-        shape).
+        four, five, ten or twenty sections, 21 for three). With accuracy on
+        demand, the first ``n`` tried (the same default, raised to an ``n`` that
+        resolves the rest shape).
     method : {"newton", "lm", "paper", "paper-literal"}, optional
         ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
         continuation when a direct solve fails (default). ``"lm"``:
@@ -71,11 +94,13 @@ def solve(
         the published system without them (its |q| drifts: see the README).
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
-    tol : float, optional
-        Accuracy on demand: ``n`` doubles until the estimated error of the whole
-        backbone (the largest over the nodes, from the solves at n and 2n,
-        second order) is below ``tol * L``; the Solution
+    accuracy : Accuracy or dict, optional
+        Accuracy on demand (``softspine.Accuracy``): ``n`` doubles until the
+        estimated error of the whole backbone (the largest over the nodes, from
+        the solves at n and 2n, second order) is below ``tol * L``; the Solution
         carries ``error_estimate`` (m) and the ``n_elements`` used.
+    tol : float, optional
+        Accuracy on demand with this ``tol`` (over ``accuracy``'s).
     refine : {"richardson"}, optional
         With ``tol``: return the Richardson-extrapolated tip ``(4 r_2n - r_n)/3``
         as ``tip_position`` (``extrapolated`` is then True).
@@ -91,27 +116,36 @@ def solve(
         it, so ``Solution.iterations`` never exceeds it.
     check : bool
         Raise ``SolverError`` for any status other than "converged" (e.g.
-        "tolerance_not_met", "underresolved", "numerical_error").
-    paper_options : dict, optional
-        Settings of the paper's method: ``particles`` (40), ``iterations`` (60),
-        ``chi`` (0.729), ``inertia`` (1.0), ``c1`` (2.05), ``c2`` (2.05), ``seed``
-        (0), ``gauss_newton_iterations`` (20), ``lm_iterations`` (200), ``tol`` (1e-10).
+        "iteration_limit", "tolerance_not_met", "underresolved").
+    paper : PaperSettings or dict, optional
+        Settings of the paper's method (``softspine.PaperSettings``); a dict's
+        fields apply over ``settings.paper``.
 
     Returns
     -------
     Solution
-        Positions, quaternions, forces, tip pose, reactions, ``converged``,
-        ``iterations``, ``residual_norm``, ``energy`` and ``stable``.
+        Positions, quaternions, forces, moments, curvatures, tip pose,
+        reactions, ``status``, ``iterations``, ``residual_norm``, ``energy``,
+        ``stable`` and ``solve_time``.
+
+    Raises
+    ------
+    ValueError
+        Bad input, naming the field (a scene key, a setting, an argument).
+    SolverError
+        With ``check=True``, a solve that did not converge.
     """
     return _solve(
         load_scene(scene),
+        settings,
         n_elements=n_elements,
         method=method,
         initial=initial,
+        accuracy=accuracy,
         tol=tol,
         refine=refine,
         residual_tol=residual_tol,
         max_iterations=max_iterations,
         check=check,
-        paper_options=paper_options,
+        paper=paper,
     )

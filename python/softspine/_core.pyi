@@ -13,10 +13,13 @@ from .status import IkEnding, Status
 
 __version__: str
 __all__ = [
+    "Accuracy",
     "IkResult",
     "InverseSolver",
+    "PaperSettings",
     "Robot",
     "Scene",
+    "Settings",
     "Solution",
     "SolverError",
     "_IK_ENDING_NAMES",
@@ -206,17 +209,83 @@ class Robot:
     ) -> list[IkResult]: ...
     def __reduce__(self) -> tuple[type[Robot], tuple[dict[str, Any]]]: ...
 
+@final
+class PaperSettings:
+    """Settings of the paper's method (``method="paper"``)."""
+
+    def __new__(cls, **fields: Any) -> PaperSettings: ...
+    def validate(self) -> None: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    particles: int
+    iterations: int
+    chi: float
+    inertia: float
+    c1: float
+    c2: float
+    seed: int
+    gauss_newton_iterations: int
+    lm_iterations: int
+    tol: float
+    def __setstate__(self, state: dict[str, Any]) -> None: ...
+    def __reduce__(self) -> tuple[Any, tuple[()], dict[str, Any]]: ...
+
+@final
+class Settings:
+    """Settings of an equilibrium solve."""
+
+    def __new__(cls, **fields: Any) -> Settings: ...
+    def validate(self) -> None: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    @property
+    def n_elements(self) -> int | None: ...
+    @n_elements.setter
+    def n_elements(self, value: int | None) -> None: ...
+    @property
+    def method(self) -> str: ...
+    @method.setter
+    def method(self, value: str) -> None: ...
+    residual_tol: float
+    max_iterations: int
+    min_continuation_step: float
+    @property
+    def paper(self) -> PaperSettings: ...
+    @paper.setter
+    def paper(self, value: PaperSettings | dict[str, Any]) -> None: ...
+    def __setstate__(self, state: dict[str, Any]) -> None: ...
+    def __reduce__(self) -> tuple[Any, tuple[()], dict[str, Any]]: ...
+
+@final
+class Accuracy:
+    """Accuracy on demand: n doubles until the backbone's error is below ``tol * L``."""
+
+    def __new__(
+        cls, tol: float, refine: str | None = None, max_elements: int = 10240
+    ) -> Accuracy: ...
+    def validate(self) -> None: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    tol: float
+    @property
+    def refine(self) -> str | None: ...
+    @refine.setter
+    def refine(self, value: str | None) -> None: ...
+    max_elements: int
+    def __setstate__(self, state: dict[str, Any]) -> None: ...
+    def __reduce__(self) -> tuple[Any, tuple[float], dict[str, Any]]: ...
+
 def solve(
     scene: Scene | dict[str, Any],
+    settings: Settings | dict[str, Any] | None = None,
+    *,
     n_elements: int | None = None,
     method: str | None = None,
     initial: Solution | npt.ArrayLike | None = None,
+    accuracy: Accuracy | dict[str, Any] | None = None,
     tol: float | None = None,
     refine: str | None = None,
     residual_tol: float | None = None,
     max_iterations: int | None = None,
     check: bool = False,
-    paper_options: dict[str, Any] | None = None,
+    paper: PaperSettings | dict[str, Any] | None = None,
 ) -> Solution: ...
 def residual(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def jacobian(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...

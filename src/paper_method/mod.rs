@@ -22,7 +22,9 @@ use crate::error::{Error, Result};
 use crate::interrupt;
 use crate::model::RodModel;
 use crate::quat::{tangent_form_apply, Quat};
+use crate::read::{as_argument, count, finite, whole};
 use crate::scene::{Scene, TipCondition};
+use crate::value::Value;
 use nalgebra::{DMatrix, DVector, Vector3};
 use pso::{Swarm, SwarmSettings};
 
@@ -52,21 +54,93 @@ impl Default for PaperSettings {
 }
 
 impl PaperSettings {
+    /// Every key of [`PaperSettings::set`]: the swarm's fields and the method's.
+    pub const KEYS: [&'static str; 10] = [
+        "particles",
+        "iterations",
+        "chi",
+        "inertia",
+        "c1",
+        "c2",
+        "seed",
+        "gauss_newton_iterations",
+        "lm_iterations",
+        "tol",
+    ];
+
+    /// Set one field from a value, named by [`PaperSettings::KEYS`] (the
+    /// swarm's fields flat); ranges are [`validate`](PaperSettings::validate)'s.
+    pub fn set(&mut self, key: &str, value: &Value) -> Result<()> {
+        self.set_field(key, value).map_err(as_argument)
+    }
+
+    fn set_field(&mut self, key: &str, value: &Value) -> Result<()> {
+        let counted = |max: f64| whole(value, key, max).map(|x| x as usize);
+        let sw = &mut self.swarm;
+        match key {
+            "particles" => sw.particles = count(value, key, 1_000_000_000)?,
+            "iterations" => sw.iterations = counted(1e9)?,
+            "chi" => sw.chi = finite(value, key)?,
+            "inertia" => sw.inertia = finite(value, key)?,
+            "c1" => sw.c1 = finite(value, key)?,
+            "c2" => sw.c2 = finite(value, key)?,
+            // Seeds up to 2^53: every one a double holds exactly.
+            "seed" => sw.seed = whole(value, key, 9_007_199_254_740_992.0)? as u64,
+            "gauss_newton_iterations" => self.gauss_newton_iterations = counted(1e9)?,
+            "lm_iterations" => self.lm_iterations = counted(1e9)?,
+            "tol" => self.tol = finite(value, key)?,
+            other => {
+                return Err(Error::argument(
+                    other,
+                    format!(
+                        "unknown setting (expected one of: {})",
+                        Self::KEYS.join(", ")
+                    ),
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    /// Every field as a flat table of [`PaperSettings::KEYS`].
+    pub fn to_value(&self) -> Value {
+        let sw = &self.swarm;
+        let numbers = [
+            sw.particles as f64,
+            sw.iterations as f64,
+            sw.chi,
+            sw.inertia,
+            sw.c1,
+            sw.c2,
+            sw.seed as f64,
+            self.gauss_newton_iterations as f64,
+            self.lm_iterations as f64,
+            self.tol,
+        ];
+        Value::Map(
+            Self::KEYS
+                .iter()
+                .zip(numbers)
+                .map(|(k, x)| (k.to_string(), Value::Number(x)))
+                .collect(),
+        )
+    }
+
     /// Refuse settings that cannot run or cannot mean anything, naming the field.
     pub fn validate(&self) -> Result<()> {
-        crate::solver::check_tolerance("paper_options.tol", self.tol, (1e-14, 1e-4))?;
+        crate::solver::check_tolerance("paper.tol", self.tol, (1e-14, 1e-4))?;
         let sw = &self.swarm;
         if sw.particles == 0 || sw.particles > 100_000 {
             return Err(Error::argument(
-                "paper_options.particles",
+                "paper.particles",
                 format!("must lie in [1, 100000], got {}", sw.particles),
             ));
         }
         for (name, v) in [
-            ("paper_options.chi", sw.chi),
-            ("paper_options.inertia", sw.inertia),
-            ("paper_options.c1", sw.c1),
-            ("paper_options.c2", sw.c2),
+            ("paper.chi", sw.chi),
+            ("paper.inertia", sw.inertia),
+            ("paper.c1", sw.c1),
+            ("paper.c2", sw.c2),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::argument(
@@ -76,12 +150,12 @@ impl PaperSettings {
             }
         }
         for (name, v) in [
-            ("paper_options.iterations", sw.iterations),
+            ("paper.iterations", sw.iterations),
             (
-                "paper_options.gauss_newton_iterations",
+                "paper.gauss_newton_iterations",
                 self.gauss_newton_iterations,
             ),
-            ("paper_options.lm_iterations", self.lm_iterations),
+            ("paper.lm_iterations", self.lm_iterations),
         ] {
             if v > 1_000_000 {
                 return Err(Error::argument(

@@ -10,6 +10,7 @@ mod convert;
 mod detach;
 mod robot;
 mod scene;
+mod settings;
 mod solution;
 mod solve;
 
@@ -42,6 +43,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<robot::PyInverseSolver>()?;
     m.add_function(wrap_pyfunction!(robot::trajectory_points, m)?)?;
     m.add_class::<scene::PyScene>()?;
+    m.add_class::<settings::PySettings>()?;
+    m.add_class::<settings::PyPaperSettings>()?;
+    m.add_class::<settings::PyAccuracy>()?;
     m.add_class::<solution::PySolution>()?;
     m.add_function(wrap_pyfunction!(solve::solve, m)?)?;
     m.add_function(wrap_pyfunction!(solve::residual, m)?)?;

@@ -3,107 +3,76 @@
 use super::convert::*;
 use super::detach::detach_solve;
 use super::scene::scene_arg;
+use super::settings::{entries, PyAccuracy, PyPaperSettings, PySettings};
 use super::solution::{quaternions_arg, PySolution};
 use crate::blocktri::BlockTridiagonal;
-use crate::paper_method::PaperSettings;
 use crate::solver::{solve_to_accuracy, Accuracy};
-use crate::{Error, Method, Quat, RodModel, Settings, Solver};
+use crate::{Error, Quat, RodModel, Settings, Value};
 use nalgebra::Vector3;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString};
+use pyo3::types::PyDict;
 
 /// Solve the statics of a scene. See ``softspine.solve`` for the documentation.
 #[pyfunction]
-#[pyo3(signature = (scene, n_elements=None, method=None, initial=None, tol=None, refine=None, residual_tol=None, max_iterations=None, check=false, paper_options=None))]
+#[pyo3(signature = (scene, settings=None, *, n_elements=None, method=None, initial=None, accuracy=None, tol=None, refine=None, residual_tol=None, max_iterations=None, check=false, paper=None))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve(
     py: Python<'_>,
     scene: &Bound<'_, PyAny>,
+    settings: Option<&Bound<'_, PyAny>>,
     n_elements: Option<&Bound<'_, PyAny>>,
     method: Option<&Bound<'_, PyAny>>,
     initial: Option<&Bound<'_, PyAny>>,
+    accuracy: Option<&Bound<'_, PyAny>>,
     tol: Option<&Bound<'_, PyAny>>,
     refine: Option<&Bound<'_, PyAny>>,
     residual_tol: Option<&Bound<'_, PyAny>>,
     max_iterations: Option<&Bound<'_, PyAny>>,
     check: bool,
-    paper_options: Option<&Bound<'_, PyAny>>,
+    paper: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PySolution> {
     let scene = scene_arg(scene)?;
-    let n_elements = given(n_elements)
-        .map(|o| int_arg("n_elements", &o))
-        .transpose()?;
-    let tol = given(tol).map(|o| float_arg("tol", &o)).transpose()?;
-    let refine = given(refine).map(|o| str_arg("refine", &o)).transpose()?;
-    let defaults = Settings::default();
-    let method = match given(method) {
-        None => defaults.method,
-        Some(o) => str_arg("method", &o)?.parse::<Method>()?,
-    };
-    let residual_tol = given(residual_tol)
-        .map(|o| float_arg("residual_tol", &o))
-        .transpose()?
-        .unwrap_or(defaults.residual_tol);
-    let max_iterations = given(max_iterations)
-        .map(|o| int_arg("max_iterations", &o))
-        .transpose()?
-        .unwrap_or(defaults.max_iterations);
-    let paper_options = match given(paper_options) {
-        None => None,
-        Some(o) => Some(o.cast_into::<PyDict>().map_err(|e| {
-            PyValueError::new_err(format!(
-                "paper_options: expected a dict, got {}",
-                e.into_inner()
-                    .get_type()
-                    .name()
-                    .map_or("?".into(), |n| n.to_string())
-            ))
-        })?),
-    };
-    let richardson = match refine.as_deref() {
-        None => false,
-        Some("richardson") if tol.is_some() => true,
-        Some("richardson") => {
-            return Err(PyValueError::new_err(
-                "refine: 'richardson' needs tol (accuracy on demand)",
-            ))
+    let mut settings = settings_arg(py, settings)?;
+    // The keywords override the settings, read by the core's `Settings::set`.
+    let keywords = PyDict::new(py);
+    for (key, value) in [
+        ("n_elements", n_elements),
+        ("method", method),
+        ("residual_tol", residual_tol),
+        ("max_iterations", max_iterations),
+        ("paper", paper),
+    ] {
+        match given(value) {
+            Some(p) if key == "paper" && p.is_instance_of::<PyPaperSettings>() => {
+                settings.paper = p.cast::<PyPaperSettings>()?.borrow().inner.clone();
+            }
+            Some(v) => keywords.set_item(key, v)?,
+            None => {}
         }
-        Some(other) => {
-            return Err(PyValueError::new_err(format!(
-                "refine: unknown '{other}' (expected 'richardson')"
-            )))
-        }
-    };
-    let settings = Settings {
-        n_elements,
-        method,
-        residual_tol,
-        max_iterations,
-        paper: paper_settings(paper_options.as_ref())?,
-        ..defaults
-    };
-    let solution = match tol {
+    }
+    for (key, value) in entries(&to_value(keywords.as_any(), &Path::input("settings"))?) {
+        settings.set(key, value)?;
+    }
+    settings.validate()?;
+    let accuracy = accuracy_arg(accuracy, tol, refine)?;
+    let solution = match accuracy {
         None => {
             let initial = initial.map(|q| quaternions_arg("initial", q)).transpose()?;
             // Building the solver allocates O(n): without the GIL too.
             let long = settings.resolved(&scene).has_long_passes();
             detach_solve(py, long, move || {
-                Solver::new(&scene, settings)?.solve(initial.as_deref())
+                crate::solve(&scene, settings, initial.as_deref())
             })?
         }
-        Some(tol) => {
+        Some(accuracy) => {
             if initial.is_some() {
                 return Err(PyValueError::new_err(
                     "initial: not used with tol (the discretisation is chosen by the solver)",
                 ));
             }
-            let accuracy = Accuracy {
-                richardson,
-                ..Accuracy::new(tol)
-            };
             // It may end at any n up to the limit. A worker thread costs a
             // thread start, which made a solve of tens of microseconds take
             // 1.6 ms: only for passes that may outlast the poll.
@@ -117,42 +86,67 @@ pub(super) fn solve(
     Ok(PySolution { inner: solution })
 }
 
-/// The paper's method settings from a dict (every key optional).
-pub(super) fn paper_settings(options: Option<&Bound<'_, PyDict>>) -> PyResult<PaperSettings> {
-    let mut p = PaperSettings::default();
-    let Some(options) = options else {
-        return Ok(p);
+/// The `settings` argument: a `Settings`, a dict of its fields or None (the defaults).
+fn settings_arg(py: Python<'_>, settings: Option<&Bound<'_, PyAny>>) -> PyResult<Settings> {
+    let Some(s) = given(settings) else {
+        return Ok(Settings::default());
     };
-    for (key, value) in options.iter() {
-        let key = match key.cast::<PyString>() {
-            Ok(k) => k.to_cow()?.into_owned(),
-            Err(_) => {
-                return Err(Path::argument("paper_options")
-                    .error(format!("keys must be strings, got {}", type_name(&key))))
-            }
-        };
-        let name = format!("paper_options.{key}");
-        let bad = |what: &str| PyValueError::new_err(format!("{name}: {what}"));
-        let count = || int_arg(&name, &value);
-        let real = || float_arg(&name, &value);
-        match key.as_str() {
-            "particles" => p.swarm.particles = count()?.max(1),
-            "iterations" => p.swarm.iterations = count()?,
-            "chi" => p.swarm.chi = real()?,
-            "inertia" => p.swarm.inertia = real()?,
-            "c1" => p.swarm.c1 = real()?,
-            "c2" => p.swarm.c2 = real()?,
-            "seed" => p.swarm.seed = count()? as u64,
-            "gauss_newton_iterations" => p.gauss_newton_iterations = count()?,
-            "lm_iterations" => p.lm_iterations = count()?,
-            "tol" => p.tol = real()?,
-            _ => return Err(bad("unknown option (particles, iterations, chi, inertia, c1, c2, seed, gauss_newton_iterations, lm_iterations, tol)")),
-        }
+    if let Ok(s) = s.cast::<PySettings>() {
+        return Ok(s.borrow().to_core(py));
     }
-    Ok(p)
+    if s.is_instance_of::<PyDict>() {
+        return Ok(Settings::from_value(&to_value(
+            &s,
+            &Path::input("settings"),
+        )?)?);
+    }
+    Err(PyValueError::new_err(format!(
+        "settings: expected a Settings or a dict of its fields, got {}",
+        type_name(&s)
+    )))
 }
 
-pub(super) fn model_and_state(
+/// Accuracy on demand, if asked for: an `Accuracy` or a dict of its fields,
+/// with the `tol` and `refine` keywords over it.
+fn accuracy_arg(
+    accuracy: Option<&Bound<'_, PyAny>>,
+    tol: Option<&Bound<'_, PyAny>>,
+    refine: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<Accuracy>> {
+    let mut fields: Vec<(String, Value)> = match given(accuracy) {
+        None => Vec::new(),
+        Some(a) => {
+            if let Ok(a) = a.cast::<PyAccuracy>() {
+                entries(&a.borrow().inner.to_value()).to_vec()
+            } else if a.is_instance_of::<PyDict>() {
+                entries(&to_value(&a, &Path::input("accuracy"))?).to_vec()
+            } else {
+                return Err(PyValueError::new_err(format!(
+                    "accuracy: expected an Accuracy or a dict of its fields, got {}",
+                    type_name(&a)
+                )));
+            }
+        }
+    };
+    let py_keywords = [("tol", tol), ("refine", refine)];
+    for (key, value) in py_keywords {
+        if let Some(v) = given(value) {
+            let d = PyDict::new(v.py());
+            d.set_item(key, v)?;
+            let value = entries(&to_value(d.as_any(), &Path::input("accuracy"))?)[0]
+                .1
+                .clone();
+            fields.retain(|(k, _)| k != key);
+            fields.push((key.to_string(), value));
+        }
+    }
+    if fields.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(Accuracy::from_value(&Value::Map(fields))?))
+}
+
+fn model_and_state(
     scene: &Bound<'_, PyAny>,
     quaternions: &Bound<'_, PyAny>,
 ) -> PyResult<(RodModel, Vec<Quat>)> {

@@ -23,6 +23,7 @@ pub use ik::{IkEnding, IkOptions, IkResult, InverseSolver, Strategy};
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
+use crate::read::{count, finite};
 use crate::scene::{Gravity, PointLoad, Scene, Stiffness};
 use crate::value::Value;
 use nalgebra::{Matrix3, Vector3};
@@ -94,28 +95,6 @@ fn positive(name: &str, x: f64) -> Result<()> {
         Err(Error::scene(
             name,
             format!("must be positive and finite, got {x}"),
-        ))
-    }
-}
-
-/// A number as given: integers in full, large magnitudes in exponent form.
-fn shown(x: f64) -> String {
-    if x.abs() >= 1e16 {
-        format!("{x:e}")
-    } else {
-        format!("{x}")
-    }
-}
-
-/// A count (sections, elements) read as an integer in `[1, max]`, checked
-/// before anything is allocated for it.
-fn count(key: &str, x: f64, max: usize) -> Result<usize> {
-    if x >= 1.0 && x <= max as f64 && x.fract() == 0.0 {
-        Ok(x as usize)
-    } else {
-        Err(Error::scene(
-            key,
-            format!("must be an integer in [1, {max}], got {}", shown(x)),
         ))
     }
 }
@@ -545,7 +524,7 @@ impl Robot {
 
     /// Set one field from the value tree (counts checked before anything is sized by them).
     fn read_field(&mut self, key: &str, value: &Value) -> Result<()> {
-        let num = |v: &Value| crate::scene::finite(v, key);
+        let num = |v: &Value| finite(v, key);
         let list = |v: &Value, len: usize| -> Result<Vec<f64>> {
             match v {
                 Value::List(items) if items.len() == len => items.iter().map(num).collect(),
@@ -565,7 +544,7 @@ impl Robot {
                 self.stiffness = Scene::from_value(&probe)?.stiffness_spec;
             }
             "linear_density" => self.linear_density = num(value)?,
-            "sections" => self.sections = count(key, num(value)?, MAX_SECTIONS)?,
+            "sections" => self.sections = count(value, key, MAX_SECTIONS)?,
             "muscle_radius" => self.muscle_radius = num(value)?,
             "muscle_angles" => {
                 let a = list(value, 3)?;
@@ -581,7 +560,7 @@ impl Robot {
                 let a = list(value, 2)?;
                 self.muscle_length_range = [a[0], a[1]];
             }
-            "n_elements" => self.n_elements = count(key, num(value)?, MAX_ROBOT_ELEMENTS)?,
+            "n_elements" => self.n_elements = count(value, key, MAX_ROBOT_ELEMENTS)?,
             other => {
                 return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements)"))
             }

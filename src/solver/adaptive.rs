@@ -8,7 +8,9 @@ use super::{check_tolerance, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
 use crate::model::{element_turn, slerp};
 use crate::quat::Quat;
+use crate::read::{as_argument, count, finite, Table};
 use crate::scene::Scene;
+use crate::value::Value;
 
 /// What accuracy to reach and how.
 #[derive(Debug, Clone, PartialEq)]
@@ -22,12 +24,21 @@ pub struct Accuracy {
 }
 
 impl Accuracy {
+    /// An accuracy of `tol` with the defaults: no extrapolation, at most 10 240 elements.
     pub fn new(tol: f64) -> Self {
         Accuracy {
             tol,
             richardson: false,
             max_elements: 10_240,
         }
+    }
+}
+
+/// A value as the user wrote it, for a refusal.
+fn shown_value(v: &Value) -> String {
+    match v {
+        Value::String(s) => format!("'{s}'"),
+        other => other.kind().to_string(),
     }
 }
 
@@ -52,6 +63,81 @@ impl Accuracy {
         .has_long_passes()
     }
 
+    /// Every key of [`Accuracy::set`].
+    pub const KEYS: [&'static str; 3] = ["tol", "refine", "max_elements"];
+
+    /// Set one field from a value: `tol` a number, `refine` `"richardson"`
+    /// or null (none), `max_elements` a count; ranges are
+    /// [`validate`](Accuracy::validate)'s.
+    pub fn set(&mut self, key: &str, value: &Value) -> Result<()> {
+        match key {
+            "tol" => self.tol = finite(value, key).map_err(as_argument)?,
+            "refine" => {
+                self.richardson = match value {
+                    Value::Null => false,
+                    Value::String(s) if s == "richardson" => true,
+                    other => {
+                        return Err(Error::argument(
+                            key,
+                            format!("expected 'richardson' or None, got {}", shown_value(other)),
+                        ))
+                    }
+                }
+            }
+            "max_elements" => {
+                self.max_elements = count(value, key, MAX_ELEMENTS).map_err(as_argument)?
+            }
+            other => {
+                return Err(Error::argument(
+                    other,
+                    format!(
+                        "unknown setting (expected one of: {})",
+                        Self::KEYS.join(", ")
+                    ),
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    /// An accuracy from a table of [`Accuracy::KEYS`] (`tol` required), validated.
+    pub fn from_value(v: &Value) -> Result<Accuracy> {
+        let table = Table::top(v, "accuracy").map_err(as_argument)?;
+        let Some(tol) = table.get("tol") else {
+            // Named by what was given without it.
+            let given = table.entries.first().map_or("tol", |(k, _)| k.as_str());
+            return Err(Error::argument(
+                given,
+                "needs tol (accuracy on demand: refine and max_elements apply to it)",
+            ));
+        };
+        let mut accuracy = Accuracy::new(f64::NAN);
+        accuracy.set("tol", tol)?;
+        for (k, x) in table.entries {
+            accuracy.set(k, x)?;
+        }
+        accuracy.validate()?;
+        Ok(accuracy)
+    }
+
+    /// Every field as a table ([`Accuracy::from_value`] reads it back).
+    pub fn to_value(&self) -> Value {
+        let refine = if self.richardson {
+            Value::String("richardson".into())
+        } else {
+            Value::Null
+        };
+        Value::Map(vec![
+            ("tol".into(), Value::Number(self.tol)),
+            ("refine".into(), refine),
+            (
+                "max_elements".into(),
+                Value::Number(self.max_elements as f64),
+            ),
+        ])
+    }
+
+    /// Refuse an accuracy out of range, naming the field.
     pub fn validate(&self) -> Result<()> {
         check_tolerance("tol", self.tol, ACCURACY_TOL_RANGE)?;
         if self.max_elements == 0 || self.max_elements > MAX_ELEMENTS {

@@ -1,0 +1,178 @@
+//! Readers of value trees (JSON, TOML, a Python dict), shared by the scene, the
+//! robot and the solver settings: each refuses a wrong kind, shape or range
+//! with an error that names the key ([`Error::InvalidScene`]; the settings
+//! turn it into [`Error::InvalidArgument`]).
+
+use crate::error::{Error, Result};
+use crate::value::Value;
+use nalgebra::Vector3;
+
+/// A map with the path of its key, for error messages.
+pub(crate) struct Table<'a> {
+    pub(crate) entries: &'a [(String, Value)],
+    path: String,
+}
+
+impl<'a> Table<'a> {
+    pub(crate) fn new(v: &'a Value, path: &str) -> Result<Self> {
+        match v {
+            Value::Map(entries) => Ok(Table {
+                entries,
+                path: path.to_string(),
+            }),
+            other => Err(Error::scene(
+                path,
+                format!("expected a table, got {}", other.kind()),
+            )),
+        }
+    }
+
+    /// The table at the top of an input (a scene, the settings): its keys are
+    /// named bare, `what` only names the input when it is not a table.
+    pub(crate) fn top(v: &'a Value, what: &str) -> Result<Self> {
+        let mut table = Table::new(v, what)?;
+        table.path.clear();
+        Ok(table)
+    }
+
+    pub(crate) fn key(&self, k: &str) -> String {
+        if self.path.is_empty() {
+            k.to_string()
+        } else {
+            format!("{}.{k}", self.path)
+        }
+    }
+
+    pub(crate) fn get(&self, k: &str) -> Option<&'a Value> {
+        self.entries
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v)
+    }
+
+    pub(crate) fn require(&self, k: &str) -> Result<&'a Value> {
+        self.get(k)
+            .ok_or_else(|| Error::scene(self.key(k), "missing"))
+    }
+
+    pub(crate) fn only(&self, allowed: &[&str]) -> Result<()> {
+        for (k, _) in self.entries {
+            if !allowed.contains(&k.as_str()) {
+                return Err(Error::scene(
+                    self.key(k),
+                    format!("unknown key (expected one of: {})", allowed.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A finite number at `key`.
+pub(crate) fn finite(v: &Value, key: &str) -> Result<f64> {
+    match v {
+        Value::Number(x) if x.is_finite() => Ok(*x),
+        Value::Number(x) => Err(Error::scene(key, format!("must be finite, got {x}"))),
+        other => Err(Error::scene(
+            key,
+            format!("expected a number, got {}", other.kind()),
+        )),
+    }
+}
+
+pub(crate) fn positive(v: &Value, key: &str) -> Result<f64> {
+    let x = finite(v, key)?;
+    if x <= 0.0 {
+        return Err(Error::scene(key, format!("must be positive, got {x}")));
+    }
+    Ok(x)
+}
+
+pub(crate) fn numbers<const N: usize>(v: &Value, key: &str) -> Result<[f64; N]> {
+    let items = match v {
+        Value::List(items) => items,
+        other => {
+            return Err(Error::scene(
+                key,
+                format!("expected a list of {N} numbers, got {}", other.kind()),
+            ))
+        }
+    };
+    if items.len() != N {
+        return Err(Error::scene(
+            key,
+            format!(
+                "expected a list of {N} numbers, got {} entries",
+                items.len()
+            ),
+        ));
+    }
+    let mut out = [0.0; N];
+    for (i, item) in items.iter().enumerate() {
+        out[i] = finite(item, &format!("{key}[{i}]"))?;
+    }
+    Ok(out)
+}
+
+pub(crate) fn vec3(v: &Value, key: &str) -> Result<Vector3<f64>> {
+    Ok(Vector3::from(numbers::<3>(v, key)?))
+}
+
+/// A number as given: integers in full, large magnitudes in exponent form.
+pub(crate) fn shown(x: f64) -> String {
+    if x.abs() >= 1e16 {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// A count (sections, elements) read as an integer in `[1, max]`, checked
+/// before anything is allocated for it.
+pub(crate) fn count(v: &Value, key: &str, max: usize) -> Result<usize> {
+    let x = finite(v, key)?;
+    if x >= 1.0 && x <= max as f64 && x.fract() == 0.0 {
+        Ok(x as usize)
+    } else {
+        Err(Error::scene(
+            key,
+            format!("must be an integer in [1, {max}], got {}", shown(x)),
+        ))
+    }
+}
+
+/// A string at `key`.
+pub(crate) fn string<'a>(v: &'a Value, key: &str) -> Result<&'a str> {
+    match v {
+        Value::String(s) => Ok(s),
+        other => Err(Error::scene(
+            key,
+            format!("expected a string, got {}", other.kind()),
+        )),
+    }
+}
+
+/// A whole number in `[0, max]` at `key` (an iteration count, a seed).
+pub(crate) fn whole(v: &Value, key: &str, max: f64) -> Result<f64> {
+    let x = finite(v, key)?;
+    if x >= 0.0 && x <= max && x.fract() == 0.0 {
+        Ok(x)
+    } else {
+        Err(Error::scene(
+            key,
+            format!(
+                "must be a whole number in [0, {}], got {}",
+                shown(max),
+                shown(x)
+            ),
+        ))
+    }
+}
+
+/// A reader's refusal of a setting is an invalid argument (it names the key).
+pub(crate) fn as_argument(e: Error) -> Error {
+    match e {
+        Error::InvalidScene { key, reason } => Error::InvalidArgument { name: key, reason },
+        other => other,
+    }
+}

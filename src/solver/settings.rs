@@ -1,0 +1,300 @@
+//! The settings of an equilibrium solve ([`Settings`]): every field with its
+//! unit and default, read from a value tree by name (the Python `Settings` and
+//! `solve`'s keywords go through [`Settings::set`]), checked by
+//! [`Settings::validate`].
+
+use crate::error::{Error, Result};
+use crate::paper_method::PaperSettings;
+use crate::read::{as_argument, count, finite, string, Table};
+use crate::scene::Scene;
+use crate::value::Value;
+
+/// The numerical method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Damped Newton on the minimal (3 per node) update with the block-tridiagonal
+    /// Jacobian: O(n) per iteration, quadratic convergence.
+    Newton,
+    /// Levenberg-Marquardt on the same residual, dense normal equations with faer.
+    LevenbergMarquardt,
+    /// The seed paper's method: PSO then LM over `[q, F]` with the unit-norm rows.
+    Paper,
+    /// The paper's system as printed, without the unit-norm rows (it collapses).
+    PaperLiteral,
+}
+
+impl Method {
+    /// The name [`Method::from_str`](std::str::FromStr) reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Newton => "newton",
+            Method::LevenbergMarquardt => "lm",
+            Method::Paper => "paper",
+            Method::PaperLiteral => "paper-literal",
+        }
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "newton" => Ok(Method::Newton),
+            "lm" => Ok(Method::LevenbergMarquardt),
+            "paper" => Ok(Method::Paper),
+            "paper-literal" => Ok(Method::PaperLiteral),
+            other => Err(Error::argument(
+                "method",
+                format!("unknown method '{other}' (expected 'newton', 'lm', 'paper' or 'paper-literal')"),
+            )),
+        }
+    }
+}
+
+/// Solver settings; every field has a documented default.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// Number of elements `n`, a multiple of the number of sections. `None`
+    /// (the default): [`default_elements`] of the scene's sections, the
+    /// smallest multiple of them that is at least [`DEFAULT_ELEMENTS`].
+    pub n_elements: Option<usize>,
+    /// The numerical method (default [`Method::Newton`]).
+    pub method: Method,
+    /// Convergence tolerance on the relative residual: the largest torque
+    /// imbalance of a row over its own scale `k_c / L` (default 1e-10, within
+    /// [`RESIDUAL_TOL_RANGE`]). The tolerance in effect is never below the
+    /// round-off floor of the residual (see [`RodModel::roundoff_floor`]), so
+    /// that it cannot be defeated at large n.
+    pub residual_tol: f64,
+    /// Iteration budget of a solve (default 500), shared by the coarse rod of
+    /// nested iteration (at most three quarters of it), the direct attempt (at most 60),
+    /// every load-continuation step (at most 25 each) and the
+    /// Levenberg-Marquardt fallback: `Solution::iterations` never exceeds it.
+    pub max_iterations: usize,
+    /// Smallest load-continuation step before giving up, as a fraction of
+    /// the load (default 1e-6, in (0, 1)).
+    pub min_continuation_step: f64,
+    /// Settings of the paper's method (swarm, Gauss-Newton, LM).
+    pub paper: PaperSettings,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            n_elements: None,
+            method: Method::Newton,
+            residual_tol: 1e-10,
+            max_iterations: 500,
+            min_continuation_step: 1e-6,
+            paper: PaperSettings::default(),
+        }
+    }
+}
+
+/// The fewest elements of a solve by default (see [`default_elements`]).
+pub const DEFAULT_ELEMENTS: usize = 20;
+
+/// The default number of elements of a rod of `sections` sections: the
+/// smallest multiple of them that is at least [`DEFAULT_ELEMENTS`] (every
+/// section gets the same whole number of elements).
+pub fn default_elements(sections: usize) -> usize {
+    let sections = sections.max(1);
+    DEFAULT_ELEMENTS.div_ceil(sections) * sections
+}
+
+/// Largest `n_elements` of the O(n) Newton solver: about 0.5 KB a node of
+/// workspace, so 4 000 000 elements take about 2 GB.
+pub const MAX_ELEMENTS: usize = 4_000_000;
+
+/// Largest `n_elements` of the dense methods (`lm`: matrices of `(3n)^2`
+/// entries and O(n^3) work an iteration).
+pub const MAX_DENSE_ELEMENTS: usize = 1_000;
+
+/// Largest `n_elements` of the paper's method (dense, over `[q, F]`, and a
+/// swarm of particles in `7n` dimensions).
+pub const MAX_PAPER_ELEMENTS: usize = 400;
+
+/// Range of `residual_tol`: below 1e-14 is below what double precision
+/// resolves; above 1e-4 a "converged" state is visibly off equilibrium.
+pub const RESIDUAL_TOL_RANGE: (f64, f64) = (1e-14, 1e-4);
+
+/// Refuse a tolerance outside `[min, max]` (or not finite), naming it.
+pub(crate) fn check_tolerance(name: &str, value: f64, (min, max): (f64, f64)) -> Result<()> {
+    if value.is_finite() && (min..=max).contains(&value) {
+        return Ok(());
+    }
+    Err(Error::argument(
+        name,
+        format!("must lie in [{min:e}, {max:e}], got {value:e}"),
+    ))
+}
+
+/// Smallest discretisations of which one pass may outlast an interrupt poll
+/// ([`Settings::has_long_passes`]): a sweep over 20 000 elements takes about
+/// 2 ms, a dense factorisation of 100 elements' `(3n)^2` matrix about as long.
+const LONG_PASS_ELEMENTS: usize = 20_000;
+const LONG_DENSE_PASS_ELEMENTS: usize = 100;
+
+impl Settings {
+    /// Whether one pass of this solve (a sweep over the rod, a dense
+    /// factorisation) may take longer than [`crate::interrupt::POLL_INTERVAL`]:
+    /// a caller that must answer Ctrl-C at once then runs it
+    /// [`crate::interrupt::on_worker`]. The solvers poll between passes.
+    /// (Settings [`resolved`](Settings::resolved) for the scene: the default
+    /// n counts as [`DEFAULT_ELEMENTS`].)
+    pub fn has_long_passes(&self) -> bool {
+        let n = self.n_elements.unwrap_or(DEFAULT_ELEMENTS);
+        match self.method {
+            Method::Newton => n >= LONG_PASS_ELEMENTS,
+            _ => n >= LONG_DENSE_PASS_ELEMENTS,
+        }
+    }
+
+    /// The number of elements of a solve of `scene`: `n_elements`, or
+    /// [`default_elements`] of its sections.
+    pub fn elements_for(&self, scene: &Scene) -> usize {
+        self.n_elements
+            .unwrap_or_else(|| default_elements(scene.sections()))
+    }
+
+    /// These settings with the number of elements for `scene` filled in.
+    pub fn resolved(&self, scene: &Scene) -> Settings {
+        Settings {
+            n_elements: Some(self.elements_for(scene)),
+            ..self.clone()
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let limit = match self.method {
+            Method::Newton => MAX_ELEMENTS,
+            Method::LevenbergMarquardt => MAX_DENSE_ELEMENTS,
+            Method::Paper | Method::PaperLiteral => MAX_PAPER_ELEMENTS,
+        };
+        if let Some(n) = self.n_elements {
+            if n == 0 || n > limit {
+                return Err(Error::argument(
+                    "n_elements",
+                    format!(
+                        "must lie in [1, {limit}] for method {:?}, got {n}",
+                        self.method
+                    ),
+                ));
+            }
+        }
+        check_tolerance("residual_tol", self.residual_tol, RESIDUAL_TOL_RANGE)?;
+        if self.max_iterations == 0 {
+            return Err(Error::argument("max_iterations", "must be positive"));
+        }
+        if !(self.min_continuation_step > 0.0 && self.min_continuation_step < 1.0) {
+            return Err(Error::argument(
+                "min_continuation_step",
+                format!("must lie in (0, 1), got {}", self.min_continuation_step),
+            ));
+        }
+        if matches!(self.method, Method::Paper | Method::PaperLiteral) {
+            self.paper.validate()?;
+        }
+        Ok(())
+    }
+}
+
+/// Largest iteration budget a setting accepts.
+const MAX_ITERATION_SETTING: usize = 1_000_000_000;
+
+impl Settings {
+    /// Every key of [`Settings::set`], in the order of the fields.
+    pub const KEYS: [&'static str; 6] = [
+        "n_elements",
+        "method",
+        "residual_tol",
+        "max_iterations",
+        "min_continuation_step",
+        "paper",
+    ];
+
+    /// Set the field `key` from a value: `n_elements` a count or null (the
+    /// default), `method` a name, `paper` a table of [`PaperSettings::set`]'s
+    /// keys applied to the current paper settings. Refuses an unknown key or
+    /// a value of the wrong kind, naming the key; ranges are
+    /// [`validate`](Settings::validate)'s.
+    pub fn set(&mut self, key: &str, value: &Value) -> Result<()> {
+        self.set_field(key, value).map_err(as_argument)
+    }
+
+    fn set_field(&mut self, key: &str, value: &Value) -> Result<()> {
+        match key {
+            "n_elements" => {
+                self.n_elements = match value {
+                    Value::Null => None,
+                    v => Some(count(v, key, MAX_ELEMENTS)?),
+                }
+            }
+            "method" => self.method = string(value, key)?.parse()?,
+            "residual_tol" => self.residual_tol = finite(value, key)?,
+            "max_iterations" => self.max_iterations = count(value, key, MAX_ITERATION_SETTING)?,
+            "min_continuation_step" => self.min_continuation_step = finite(value, key)?,
+            "paper" => {
+                let table = Table::new(value, key)?;
+                for (k, v) in table.entries {
+                    self.paper.set(k, v).map_err(|e| prefixed("paper", e))?;
+                }
+            }
+            other => {
+                return Err(Error::argument(
+                    other,
+                    format!(
+                        "unknown setting (expected one of: {})",
+                        Self::KEYS.join(", ")
+                    ),
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    /// Settings from a table of [`Settings::set`]'s keys over the defaults, validated.
+    pub fn from_value(v: &Value) -> Result<Settings> {
+        let mut settings = Settings::default();
+        for (k, x) in Table::top(v, "settings").map_err(as_argument)?.entries {
+            settings.set(k, x)?;
+        }
+        settings.validate()?;
+        Ok(settings)
+    }
+
+    /// Every field as a table ([`Settings::from_value`] reads it back).
+    pub fn to_value(&self) -> Value {
+        Value::Map(vec![
+            (
+                "n_elements".into(),
+                self.n_elements
+                    .map_or(Value::Null, |n| Value::Number(n as f64)),
+            ),
+            ("method".into(), Value::String(self.method.name().into())),
+            ("residual_tol".into(), Value::Number(self.residual_tol)),
+            (
+                "max_iterations".into(),
+                Value::Number(self.max_iterations as f64),
+            ),
+            (
+                "min_continuation_step".into(),
+                Value::Number(self.min_continuation_step),
+            ),
+            ("paper".into(), self.paper.to_value()),
+        ])
+    }
+}
+
+/// An error of a nested table's key, named from its parent (`paper.chi`).
+pub(crate) fn prefixed(parent: &str, e: Error) -> Error {
+    match e {
+        Error::InvalidArgument { name, reason } if !name.starts_with(parent) => {
+            Error::InvalidArgument {
+                name: format!("{parent}.{name}"),
+                reason,
+            }
+        }
+        other => other,
+    }
+}

@@ -4,7 +4,7 @@
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: demo test bench report
+.PHONY: demo test docs bench report
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -17,10 +17,11 @@ demo: $(PY)
 	$(PY) -m softspine demo --out softspine-demo.png
 	$(PY) -m softspine track --trajectory circle --load 0.03 --out softspine-track.png
 
-# Every test: lint (ruff, rustfmt, clippy), pytest (Python API, references, bad
-# input, hard cases, properties) and cargo test.
+# Every test: lint (ruff, rustfmt, clippy), the stubs against the extension
+# (stubtest), mypy, pytest (Python API, references, bad input, hard cases,
+# properties, the README's and the examples' code), cargo test and the docs.
 test: $(PY)
-	$(PY) -m pip install -q ".[test]"
+	$(PY) -m pip install -q ".[test,docs]"
 	$(PY) -m ruff check python tests tools
 	$(PY) -m mypy.stubtest softspine._core
 	$(PY) -m mypy python/softspine examples
@@ -28,6 +29,13 @@ test: $(PY)
 	cargo clippy --all-targets --features python -- -D warnings
 	$(PY) -m pytest -q
 	cargo test
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --quiet -d site
+
+# The documentation site (site/): guide, conventions, the model, the examples
+# gallery (from examples/) and the API reference (mkdocstrings), --strict.
+docs: $(PY)
+	$(PY) -m pip install -q ".[docs]"
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict -d site
 
 # Speed against error of every method (docs/report.*, the README's table); a
 # development tool: the references it compares with are in tools/validation.

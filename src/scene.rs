@@ -166,16 +166,7 @@ impl Scene {
 
     /// Read a `.json` or `.toml` file.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::Parse(format!("{}: {e}", path.display())))?;
-        match path.extension().and_then(|e| e.to_str()) {
-            Some("json") => Scene::from_json_str(&text),
-            Some("toml") => Scene::from_toml_str(&text),
-            _ => Err(Error::Parse(format!(
-                "{}: expected a .json or .toml file",
-                path.display()
-            ))),
-        }
+        Scene::from_value(&Value::from_file(path)?)
     }
 
     /// Validate and build a scene from a value tree.

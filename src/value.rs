@@ -37,6 +37,20 @@ impl Value {
         }
     }
 
+    /// Read a `.json` or `.toml` file (by its extension).
+    pub fn from_file(path: &std::path::Path) -> Result<Value> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::Parse(format!("{}: {e}", path.display())))?;
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("json") => Value::from_json_str(&text),
+            Some("toml") => Value::from_toml_str(&text),
+            _ => Err(Error::Parse(format!(
+                "{}: expected a .json or .toml file",
+                path.display()
+            ))),
+        }
+    }
+
     /// Parse JSON text. A duplicate key is refused (serde_json's own map keeps
     /// the last value silently), and an error inside the document, such as a
     /// number out of range, names the key it belongs to.

@@ -185,3 +185,16 @@ def test_help_shows_the_constructors_signatures():
         capture_output=True, text=True, check=True,
     ).stdout
     assert "Robot(data=None)" in out
+
+
+@pytest.mark.parametrize("cls", [softspine.Scene, softspine.Solution, softspine.Robot,
+                                 softspine.IkResult, softspine.InverseSolver,
+                                 softspine.Settings, softspine.PaperSettings,
+                                 softspine.Accuracy])
+def test_every_public_property_and_method_has_a_docstring(cls):
+    assert (cls.__doc__ or "").strip()
+    missing = [
+        name for name, member in vars(cls).items()
+        if not name.startswith("_") and not (getattr(member, "__doc__", None) or "").strip()
+    ]
+    assert not missing, f"{cls.__name__}: {missing}"

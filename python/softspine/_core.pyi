@@ -4,6 +4,7 @@ Checked against the built module by ``python -m mypy.stubtest softspine._core``
 (``make test``). _Arrays are float64; quaternions are scalar-first ``[w, x, y, z]``.
 """
 
+from os import PathLike
 from typing import Any, TypeAlias, final
 
 import numpy as np
@@ -170,6 +171,12 @@ class Robot:
     """A multi-section pneumatic continuum robot (three muscles a section)."""
 
     def __new__(cls, data: dict[str, Any] | None = None) -> Robot: ...
+    @staticmethod
+    def from_json(text: str) -> Robot: ...
+    @staticmethod
+    def from_toml(text: str) -> Robot: ...
+    @staticmethod
+    def from_file(path: str | PathLike[str]) -> Robot: ...
     @property
     def sections(self) -> int: ...
     @property

@@ -1,5 +1,10 @@
-"""Command line: ``softspine demo`` solves and plots the demo scene; ``softspine track``
-tracks one of the seed's trajectories with load-aware inverse kinematics."""
+"""softspine's command line.
+
+``softspine demo`` solves a scene (the demo robot by default), prints its tip,
+reactions and timing and plots it; ``softspine track`` tracks a trajectory
+(one of the seed's, or a CSV file) with load-aware inverse kinematics. Both
+save their results as CSV or NPZ with ``--save``. Errors are one line.
+"""
 
 from __future__ import annotations
 
@@ -9,13 +14,68 @@ import time
 
 import numpy as np
 
-from . import SolverError, solve
+from . import Robot, SolverError, __version__, solve
 from .plotting import require_matplotlib
 from .scenes import demo_robot_scene, load_scene
 
 
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse a bad --save and a missing matplotlib before any work."""
+    if args.save is not None:
+        _save_format(args.save)
+    if not args.no_plot:
+        require_matplotlib()
+
+
+def _save_format(path: str) -> str:
+    suffix = path.rsplit(".", 1)[-1].lower() if "." in path else ""
+    if suffix not in ("csv", "npz"):
+        raise ValueError(f"--save: expected a .csv or .npz file, got {path!r}")
+    return suffix
+
+
+def _save_solution(sol, path: str) -> None:
+    """The solution's arrays: NPZ holds every field of ``to_dict()``, CSV one row
+    per node (arc length, position, quaternion, internal force and moment)."""
+    if _save_format(path) == "npz":
+        fields = {k: v for k, v in sol.to_dict().items() if v is not None}
+        np.savez(path, arc_length=sol.arc_length, **fields)
+        return
+    table = np.column_stack([sol.arc_length, sol.positions, sol.quaternions,
+                             sol.forces, sol.moments])
+    header = "s,x,y,z,qw,qx,qy,qz,Fx,Fy,Fz,Mx,My,Mz"
+    np.savetxt(path, table, delimiter=",", header=header, comments="", fmt="%.17g")
+
+
+def _save_track(points: np.ndarray, results, path: str) -> None:
+    """One row per target: the target, the tip reached, the miss, how it ended,
+    and the actuation (rest curvature per section)."""
+    tips = np.array([r.tip_position for r in results])
+    misses = np.array([r.tip_miss for r in results])
+    reached = np.array([r.reached for r in results])
+    endings = np.array([str(r.ending) for r in results])
+    kappa = np.array([r.rest_curvature for r in results])
+    if _save_format(path) == "npz":
+        np.savez(path, targets=points, tips=tips, tip_miss=misses, reached=reached,
+                 ending=endings, rest_curvature=kappa,
+                 muscle_lengths=np.array([r.muscle_lengths for r in results]),
+                 time=np.array([r.time for r in results]))
+        return
+    sections = kappa.shape[1]
+    header = ["target_x", "target_y", "target_z", "tip_x", "tip_y", "tip_z", "tip_miss",
+              "reached", "ending"]
+    header += [f"kappa{k}_{c}" for k in range(sections) for c in "xy"]
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(",".join(header) + "\n")
+        for i in range(len(results)):
+            row = [*(f"{x:.17g}" for x in (*points[i], *tips[i], misses[i])),
+                   str(bool(reached[i])), endings[i],
+                   *(f"{x:.17g}" for x in kappa[i].ravel())]
+            f.write(",".join(row) + "\n")
+
+
 def _demo(args: argparse.Namespace) -> int:
-    require_matplotlib()  # before the work, not after it
+    _check_outputs(args)
     scene = load_scene(args.scene) if args.scene else demo_robot_scene()
     print(f"scene: {scene.name or args.scene}")
     print(f"  length {scene.length} m, sections {scene.sections}, "
@@ -53,15 +113,19 @@ def _demo(args: argparse.Namespace) -> int:
     ]
     sag = float(np.linalg.norm(tip - others[0].tip_position))
     print(f"  the loads move the tip by {sag * 1e3:.1f} mm from its weightless position")
-    from .plotting import plot_backbones
+    if args.save is not None:
+        _save_solution(sol, args.save)
+        print(f"solution written to {args.save}")
+    if not args.no_plot:
+        from .plotting import plot_backbones
 
-    plot_backbones(
-        [others[0], others[1], sol],
-        args.out,
-        labels=["actuation only (weightless)", "own weight", "own weight + tip load"],
-        title=scene.name or "",
-    )
-    print(f"plot written to {args.out}")
+        plot_backbones(
+            [others[0], others[1], sol],
+            args.out,
+            labels=["actuation only (weightless)", "own weight", "own weight + tip load"],
+            title=scene.name or "",
+        )
+        print(f"plot written to {args.out}")
     return 0 if sol.converged else 1
 
 
@@ -75,12 +139,36 @@ def _progress(done: int, total: int, width: int = 30) -> None:
         sys.stdout.write("\n")
 
 
-def _track(args: argparse.Namespace) -> int:
-    from . import Robot, trajectories
+def _read_points(path: str) -> np.ndarray:
+    """Targets from a CSV file: x, y, z in m per row (a header line is skipped)."""
+    with open(path, encoding="utf-8") as f:
+        lines = [line for line in f.read().splitlines() if line.strip()]
+    if lines and lines[0].lstrip()[0] not in "+-.0123456789":
+        lines = lines[1:]
+    rows = []
+    for k, line in enumerate(lines):
+        try:
+            row = [float(x) for x in line.replace(";", ",").split(",")]
+        except ValueError:
+            raise ValueError(f"{path}: line {k + 1}: expected three numbers x, y, z") from None
+        if len(row) != 3:
+            raise ValueError(f"{path}: line {k + 1}: expected three numbers x, y, z, "
+                             f"got {len(row)}")
+        rows.append(row)
+    if not rows:
+        raise ValueError(f"{path}: no points")
+    return np.array(rows)
 
-    require_matplotlib()
-    robot = Robot()
-    points = trajectories.by_name(args.trajectory, args.points)
+
+def _track(args: argparse.Namespace) -> int:
+    from . import trajectories
+
+    _check_outputs(args)
+    robot = Robot.from_file(args.robot) if args.robot else Robot()
+    if args.trajectory in trajectories.NAMES:
+        points = trajectories.by_name(args.trajectory, args.points)
+    else:
+        points = _read_points(args.trajectory)
     print(f"{args.trajectory}: {len(points)} points, {args.load * 1e3:.0f} g at the tip, "
           f"{robot.sections}-section robot, n = {robot.n_elements}, strategy {args.strategy}")
     solver = robot.inverse_solver(args.load)
@@ -112,18 +200,22 @@ def _track(args: argparse.Namespace) -> int:
     for r in results:
         if not r.reached:
             print(f"  {r.message}")
-    from .plotting import plot_tracking
+    if args.save is not None:
+        _save_track(points, results, args.save)
+        print(f"results written to {args.save}")
+    if not args.no_plot:
+        from .plotting import plot_tracking
 
-    plot_tracking(points, results, args.out,
-                  title=f"{args.trajectory}, {args.load * 1e3:.0f} g at the tip",
-                  geometric=geometric)
-    print(f"plot written to {args.out}")
+        plot_tracking(points, results, args.out,
+                      title=f"{args.trajectory}, {args.load * 1e3:.0f} g at the tip",
+                      geometric=geometric)
+        print(f"plot written to {args.out}")
     return 0 if reached == len(points) else 1
 
 
 def _table(args: argparse.Namespace) -> int:
     """Every trajectory with 0, 30 and 60 g: a Markdown table for the README."""
-    from . import Robot, trajectories
+    from . import trajectories
 
     robot = Robot()
     print("| trajectory | load | reached | tip miss, max | IK per point, median | "
@@ -154,25 +246,56 @@ def _table(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="softspine", description=__doc__)
+    formatter = argparse.ArgumentDefaultsHelpFormatter
+    parser = argparse.ArgumentParser(prog="softspine", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"softspine {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="solve and plot a scene (the demo robot by default)")
-    demo.add_argument("--scene", help="a .json or .toml scene file")
+    demo = sub.add_parser("demo", formatter_class=formatter,
+                          help="solve, print and plot a scene (the demo robot by default)",
+                          description="Solve a scene, print its tip, base force, energy and "
+                          "time per solve, and plot it with and without its loads.")
+    demo.add_argument("--scene", metavar="FILE",
+                      help="a .json or .toml scene file (default: the demo robot, 10 sections, "
+                      "own weight and 30 g)")
     demo.add_argument(
-        "--n-elements", type=int, default=None,
+        "--n-elements", type=int, default=None, metavar="N",
         help="elements (default: the smallest multiple of the sections that is at least 20)")
-    demo.add_argument("--method", default="newton", choices=["newton", "lm"])
-    demo.add_argument("--out", default="softspine-demo.png", help="PNG file to write")
+    demo.add_argument("--method", default="newton", choices=["newton", "lm"],
+                      help="the numerical method")
+    demo.add_argument("--out", default="softspine-demo.png", metavar="PNG",
+                      help="the plot to write")
+    demo.add_argument("--no-plot", action="store_true", help="write no plot (no matplotlib)")
+    demo.add_argument("--save", metavar="FILE",
+                      help="also write the solution: .npz (every field) or .csv (a row a node: "
+                      "s, position, quaternion, internal force and moment)")
     demo.set_defaults(func=_demo)
-    track = sub.add_parser("track", help="track one of the seed's trajectories (load-aware IK)")
-    track.add_argument("--trajectory", default="circle", choices=["pentagram", "circle", "spiral"])
+    track = sub.add_parser("track", formatter_class=formatter,
+                           help="track a trajectory with load-aware inverse kinematics",
+                           description="Find, point after point, the actuation whose loaded "
+                           "tip reaches each target; print the misses and times; plot.")
+    track.add_argument("--trajectory", default="circle", metavar="NAME|FILE.csv",
+                       help="pentagram, circle, spiral (the seed's), or a CSV file of x, y, z "
+                       "in m per row")
+    track.add_argument("--robot", metavar="FILE",
+                       help="a .json or .toml robot description (default: the seed's "
+                       "10-section robot; fields as Robot().to_dict())")
     track.add_argument("--load", type=float, default=0.03, help="tip mass, kg")
-    track.add_argument("--points", type=int, default=60)
-    track.add_argument("--strategy", default="equilibrium", choices=["equilibrium", "geometric"])
-    track.add_argument("--out", default="softspine-track.png", help="PNG file to write")
+    track.add_argument("--points", type=int, default=60,
+                       help="points of a named trajectory")
+    track.add_argument("--strategy", default="equilibrium", choices=["equilibrium", "geometric"],
+                       help="equilibrium: the loaded robot reaches the target; geometric: "
+                       "the seed's fit that ignores the load")
+    track.add_argument("--out", default="softspine-track.png", metavar="PNG",
+                       help="the plot to write")
+    track.add_argument("--no-plot", action="store_true", help="write no plot (no matplotlib)")
+    track.add_argument("--save", metavar="FILE",
+                       help="also write the results: .csv (a row a target: target, tip, miss, "
+                       "ending, rest curvature) or .npz")
     track.set_defaults(func=_track)
-    table = sub.add_parser("track-table", help="all trajectories and loads: a Markdown table")
-    table.add_argument("--points", type=int, default=60)
+    table = sub.add_parser("track-table", formatter_class=formatter,
+                           help="every seed trajectory with 0, 30 and 60 g: a Markdown table")
+    table.add_argument("--points", type=int, default=60, help="points per trajectory")
     table.set_defaults(func=_table)
     args = parser.parse_args(argv)
     try:

@@ -19,7 +19,7 @@ use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyMemoryError, PyValueE
 use pyo3::prelude::*;
 
 pyo3::create_exception!(
-    _core,
+    softspine._core,
     SolverError,
     PyException,
     "A solve did not converge (raised with check=True)."

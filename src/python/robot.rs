@@ -62,6 +62,7 @@ impl PyIkResult {
             inner: self.inner.solution.clone(),
         }
     }
+    /// The tip of the loaded equilibrium, shape (3,), m.
     #[getter]
     fn tip_position<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         vec3_array(py, &self.inner.tip_position)
@@ -71,6 +72,7 @@ impl PyIkResult {
     fn tip_miss(&self) -> f64 {
         self.inner.tip_miss
     }
+    /// Whether the tip (and direction) is within the tolerance, on a stable equilibrium.
     #[getter]
     fn reached(&self) -> bool {
         self.inner.reached
@@ -86,10 +88,12 @@ impl PyIkResult {
     fn starts(&self) -> usize {
         self.inner.starts
     }
+    /// A short account of how the inverse solve ended.
     #[getter]
     fn message(&self) -> String {
         self.inner.message.clone()
     }
+    /// Gauss-Newton and Levenberg-Marquardt iterations, every start included.
     #[getter]
     fn iterations(&self) -> usize {
         self.inner.iterations
@@ -236,14 +240,41 @@ impl PyRobot {
         Ok(PyRobot { inner })
     }
 
+    /// Read a robot from JSON text (the fields of ``Robot().to_dict()``, each optional).
+    #[staticmethod]
+    fn from_json(text: &str) -> PyResult<Self> {
+        Ok(PyRobot {
+            inner: Robot::from_json_str(text)?,
+        })
+    }
+
+    /// Read a robot from TOML text.
+    #[staticmethod]
+    fn from_toml(text: &str) -> PyResult<Self> {
+        Ok(PyRobot {
+            inner: Robot::from_toml_str(text)?,
+        })
+    }
+
+    /// Read a robot from a ``.json`` or ``.toml`` file.
+    #[staticmethod]
+    fn from_file(path: std::path::PathBuf) -> PyResult<Self> {
+        Ok(PyRobot {
+            inner: Robot::from_file(&path)?,
+        })
+    }
+
+    /// Number of sections (three muscles each).
     #[getter]
     fn sections(&self) -> usize {
         self.inner.sections
     }
+    /// Length of the backbone, m.
     #[getter]
     fn length(&self) -> f64 {
         self.inner.length
     }
+    /// Elements of its forward solves (a multiple of the sections).
     #[getter]
     fn n_elements(&self) -> usize {
         self.inner.n_elements

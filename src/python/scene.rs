@@ -69,6 +69,7 @@ impl PyScene {
         from_value(py, &self.inner.to_value())
     }
 
+    /// Length of the rod, m.
     #[getter]
     fn length(&self) -> f64 {
         self.inner.length
@@ -81,11 +82,13 @@ impl PyScene {
         (k.x, k.y, k.z)
     }
 
+    /// Number of equal sections (of the rest curvature).
     #[getter]
     fn sections(&self) -> usize {
         self.inner.sections()
     }
 
+    /// The scene's name, if it has one.
     #[getter]
     fn name(&self) -> Option<String> {
         self.inner.name.clone()

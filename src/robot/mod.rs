@@ -473,6 +473,21 @@ impl Robot {
         Ok(())
     }
 
+    /// Read a robot from JSON text (the fields of [`Robot::from_value`]).
+    pub fn from_json_str(text: &str) -> Result<Self> {
+        Robot::from_value(&Value::from_json_str(text)?)
+    }
+
+    /// Read a robot from TOML text.
+    pub fn from_toml_str(text: &str) -> Result<Self> {
+        Robot::from_value(&Value::from_toml_str(text)?)
+    }
+
+    /// Read a `.json` or `.toml` file.
+    pub fn from_file(path: &std::path::Path) -> Result<Self> {
+        Robot::from_value(&Value::from_file(path)?)
+    }
+
     /// Read a robot from a value tree: every field optional, defaults as `Robot::default()`.
     pub fn from_value(v: &Value) -> Result<Self> {
         let entries = match v {

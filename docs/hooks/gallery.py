@@ -1,0 +1,32 @@
+"""MkDocs hook: the examples gallery, one page per script of ``examples/``
+(its docstring as the text, its source as the code), built at every docs build
+so that it cannot drift from the scripts the tests run."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+from mkdocs.structure.files import File
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def _page(script: Path) -> str:
+    source = script.read_text(encoding="utf-8")
+    doc = ast.get_docstring(ast.parse(source)) or ""
+    title, _, body = doc.partition("\n")
+    return f"# {script.name}\n\n{title}\n{body}\n\n```python\n{source}```\n"
+
+
+def on_files(files, config):
+    scripts = sorted(EXAMPLES.glob("*.py"))
+    index = ["# Examples", "", "Runnable scripts from the repository's `examples/`; "
+             "the test suite runs every one.", ""]
+    for script in scripts:
+        uri = f"examples/{script.stem}.md"
+        files.append(File.generated(config, uri, content=_page(script)))
+        summary = (ast.get_docstring(ast.parse(script.read_text())) or "").split("\n")[0]
+        index.append(f"* [{script.name}]({script.stem}.md): {summary}")
+    files.append(File.generated(config, "examples/index.md", content="\n".join(index) + "\n"))
+    return files

@@ -1,0 +1,246 @@
+//! What a solve returns: the [`Solution`] and its [`Status`], and the one
+//! judgement of every method's end state.
+
+use crate::error::{Error, Result};
+use crate::model::RodModel;
+use crate::quat::Quat;
+use nalgebra::{Matrix3, Vector3};
+
+/// How a solve ended. Only `Converged` is an answer; every other ending
+/// carries the best state reached, its residual and a message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// The relative residual is below `residual_tol`, the state is finite and
+    /// every element turns within what the scheme resolves.
+    Converged,
+    /// The methods stalled before the iteration budget ran out: the line
+    /// search or the load continuation (below `min_continuation_step`) could
+    /// not progress, or the paper's method ended above its tolerance.
+    NotConverged,
+    /// The iteration budget (`max_iterations`) ran out before convergence.
+    IterationLimit,
+    /// Accuracy on demand stopped at its largest `n` with the error estimate
+    /// above the tolerance (the state is a converged equilibrium at that `n`).
+    ToleranceNotMet,
+    /// The discrete rod cannot follow the shape; solve with more elements.
+    /// Either an equilibrium whose elements turn by more than
+    /// [`MAX_RESOLVED_TURN`] (a coiled rod folds onto itself), or, not
+    /// attempted, a held point beyond the discrete rod's reach (see
+    /// [`crate::model::clamped_end_deficit`]).
+    Underresolved,
+    /// The state or the residual is not finite (an overflow).
+    NumericalError,
+    /// Not attempted: the scene has no well-defined answer (a held point
+    /// within [`crate::scene::FULL_REACH_BAND`] of full reach, whose reaction
+    /// is indeterminate or unbounded).
+    Indeterminate,
+}
+
+impl Status {
+    /// Every status, in the order of the declaration.
+    pub const ALL: [Status; 7] = [
+        Status::Converged,
+        Status::NotConverged,
+        Status::IterationLimit,
+        Status::ToleranceNotMet,
+        Status::Underresolved,
+        Status::NumericalError,
+        Status::Indeterminate,
+    ];
+
+    /// The snake_case name used by the Python API and in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Converged => "converged",
+            Status::NotConverged => "not_converged",
+            Status::IterationLimit => "iteration_limit",
+            Status::ToleranceNotMet => "tolerance_not_met",
+            Status::Underresolved => "underresolved",
+            Status::NumericalError => "numerical_error",
+            Status::Indeterminate => "indeterminate",
+        }
+    }
+}
+
+impl std::str::FromStr for Status {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Status::ALL
+            .into_iter()
+            .find(|status| status.name() == s)
+            .ok_or_else(|| Error::argument("status", format!("unknown status '{s}'")))
+    }
+}
+
+/// Largest turning of one element [rad] that the scheme resolves. The discrete
+/// curvature `2 sin(theta/2) / ds` then underestimates the element's turning
+/// by at most 4 %, and the rest curvature stays representable (`ds |kappa0| < 2`
+/// is a hard limit of the formula).
+pub const MAX_RESOLVED_TURN: f64 = 1.0;
+
+/// An equilibrium (or the best state reached) with its status.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    pub n_elements: usize,
+    /// Length of the rod [m]: node `i` sits at arc length `i L / n`.
+    pub length: f64,
+    /// Node quaternions `q_0..q_n`, `q_0` the base.
+    pub quaternions: Vec<Quat>,
+    /// Node positions `r_0..r_n` [m], `r_0` the scene's base position.
+    pub positions: Vec<Vector3<f64>>,
+    /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
+    pub forces: Vec<Vector3<f64>>,
+    /// Curvature and twist of each element in its own (material) frame
+    /// [1/m], `n` entries: `(2/ds) vec(conj(q_{i-1}) q_i)`, the scheme's
+    /// discrete curvature (see [`RodModel::curvatures_and_moments`]).
+    pub curvatures: Vec<Vector3<f64>>,
+    /// Internal moment at the nodes, world frame [N m]: the moment the distal
+    /// part exerts on the proximal one (`moments[0]` is the moment of the rod
+    /// on its base support; see [`RodModel::curvatures_and_moments`]).
+    pub moments: Vec<Vector3<f64>>,
+    /// Force that a pinned or clamped tip's support exerts on the rod, world frame [N].
+    pub tip_reaction_force: Option<Vector3<f64>>,
+    /// Moment that a clamped tip's support exerts on the rod, world frame [N m].
+    pub tip_reaction_moment: Option<Vector3<f64>>,
+    /// Force of each guide on the rod, in the scene's order, world frame [N].
+    pub guide_reactions: Vec<Vector3<f64>>,
+    pub status: Status,
+    /// Newton or LM iterations, all continuation steps included.
+    pub iterations: usize,
+    /// Load-continuation steps taken (0: solved directly).
+    pub continuation_steps: usize,
+    /// Relative residual (see [`Settings::residual_tol`]).
+    pub residual_norm: f64,
+    /// Total potential: elastic energy minus the work of the dead forces [J].
+    pub energy: f64,
+    /// Whether the equilibrium is stable: the symmetric part of the reduced
+    /// Hessian is positive definite. Always false when not converged.
+    pub stable: bool,
+    /// A short human-readable account of how the solve ended.
+    pub message: String,
+    /// Accuracy on demand: the estimated largest distance of a node from
+    /// the continuous rod's [m], over the whole backbone (from the solves at
+    /// n/2 and n, second order).
+    pub error_estimate: Option<f64>,
+    /// Accuracy on demand with Richardson extrapolation: `(4 r_n - r_{n/2}) / 3`,
+    /// returned by [`Solution::tip_position`] in place of the last node.
+    pub extrapolated_tip: Option<Vector3<f64>>,
+    /// Wall-clock time of the solve [s], the set-up of the discretisation
+    /// included (every n of accuracy on demand).
+    pub solve_time: f64,
+}
+
+impl Solution {
+    pub fn converged(&self) -> bool {
+        self.status == Status::Converged
+    }
+
+    /// The tip: the last node, or the Richardson-extrapolated tip when asked for.
+    pub fn tip_position(&self) -> Vector3<f64> {
+        self.extrapolated_tip
+            .unwrap_or(self.positions[self.positions.len() - 1])
+    }
+
+    pub fn tip_quaternion(&self) -> Quat {
+        self.quaternions[self.quaternions.len() - 1]
+    }
+
+    /// Arc length of the nodes, `s_i = i L / n` [m].
+    pub fn arc_length(&self) -> Vec<f64> {
+        let n = self.n_elements as f64;
+        (0..=self.n_elements)
+            .map(|i| self.length * i as f64 / n)
+            .collect()
+    }
+
+    /// The nodes' rotation matrices (material frame to world frame).
+    pub fn rotation_matrices(&self) -> Vec<Matrix3<f64>> {
+        self.quaternions.iter().map(|q| q.rotation()).collect()
+    }
+
+    /// Refuse a Solution whose arrays do not fit its `n_elements` (one
+    /// rebuilt from stored fields), naming the field.
+    pub fn check_layout(&self) -> Result<()> {
+        let n = self.n_elements;
+        if n == 0 {
+            return Err(Error::argument("solution.n_elements", "must be positive"));
+        }
+        if !(self.length.is_finite() && self.length > 0.0) {
+            return Err(Error::argument(
+                "solution.length",
+                format!("must be positive and finite, got {}", self.length),
+            ));
+        }
+        for (name, len, expected) in [
+            ("positions", self.positions.len(), n + 1),
+            ("quaternions", self.quaternions.len(), n + 1),
+            ("forces", self.forces.len(), n + 1),
+            ("moments", self.moments.len(), n + 1),
+            ("curvatures", self.curvatures.len(), n),
+        ] {
+            if len != expected {
+                return Err(Error::argument(
+                    format!("solution.{name}"),
+                    format!("has {len} rows, n_elements = {n} needs {expected}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The solution if it converged, otherwise [`Error::NotConverged`].
+    pub fn check(self) -> Result<Self> {
+        if self.converged() {
+            Ok(self)
+        } else {
+            Err(Error::NotConverged {
+                status: self.status,
+                iterations: self.iterations,
+                residual: self.residual_norm,
+                reason: self.message,
+            })
+        }
+    }
+}
+
+/// The one judgement of every method's end state: `solved` is the method's own
+/// verdict (`Err` with the status of its failure). A converged answer must
+/// also be finite, meet the residual tolerance and be resolved by the scheme.
+/// Returns the status and, where the judgement overrules the method, the
+/// message that says why.
+pub(super) fn judge(
+    model: &RodModel,
+    q: &[Quat],
+    positions: &[Vector3<f64>],
+    residual_norm: f64,
+    solved: std::result::Result<(), Status>,
+    tol: f64,
+) -> (Status, Option<String>) {
+    let finite = residual_norm.is_finite()
+        && q.iter().all(|x| x.to_array().iter().all(|v| v.is_finite()))
+        && positions.iter().all(|p| p.iter().all(|v| v.is_finite()));
+    if !finite {
+        return (
+            Status::NumericalError,
+            Some("numerical error: the state or the residual is not finite (overflow)".into()),
+        );
+    }
+    if let Err(status) = solved {
+        return (status, None);
+    }
+    if residual_norm > tol {
+        return (Status::NotConverged, None);
+    }
+    let turn = model.max_element_turn(q).max(model.max_rest_turn());
+    if turn > MAX_RESOLVED_TURN {
+        let needed = (model.n as f64 * turn / MAX_RESOLVED_TURN).ceil();
+        return (
+            Status::Underresolved,
+            Some(format!(
+                "underresolved: an element turns by {turn:.2} rad, more than the {MAX_RESOLVED_TURN} rad \
+                 the scheme resolves; use at least {needed} elements (or tol= for accuracy on demand)"
+            )),
+        );
+    }
+    (Status::Converged, None)
+}

@@ -261,38 +261,38 @@ pub(crate) fn newton(
         for (i, d) in w.kkt.reaction_step.iter_mut().enumerate() {
             *d = Vector3::new(w.kkt.rhs[3 * i], w.kkt.rhs[3 * i + 1], w.kkt.rhs[3 * i + 2]);
         }
+        // The start is kept in `w.trial` and `reactions_start`; trials go in place.
+        w.trial.copy_from_slice(&w.q);
         w.kkt.reactions_start.copy_from_slice(&w.kkt.reactions);
-        let mut alpha = step_limit(&w.step, 1.0, 0.3);
-        loop {
-            // Trial state in place; the start is kept in `w.trial` and `reactions_start`.
-            w.trial.copy_from_slice(&w.q);
-            for j in 1..=n {
-                w.q[j] = w.trial[j].perturbed(alpha * w.step[j - 1]);
-            }
-            for ((r, r0), d) in w
-                .kkt
-                .reactions
-                .iter_mut()
-                .zip(&w.kkt.reactions_start)
-                .zip(&w.kkt.reaction_step)
-            {
-                *r = r0 + alpha * d;
-            }
-            let trial_merit = evaluate(model, w, lambda, false);
-            // At the round-off floor the merit is noise: see `newton.rs`.
-            let decreased = trial_merit <= (1.0 - 1e-4 * alpha) * merit_now;
-            if trial_merit.is_finite() && (decreased || residual_norm(model, w) <= tol) {
-                merit_now = evaluate(model, w, lambda, true);
-                break;
-            }
+        let alpha = step_limit(&w.step, 1.0, 0.3);
+        let accepted = super::newton::backtrack(
+            w,
+            alpha,
+            merit_now,
+            |w, alpha, _| {
+                for j in 1..=n {
+                    w.q[j] = w.trial[j].perturbed(alpha * w.step[j - 1]);
+                }
+                for ((r, r0), d) in w
+                    .kkt
+                    .reactions
+                    .iter_mut()
+                    .zip(&w.kkt.reactions_start)
+                    .zip(&w.kkt.reaction_step)
+                {
+                    *r = r0 + alpha * d;
+                }
+                evaluate(model, w, lambda, false)
+            },
+            |w| residual_norm(model, w) <= tol,
+        );
+        if accepted.is_none() {
             w.q.copy_from_slice(&w.trial);
             w.kkt.reactions.copy_from_slice(&w.kkt.reactions_start);
-            alpha *= 0.5;
-            if alpha < 1e-4 {
-                evaluate(model, w, lambda, true);
-                return (false, it + 1);
-            }
+            evaluate(model, w, lambda, true);
+            return (false, it + 1);
         }
+        merit_now = evaluate(model, w, lambda, true);
     }
     unreachable!("the loop returns at its last pass")
 }

@@ -127,38 +127,36 @@ fn iterate(
         if it == max_iter || stalled {
             return stop(false);
         }
-        let mut alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
+        let alpha = step_limit(&w.step, MAX_NODE_TURN, MAX_ELEMENT_TURN);
         // The first trial, usually accepted, is evaluated with its
         // Jacobian: the factorisation no longer needs `w.jac`, and the
         // next iteration then needs no second pass over the rod.
         let mut jacobian_at_trial = true;
-        loop {
-            retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
-            if jacobian_at_trial {
-                model.residual_jacobian(&w.trial, lambda, &mut w.g_trial, &mut w.jac);
-            } else {
-                model.residual(&w.trial, lambda, &mut w.g_trial);
-            }
-            let trial_merit = model.merit(&w.g_trial);
-            // At the round-off floor the merit is noise and need not
-            // decrease: a trial within the tolerance is accepted as well.
-            let decreased = trial_merit <= (1.0 - 1e-4 * alpha) * merit;
-            if trial_merit.is_finite() && (decreased || model.residual_norm(&w.g_trial) <= tol) {
-                merit = trial_merit;
-                break;
-            }
-            jacobian_at_trial = false;
-            alpha *= 0.5;
-            // An interrupt leaves the trial residuals unfinished.
-            if alpha < 1e-4 || interrupt::requested() {
-                // The contract: `w.g` and `w.jac` at `w.q`.
-                model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
-                return LocalOutcome {
-                    converged: false,
-                    iterations: it + 1,
-                };
-            }
-        }
+        let accepted = backtrack(
+            w,
+            alpha,
+            merit,
+            |w, alpha, first| {
+                jacobian_at_trial = first;
+                retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
+                if first {
+                    model.residual_jacobian(&w.trial, lambda, &mut w.g_trial, &mut w.jac);
+                } else {
+                    model.residual(&w.trial, lambda, &mut w.g_trial);
+                }
+                model.merit(&w.g_trial)
+            },
+            |w| model.residual_norm(&w.g_trial) <= tol,
+        );
+        let Some(accepted_merit) = accepted else {
+            // The contract: `w.g` and `w.jac` at `w.q`.
+            model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+            return LocalOutcome {
+                converged: false,
+                iterations: it + 1,
+            };
+        };
+        merit = accepted_merit;
         std::mem::swap(&mut w.q, &mut w.trial);
         std::mem::swap(&mut w.g, &mut w.g_trial);
         if !jacobian_at_trial {
@@ -180,6 +178,39 @@ fn newton_step(model: &RodModel, w: &mut Workspace) -> bool {
         lu.solve_in_place(&mut w.step);
         true
     })
+}
+
+/// Smallest fraction of a step that a line search tries before it gives up.
+pub(crate) const MIN_STEP_FRACTION: f64 = 1e-4;
+
+/// Armijo backtracking, shared by every Newton variant. `trial(state, alpha,
+/// first)` puts the step `alpha` (of the direction the caller holds) in
+/// `state` and returns its merit; `alpha` halves from `alpha` until the merit
+/// drops by `1e-4 alpha` of `merit`, or `within_tol(state)` says the trial's
+/// residual is within the tolerance (at the round-off floor the merit is noise
+/// and need not decrease; asked only when the merit did not drop). Returns the
+/// accepted merit, or None once `alpha` is below [`MIN_STEP_FRACTION`] or an
+/// interrupt is requested (the trial residuals are then unfinished).
+pub(crate) fn backtrack<S>(
+    state: &mut S,
+    mut alpha: f64,
+    merit: f64,
+    mut trial: impl FnMut(&mut S, f64, bool) -> f64,
+    mut within_tol: impl FnMut(&S) -> bool,
+) -> Option<f64> {
+    let mut first = true;
+    loop {
+        let trial_merit = trial(state, alpha, first);
+        let decreased = trial_merit <= (1.0 - 1e-4 * alpha) * merit;
+        if trial_merit.is_finite() && (decreased || within_tol(state)) {
+            return Some(trial_merit);
+        }
+        first = false;
+        alpha *= 0.5;
+        if alpha < MIN_STEP_FRACTION || interrupt::requested() {
+            return None;
+        }
+    }
 }
 
 /// Factor `J + shift I` (the workspace's Jacobian) and run `solve` with the

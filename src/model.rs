@@ -124,10 +124,12 @@ impl RodModel {
         let ds = length / n as f64;
         let sections = scene.rest_curvature.len().max(1);
         let rest_curvature = (0..n)
-            .map(|i| match scene.rest_curvature.get(i * sections / n) {
-                Some(k) => Vector3::new(k[0], k[1], 0.0),
-                None => Vector3::zeros(),
-            })
+            .map(
+                |i| match scene.rest_curvature.get(section_of(i, sections, n)) {
+                    Some(k) => Vector3::new(k[0], k[1], 0.0),
+                    None => Vector3::zeros(),
+                },
+            )
             .collect();
         let f = scene.distributed_force();
         // Point loads by node: a load at node k acts on every element i <= k.
@@ -774,47 +776,6 @@ impl RodModel {
         }
     }
 
-    /// The discrete curvature of every element and the internal moment at
-    /// every node. Element `i`'s curvature `u = (2/ds) vec(c)`, `c =
-    /// conj(q_{i-1}) q_i`, is the same in the frames of both its nodes (it
-    /// is the axis of the relative rotation) [1/m]. The moment it transmits
-    /// is the one conjugate to its nodes' rotations, `R(q_{i-1}) A K (u - u0)`
-    /// with `A = c_w I + [c_v]x`: the same from either node's side (`R(c)
-    /// A^T = A`), and exact in the discrete balance (a tip moment alone gives
-    /// it at every element), world frame [N m], the moment the distal part
-    /// exerts on the proximal one. At the nodes: the mean of the two elements
-    /// around an interior node, second order like the scheme; `tip_moment`
-    /// (world frame, the applied moment plus a clamp's reaction) at the tip,
-    /// where the boundary condition gives it exactly; at the base, linear
-    /// extrapolation from the first two elements (second order).
-    pub fn curvatures_and_moments(
-        &self,
-        q: &[Quat],
-        tip_moment: Vector3<f64>,
-    ) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
-        let n = self.n;
-        let mut curvatures = Vec::with_capacity(n);
-        let mut element_moments = Vec::with_capacity(n);
-        for i in 1..=n {
-            let (a, b) = (q[i - 1], q[i]);
-            let c = a.conj() * b;
-            let u = (2.0 / self.ds) * c.v;
-            let w = self
-                .stiffness
-                .component_mul(&(u - self.rest_curvature[i - 1]));
-            curvatures.push(u);
-            element_moments.push(a.rotate(c.w * w + c.v.cross(&w)));
-        }
-        let mut moments = Vec::with_capacity(n + 1);
-        moments.push(match n {
-            1 => element_moments[0],
-            _ => 1.5 * element_moments[0] - 0.5 * element_moments[1],
-        });
-        moments.extend(element_moments.windows(2).map(|m| 0.5 * (m[0] + m[1])));
-        moments.push(tip_moment);
-        (curvatures, moments)
-    }
-
     /// Total potential `Pi` (elastic energy minus the work of the dead forces) [J].
     /// A dead tip moment has no potential in 3D and is not included.
     pub fn energy(&self, q: &[Quat]) -> f64 {
@@ -891,6 +852,12 @@ pub fn clamped_end_deficit(theta: f64, elements: usize) -> f64 {
             1.0 - (a.cos() + (0.5 * (a + b)).cos() + b.cos()) / 3.0
         })
         .sum()
+}
+
+/// The section of element `i` (from 0) of a rod of `n` elements in `sections`
+/// equal sections.
+pub(crate) fn section_of(i: usize, sections: usize, n: usize) -> usize {
+    i * sections / n
 }
 
 /// Spherical interpolation from `a` (t = 0) to `b` (t = 1) along the short arc

@@ -48,6 +48,22 @@ def test_moments_balance_the_loads_beyond_each_node_to_second_order():
     assert np.all(orders > 1.8), (errors, orders)
 
 
+def test_moments_of_a_clamped_rod_balance_its_reactions():
+    """Clamped tip: the tip carries the clamp's force and moment; the moment at
+    every node balances them, as the applied loads of a free rod."""
+    clamp = {"type": "clamped", "position": [0.4, 0.1, 0.8],
+             "quaternion": Rotation.from_euler("y", 40, degrees=True).as_quat()[[3, 0, 1, 2]]}
+    errors = []
+    for n in (40, 80):
+        sol = softspine.solve({"length": 1.0, "stiffness": UNIT, "tip": clamp}, n_elements=n,
+                              check=True)
+        force, moment = sol.tip_reaction_force, sol.tip_reaction_moment
+        assert np.abs(moment).max() > 0.1
+        assert np.allclose(sol.moments[-1], moment, atol=1e-12)
+        errors.append(np.abs(sol.moments - load_moment_about_nodes(sol, force, moment)).max())
+    assert errors[1] < errors[0] / 3.5 and errors[1] < 2e-3 * np.abs(moment).max(), errors
+
+
 def test_base_moment_under_gravity_is_the_weight_moment():
     """A horizontal cantilever under its own weight q: the support carries
     q x_c L about the base, x_c the centroid's reach, to second order."""
@@ -126,6 +142,8 @@ def test_solution_round_trips_through_to_dict_and_pickle():
             else:
                 assert value == other, key
         assert copy.status is sol.status and repr(copy) == repr(sol)
+        assert np.array_equal(copy.moments, sol.moments)
+        assert np.array_equal(copy.curvatures, sol.curvatures)
 
 
 def test_a_failed_state_with_non_finite_values_still_pickles():
@@ -140,8 +158,10 @@ def test_a_failed_state_with_non_finite_values_still_pickles():
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (lambda d: d.pop("moments"), "solution.moments: missing"),
-        (lambda d: d.update(curvatures=d["curvatures"][:-1]), "solution.curvatures: has 9 rows"),
+        (lambda d: d.pop("stiffness"), "solution.stiffness: missing"),
+        (lambda d: d.update(forces=d["forces"][:-1]), "solution.forces: has 10 rows"),
+        (lambda d: d.update(rest_curvature=[[1, 0]] * 3),
+         "solution.rest_curvature: 3 sections do not divide"),
         (lambda d: d.update(status="fine"), "status: unknown status 'fine'"),
         (lambda d: d.update(stable=1), "solution.stable: expected a bool"),
     ],

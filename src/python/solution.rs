@@ -68,13 +68,13 @@ impl PySolution {
     /// Interior nodes: the mean of the two elements' moments (second order).
     #[getter]
     fn moments<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        rows3(py, &self.inner.moments)
+        rows3(py, &self.inner.moments())
     }
     /// Curvature and twist ``(kappa_x, kappa_y, tau)`` of each element in its
     /// material frame, shape (n, 3), 1/m (the scheme's discrete curvature).
     #[getter]
     fn curvatures<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        rows3(py, &self.inner.curvatures)
+        rows3(py, &self.inner.curvatures())
     }
     /// The tip position, shape (3,), m: the last node, or the
     /// Richardson-extrapolated tip when ``extrapolated``.
@@ -170,8 +170,10 @@ impl PySolution {
 
     /// Every stored field as a dict of NumPy arrays and scalars (``status`` as
     /// its name); ``Solution.from_dict`` rebuilds the Solution. Derived
-    /// properties (``arc_length``, ``rotation_matrices``, ``tip_position``,
-    /// ``tip_quaternion``, ``converged``) are not in it.
+    /// properties (``arc_length``, ``rotation_matrices``, ``moments``,
+    /// ``curvatures``, ``tip_position``, ``tip_quaternion``, ``converged``)
+    /// are not in it; ``stiffness``, ``rest_curvature`` and ``tip_moment``
+    /// (what the moments are computed from) are.
     pub(super) fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = &self.inner;
         let d = PyDict::new(py);
@@ -180,8 +182,9 @@ impl PySolution {
         d.set_item("positions", rows3(py, &s.positions))?;
         d.set_item("quaternions", rows4(py, &s.quaternions))?;
         d.set_item("forces", rows3(py, &s.forces))?;
-        d.set_item("moments", rows3(py, &s.moments))?;
-        d.set_item("curvatures", rows3(py, &s.curvatures))?;
+        d.set_item("stiffness", vec3_array(py, &s.stiffness))?;
+        d.set_item("rest_curvature", rows_n(py, &s.rest_curvature))?;
+        d.set_item("tip_moment", vec3_array(py, &s.tip_moment))?;
         let optional = |v: Option<Vector3<f64>>| v.map(|v| vec3_array(py, &v));
         d.set_item("tip_reaction_force", optional(s.tip_reaction_force))?;
         d.set_item("tip_reaction_moment", optional(s.tip_reaction_moment))?;
@@ -214,8 +217,9 @@ impl PySolution {
                 .map(Quat::from_array)
                 .collect(),
             forces: d.vectors("forces")?,
-            moments: d.vectors("moments")?,
-            curvatures: d.vectors("curvatures")?,
+            stiffness: d.vector("stiffness")?,
+            rest_curvature: d.rows::<2>("rest_curvature")?,
+            tip_moment: d.vector("tip_moment")?,
             tip_reaction_force: d.optional_vector("tip_reaction_force")?,
             tip_reaction_moment: d.optional_vector("tip_reaction_moment")?,
             guide_reactions: d.vectors("guide_reactions")?,

@@ -342,18 +342,15 @@ impl Solver {
         let guides = model.constraints.len() - usize::from(tip_held);
         let tip_q = w.q[model.n];
         let tip_reaction_moment = model.clamped_tip.map(|_| tip_q.rotate(w.kkt.tip_torque));
-        let (curvatures, moments) = model.curvatures_and_moments(
-            &w.q,
-            model.tip_moment + tip_reaction_moment.unwrap_or_default(),
-        );
         Solution {
             n_elements: model.n,
             length: model.length,
             quaternions: w.q.clone(),
             positions,
             forces: model.node_forces(reactions),
-            curvatures,
-            moments,
+            stiffness: model.stiffness,
+            rest_curvature: self.scene.rest_curvature.clone(),
+            tip_moment: model.tip_moment,
             tip_reaction_force: tip_held.then(|| reactions[guides]),
             tip_reaction_moment,
             guide_reactions: reactions[..guides].to_vec(),

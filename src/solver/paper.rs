@@ -62,18 +62,15 @@ impl Solver {
         let stable = status == Status::Converged && is_stable(model, w);
         let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
         let tip_reaction_moment = model.clamped_tip.map(|_| w.q[n].rotate(w.kkt.tip_torque));
-        let (curvatures, moments) = model.curvatures_and_moments(
-            &out.quaternions,
-            model.tip_moment + tip_reaction_moment.unwrap_or_default(),
-        );
         Ok(Solution {
             n_elements: n,
             length: model.length,
             quaternions: out.quaternions.clone(),
             positions: out.positions,
             forces: out.forces.clone(),
-            curvatures,
-            moments,
+            stiffness: model.stiffness,
+            rest_curvature: self.scene.rest_curvature.clone(),
+            tip_moment: model.tip_moment,
             tip_reaction_force: tip_held.then(|| out.forces[n] - self.scene.tip_force),
             tip_reaction_moment,
             guide_reactions: Vec::new(),

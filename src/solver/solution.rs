@@ -2,7 +2,7 @@
 //! judgement of every method's end state.
 
 use crate::error::{Error, Result};
-use crate::model::RodModel;
+use crate::model::{section_of, RodModel};
 use crate::quat::Quat;
 use nalgebra::{Matrix3, Vector3};
 
@@ -90,14 +90,14 @@ pub struct Solution {
     pub positions: Vec<Vector3<f64>>,
     /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
     pub forces: Vec<Vector3<f64>>,
-    /// Curvature and twist of each element in its own (material) frame
-    /// [1/m], `n` entries: `(2/ds) vec(conj(q_{i-1}) q_i)`, the scheme's
-    /// discrete curvature (see [`RodModel::curvatures_and_moments`]).
-    pub curvatures: Vec<Vector3<f64>>,
-    /// Internal moment at the nodes, world frame [N m]: the moment the distal
-    /// part exerts on the proximal one (`moments[0]` is the moment of the rod
-    /// on its base support; see [`RodModel::curvatures_and_moments`]).
-    pub moments: Vec<Vector3<f64>>,
+    /// Stiffness `(kx, ky, kz)` [N m^2] and rest curvature `[kappa_x, kappa_y]`
+    /// per equal section [1/m] of the rod: with the quaternions, what
+    /// [`Solution::curvatures`] and [`Solution::moments`] are computed from
+    /// (on demand: a control loop that never reads them never pays for them).
+    pub stiffness: Vector3<f64>,
+    pub rest_curvature: Vec<[f64; 2]>,
+    /// The moment applied at the tip, world frame [N m].
+    pub tip_moment: Vector3<f64>,
     /// Force that a pinned or clamped tip's support exerts on the rod, world frame [N].
     pub tip_reaction_force: Option<Vector3<f64>>,
     /// Moment that a clamped tip's support exerts on the rod, world frame [N m].
@@ -153,6 +153,57 @@ impl Solution {
             .collect()
     }
 
+    /// Curvature and twist of each element in its own (material) frame
+    /// [1/m], `n` entries: `u_i = (2/ds) vec(c)`, `c = conj(q_{i-1}) q_i`, the
+    /// scheme's discrete curvature. It is the same in the frames of both
+    /// nodes (the axis of the relative rotation).
+    pub fn curvatures(&self) -> Vec<Vector3<f64>> {
+        let ds = self.length / self.n_elements as f64;
+        self.quaternions
+            .windows(2)
+            .map(|p| (2.0 / ds) * (p[0].conj() * p[1]).v)
+            .collect()
+    }
+
+    /// Internal moment at the nodes, world frame [N m]: the moment the
+    /// distal part exerts on the proximal one; `moments[0]` is the moment of
+    /// the rod on its base support. Element `i` transmits the moment
+    /// conjugate to its nodes' rotations, `R(q_{i-1}) A K (u - u0)` with `A =
+    /// c_w I + [c_v]x`: the same from either node's side (`R(c) A^T = A`) and
+    /// exact in the discrete balance (a tip moment alone is transmitted by
+    /// every element). At the nodes: the mean of the two elements around an
+    /// interior node, second order like the scheme; the tip's applied moment
+    /// plus a clamp's reaction at the tip, where the boundary condition gives
+    /// it exactly; linear extrapolation from the first two elements at the
+    /// base (second order).
+    pub fn moments(&self) -> Vec<Vector3<f64>> {
+        let n = self.n_elements;
+        let sections = self.rest_curvature.len().max(1);
+        let element: Vec<Vector3<f64>> = self
+            .curvatures()
+            .iter()
+            .enumerate()
+            .map(|(i, u)| {
+                let rest = self
+                    .rest_curvature
+                    .get(section_of(i, sections, n))
+                    .map_or(Vector3::zeros(), |k| Vector3::new(k[0], k[1], 0.0));
+                let w = self.stiffness.component_mul(&(u - rest));
+                let (a, b) = (self.quaternions[i], self.quaternions[i + 1]);
+                let c = a.conj() * b;
+                a.rotate(c.w * w + c.v.cross(&w))
+            })
+            .collect();
+        let mut moments = Vec::with_capacity(n + 1);
+        moments.push(match n {
+            1 => element[0],
+            _ => 1.5 * element[0] - 0.5 * element[1],
+        });
+        moments.extend(element.windows(2).map(|m| 0.5 * (m[0] + m[1])));
+        moments.push(self.tip_moment + self.tip_reaction_moment.unwrap_or_default());
+        moments
+    }
+
     /// The nodes' rotation matrices (material frame to world frame).
     pub fn rotation_matrices(&self) -> Vec<Matrix3<f64>> {
         self.quaternions.iter().map(|q| q.rotation()).collect()
@@ -175,8 +226,6 @@ impl Solution {
             ("positions", self.positions.len(), n + 1),
             ("quaternions", self.quaternions.len(), n + 1),
             ("forces", self.forces.len(), n + 1),
-            ("moments", self.moments.len(), n + 1),
-            ("curvatures", self.curvatures.len(), n),
         ] {
             if len != expected {
                 return Err(Error::argument(
@@ -184,6 +233,13 @@ impl Solution {
                     format!("has {len} rows, n_elements = {n} needs {expected}"),
                 ));
             }
+        }
+        let sections = self.rest_curvature.len();
+        if sections > 0 && n % sections != 0 {
+            return Err(Error::argument(
+                "solution.rest_curvature",
+                format!("{sections} sections do not divide n_elements = {n}"),
+            ));
         }
         Ok(())
     }

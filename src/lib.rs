@@ -54,7 +54,7 @@ pub use nalgebra;
 pub struct ReadmeDoctests;
 pub use model::RodModel;
 pub use quat::Quat;
-pub use robot::{IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy};
+pub use robot::{IkEnding, IkOptions, IkResult, IkSettings, InverseSolver, Robot, Strategy};
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
 pub use solver::{
     default_elements, solve, solve_to_accuracy, Accuracy, Method, Settings, Solution, Solver,

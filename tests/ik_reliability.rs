@@ -8,7 +8,7 @@
 use nalgebra::Vector3;
 use softspine::quat::Quat;
 use softspine::robot::{trajectory, IkEnding};
-use softspine::{solve, IkOptions, Robot, Settings};
+use softspine::{solve, IkOptions, IkSettings, Robot, Settings};
 
 /// Uniform in [0, 1) from a splitmix64 sequence (reproducible, no dependency).
 fn uniform(state: &mut u64) -> f64 {
@@ -85,7 +85,7 @@ fn reach_fraction(name: &str, robot: &Robot, load: f64, count: usize, seed: u64)
         times.push(r.seconds);
         if r.reached {
             assert!(r.solution.converged() && r.solution.stable);
-            assert!(r.tip_miss <= options.tol);
+            assert!(r.tip_miss <= options.settings.tol);
             assert!(robot.within_bounds(&r.rest_curvature));
             reached += 1;
         } else {
@@ -172,7 +172,10 @@ fn a_target_beyond_the_muscles_range_says_the_bounds_limit_it() {
 fn running_out_of_iterations_says_so() {
     let options = IkOptions {
         tip_mass: 0.08,
-        max_iterations: 1,
+        settings: IkSettings {
+            max_iterations: 1,
+            ..IkSettings::default()
+        },
         ..IkOptions::default()
     };
     let r = upright()

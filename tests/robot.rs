@@ -3,7 +3,7 @@
 use nalgebra::Vector3;
 use softspine::robot::trajectory;
 use softspine::robot::MAX_SECTIONS;
-use softspine::{solve, Error, IkOptions, Robot, Settings, Strategy, Value};
+use softspine::{solve, Error, IkOptions, IkSettings, Robot, Settings, Strategy, Value};
 
 #[test]
 fn spaces_round_trip() {
@@ -67,7 +67,10 @@ fn geometric_strategy_misses_under_load() {
     let target = Vector3::new(0.2, 0.0, -0.88);
     let options = IkOptions {
         tip_mass: 0.06,
-        strategy: Strategy::Geometric,
+        settings: IkSettings {
+            strategy: Strategy::Geometric,
+            ..IkSettings::default()
+        },
         ..IkOptions::default()
     };
     let r = robot.inverse(target, &options).unwrap();

@@ -155,3 +155,23 @@ fn paper_settings_read_every_key() {
     let (name, _) = refusal(paper.set("seed", &Value::Number(-1.0)).unwrap_err());
     assert_eq!(name, "seed");
 }
+
+#[test]
+fn ik_settings_read_by_name() {
+    use softspine::{IkSettings, Strategy};
+    let settings = IkSettings::from_value(&json(
+        r#"{"strategy": "geometric", "tol": 1e-8, "max_iterations": 30}"#,
+    ))
+    .unwrap();
+    assert_eq!(settings.strategy, Strategy::Geometric);
+    assert_eq!(
+        IkSettings::from_value(&settings.to_value()).unwrap(),
+        settings
+    );
+    let (name, _) = refusal(IkSettings::from_value(&json(r#"{"strategy": "fast"}"#)).unwrap_err());
+    assert_eq!(name, "strategy");
+    let (name, _) = refusal(IkSettings::from_value(&json(r#"{"tol": 0}"#)).unwrap_err());
+    assert_eq!(name, "tol");
+    let (name, _) = refusal(IkSettings::from_value(&json(r#"{"load": 1}"#)).unwrap_err());
+    assert_eq!(name, "load");
+}

@@ -210,7 +210,7 @@ def test_help_shows_the_constructors_signatures():
 @pytest.mark.parametrize("cls", [softspine.Scene, softspine.Solution, softspine.Robot,
                                  softspine.IkResult, softspine.InverseSolver,
                                  softspine.Settings, softspine.PaperSettings,
-                                 softspine.Accuracy])
+                                 softspine.Accuracy, softspine.IkSettings])
 def test_every_public_property_and_method_has_a_docstring(cls):
     assert (cls.__doc__ or "").strip()
     missing = [

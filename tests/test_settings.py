@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import softspine
-from softspine import Accuracy, PaperSettings, Settings
+from softspine import Accuracy, IkSettings, PaperSettings, Settings
 
 CANTILEVER = {"length": 1.0, "stiffness": {"kx": 1, "ky": 1, "kz": 1}, "tip_force": [3, 0, 0]}
 
@@ -77,7 +77,8 @@ def test_accuracy_object_and_keywords_agree():
 
 
 @pytest.mark.parametrize("obj", [Settings(n_elements=30, method="lm"),
-                                 PaperSettings(particles=7), Accuracy(1e-4, max_elements=640)])
+                                 PaperSettings(particles=7), Accuracy(1e-4, max_elements=640),
+                                 IkSettings(strategy="geometric", tol=1e-8)])
 def test_settings_pickle_and_print(obj):
     copy = pickle.loads(pickle.dumps(obj))
     assert copy == obj and copy is not obj
@@ -87,3 +88,23 @@ def test_settings_pickle_and_print(obj):
 def test_constructors_show_their_signatures():
     assert str(inspect.signature(Settings)) == "(**fields)"
     assert str(inspect.signature(Accuracy)) == "(tol, refine=None, max_elements=10240)"
+
+
+def test_ik_settings_drive_inverse_track_and_the_inverse_solver():
+    robot = softspine.Robot()
+    target = [0.2, 0.0, -0.88]
+    loose = IkSettings(tol=1e-6, max_iterations=40)
+    assert IkSettings().to_dict() == {"strategy": "equilibrium", "tol": 1e-9,
+                                      "max_iterations": 60}
+    by_object = robot.inverse(target, 0.03, settings=loose)
+    by_keywords = robot.inverse(target, 0.03, tol=1e-6, max_iterations=40)
+    assert by_object.reached and np.array_equal(by_object.rest_curvature,
+                                                 by_keywords.rest_curvature)
+    # A keyword overrides the object's field; None is the default.
+    geometric = robot.inverse(target, 0.03, settings=loose, strategy="geometric")
+    assert geometric.ending == "load_ignored"
+    assert robot.inverse(target, 0.03, strategy=None).reached
+    solver = robot.inverse_solver(0.03)
+    assert solver.solve(target, settings={"tol": 1e-6}).reached
+    track = robot.track([target, [0.21, 0.0, -0.88]], 0.03, settings=loose)
+    assert all(r.reached for r in track)

@@ -23,6 +23,7 @@ from . import trajectories
 from ._core import (
     Accuracy,
     IkResult,
+    IkSettings,
     InverseSolver,
     PaperSettings,
     Robot,
@@ -40,6 +41,7 @@ __all__ = [
     "Accuracy",
     "IkEnding",
     "IkResult",
+    "IkSettings",
     "InverseSolver",
     "PaperSettings",
     "Robot",

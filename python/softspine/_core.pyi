@@ -16,6 +16,7 @@ __version__: str
 __all__ = [
     "Accuracy",
     "IkResult",
+    "IkSettings",
     "InverseSolver",
     "PaperSettings",
     "Robot",
@@ -154,6 +155,22 @@ class IkResult:
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
 
 @final
+class IkSettings:
+    """Settings of inverse kinematics."""
+
+    def __new__(cls, **fields: Any) -> IkSettings: ...
+    def validate(self) -> None: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    @property
+    def strategy(self) -> str: ...
+    @strategy.setter
+    def strategy(self, value: str) -> None: ...
+    tol: float
+    max_iterations: int
+    def __setstate__(self, state: dict[str, Any]) -> None: ...
+    def __reduce__(self) -> tuple[Any, tuple[()], dict[str, Any]]: ...
+
+@final
 class InverseSolver:
     """Inverse kinematics of one robot under one tip mass, warm from its last answer."""
 
@@ -162,8 +179,10 @@ class InverseSolver:
         target: npt.ArrayLike,
         reference: npt.ArrayLike | None = None,
         direction: npt.ArrayLike | None = None,
-        tol: float = 1e-9,
-        max_iterations: int = 60,
+        settings: IkSettings | dict[str, Any] | None = None,
+        *,
+        tol: float | None = None,
+        max_iterations: int | None = None,
     ) -> IkResult: ...
 
 @final
@@ -200,9 +219,11 @@ class Robot:
         load: float = 0.0,
         reference: npt.ArrayLike | None = None,
         direction: npt.ArrayLike | None = None,
-        strategy: str = "equilibrium",
-        tol: float = 1e-9,
-        max_iterations: int = 60,
+        settings: IkSettings | dict[str, Any] | None = None,
+        *,
+        strategy: str | None = None,
+        tol: float | None = None,
+        max_iterations: int | None = None,
     ) -> IkResult: ...
     def track(
         self,
@@ -210,9 +231,11 @@ class Robot:
         load: float = 0.0,
         reference: npt.ArrayLike | None = None,
         direction: npt.ArrayLike | None = None,
-        strategy: str = "equilibrium",
-        tol: float = 1e-9,
-        max_iterations: int = 60,
+        settings: IkSettings | dict[str, Any] | None = None,
+        *,
+        strategy: str | None = None,
+        tol: float | None = None,
+        max_iterations: int | None = None,
     ) -> list[IkResult]: ...
     def __reduce__(self) -> tuple[type[Robot], tuple[dict[str, Any]]]: ...
 

@@ -514,14 +514,6 @@ pub(super) fn load_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
     float_arg("load", obj)
 }
 
-pub(super) fn tol_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
-    float_arg("tol", obj)
-}
-
-pub(super) fn max_iterations_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
-    int_arg("max_iterations", obj)
-}
-
 pub(super) fn points_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
     int_arg("points", obj)
 }

@@ -46,6 +46,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<settings::PySettings>()?;
     m.add_class::<settings::PyPaperSettings>()?;
     m.add_class::<settings::PyAccuracy>()?;
+    m.add_class::<settings::PyIkSettings>()?;
     m.add_class::<solution::PySolution>()?;
     m.add_function(wrap_pyfunction!(solve::solve, m)?)?;
     m.add_function(wrap_pyfunction!(solve::residual, m)?)?;

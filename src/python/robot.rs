@@ -3,8 +3,9 @@
 use super::convert::*;
 use super::detach::detach_solve;
 use super::scene::PyScene;
+use super::settings::ik_settings_arg;
 use super::solution::PySolution;
-use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot, Strategy};
+use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot};
 use crate::{Scene, Settings};
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
@@ -12,11 +13,6 @@ use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::{Arc, Mutex};
-
-// `#[pyo3(from_py_with = ...)]` takes a function path: one converter a name.
-fn strategy_arg(obj: &Bound<'_, PyAny>) -> PyResult<Strategy> {
-    Ok(str_arg("strategy", obj)?.parse::<Strategy>()?)
-}
 
 /// A multi-section pneumatic continuum robot (three muscles a section).
 ///
@@ -183,30 +179,35 @@ pub struct PyInverseSolver {
 
 #[pymethods]
 impl PyInverseSolver {
-    /// The actuation whose loaded equilibrium reaches ``target`` (see ``Robot.inverse``).
-    #[pyo3(signature = (target, reference=None, direction=None, tol=1e-9, max_iterations=60))]
+    /// The actuation whose loaded equilibrium reaches ``target`` (see
+    /// ``Robot.inverse``); ``settings`` an ``IkSettings`` (its strategy must
+    /// be "equilibrium"), the keywords over it.
+    #[pyo3(signature = (target, reference=None, direction=None, settings=None, *, tol=None, max_iterations=None))]
+    #[allow(clippy::too_many_arguments)]
     fn solve(
         &self,
         py: Python<'_>,
         target: &Bound<'_, PyAny>,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = tol_arg)] tol: f64,
-        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
+        settings: Option<&Bound<'_, PyAny>>,
+        tol: Option<&Bound<'_, PyAny>>,
+        max_iterations: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
         let target = vec3_arg("target", target)?;
         let reference = reference
             .map(|r| rows_arg::<2>("reference", r))
             .transpose()?;
         let direction = direction.map(|d| vec3_arg("direction", d)).transpose()?;
-        if tol <= 0.0 {
-            return Err(PyValueError::new_err("tol: must be positive"));
-        }
+        let settings = ik_settings_arg(
+            settings,
+            &[("tol", tol), ("max_iterations", max_iterations)],
+        )?;
         // Locked without the GIL; None if a solve panicked holding the lock.
         let inner = Arc::clone(&self.inner);
         let r = detach_solve(py, self.long_passes, move || match inner.lock() {
             Ok(mut solver) => solver
-                .solve(target, direction, reference.as_deref(), tol, max_iterations)
+                .solve_with(target, direction, reference.as_deref(), &settings)
                 .map(Some),
             Err(_) => Ok(None),
         })?;
@@ -416,11 +417,13 @@ impl PyRobot {
         })
     }
 
-    /// Load-aware inverse kinematics of one target.
-    #[pyo3(
-        signature = (target, load=0.0, reference=None, direction=None, strategy=Strategy::Equilibrium, tol=1e-9, max_iterations=60),
-        text_signature = "($self, target, load=0.0, reference=None, direction=None, strategy='equilibrium', tol=1e-9, max_iterations=60)"
-    )]
+    /// Load-aware inverse kinematics of one target: the actuation whose
+    /// equilibrium under ``load`` (tip mass, kg) puts the tip on ``target``
+    /// (m), closest to ``reference`` (rest curvature (m, 2), default zero),
+    /// optionally with the tip along ``direction``. ``settings`` an
+    /// ``IkSettings`` or a dict; ``strategy``, ``tol`` and ``max_iterations``
+    /// override its fields.
+    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse(
         &self,
@@ -429,12 +432,18 @@ impl PyRobot {
         #[pyo3(from_py_with = load_arg)] load: f64,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = strategy_arg)] strategy: Strategy,
-        #[pyo3(from_py_with = tol_arg)] tol: f64,
-        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
+        settings: Option<&Bound<'_, PyAny>>,
+        strategy: Option<&Bound<'_, PyAny>>,
+        tol: Option<&Bound<'_, PyAny>>,
+        max_iterations: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
         let target = vec3_arg("target", target)?;
-        let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
+        let keywords = [
+            ("strategy", strategy),
+            ("tol", tol),
+            ("max_iterations", max_iterations),
+        ];
+        let options = self.ik_options(load, reference, direction, settings, &keywords)?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
         let r = detach_solve(py, long, move || robot.inverse(target, &options))?;
@@ -442,11 +451,8 @@ impl PyRobot {
     }
 
     /// Inverse kinematics of a sequence of targets (N, 3), each warm from the
-    /// previous one and closest to its actuation.
-    #[pyo3(
-        signature = (points, load=0.0, reference=None, direction=None, strategy=Strategy::Equilibrium, tol=1e-9, max_iterations=60),
-        text_signature = "($self, points, load=0.0, reference=None, direction=None, strategy='equilibrium', tol=1e-9, max_iterations=60)"
-    )]
+    /// previous one and closest to its actuation (see ``inverse``).
+    #[pyo3(signature = (points, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None))]
     #[allow(clippy::too_many_arguments)]
     fn track(
         &self,
@@ -455,15 +461,21 @@ impl PyRobot {
         #[pyo3(from_py_with = load_arg)] load: f64,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = strategy_arg)] strategy: Strategy,
-        #[pyo3(from_py_with = tol_arg)] tol: f64,
-        #[pyo3(from_py_with = max_iterations_arg)] max_iterations: usize,
+        settings: Option<&Bound<'_, PyAny>>,
+        strategy: Option<&Bound<'_, PyAny>>,
+        tol: Option<&Bound<'_, PyAny>>,
+        max_iterations: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyIkResult>> {
         let pts: Vec<Vector3<f64>> = rows_arg::<3>("points", points)?
             .into_iter()
             .map(Vector3::from)
             .collect();
-        let options = self.ik_options(load, reference, direction, strategy, tol, max_iterations)?;
+        let keywords = [
+            ("strategy", strategy),
+            ("tol", tol),
+            ("max_iterations", max_iterations),
+        ];
+        let options = self.ik_options(load, reference, direction, settings, &keywords)?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
         let rs = detach_solve(py, long, move || robot.track(&pts, &options))?;
@@ -484,9 +496,8 @@ impl PyRobot {
         load: f64,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
-        strategy: Strategy,
-        tol: f64,
-        max_iterations: usize,
+        settings: Option<&Bound<'_, PyAny>>,
+        keywords: &[(&str, Option<&Bound<'_, PyAny>>)],
     ) -> PyResult<IkOptions> {
         Ok(IkOptions {
             tip_mass: load,
@@ -494,9 +505,7 @@ impl PyRobot {
                 .map(|r| rows_arg::<2>("reference", r))
                 .transpose()?,
             direction: direction.map(|d| vec3_arg("direction", d)).transpose()?,
-            strategy,
-            tol,
-            max_iterations,
+            settings: ik_settings_arg(settings, keywords)?,
         })
     }
 }

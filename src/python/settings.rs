@@ -4,7 +4,7 @@
 
 use super::convert::*;
 use crate::paper_method::PaperSettings;
-use crate::{Accuracy, Settings, Value};
+use crate::{Accuracy, IkSettings, Settings, Value};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -457,4 +457,123 @@ impl PyAccuracy {
     fn assign(&mut self, key: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         Ok(self.inner.set(key, &field_value(key, value)?)?)
     }
+}
+
+/// Settings of inverse kinematics (``Robot.inverse``, ``Robot.track``,
+/// ``InverseSolver.solve``).
+#[pyclass(
+    name = "IkSettings",
+    module = "softspine._core",
+    eq,
+    skip_from_py_object
+)]
+#[derive(Clone, PartialEq)]
+pub struct PyIkSettings {
+    pub(super) inner: IkSettings,
+}
+
+#[pymethods]
+impl PyIkSettings {
+    #[new]
+    #[pyo3(signature = (**fields), text_signature = "(**fields)")]
+    fn new(fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        Ok(PyIkSettings {
+            inner: IkSettings::from_value(&fields_value(fields)?)?,
+        })
+    }
+
+    /// Refuse a field out of its range, naming it (``ValueError``).
+    fn validate(&self) -> PyResult<()> {
+        Ok(self.inner.validate()?)
+    }
+
+    /// Every field as a dict (``IkSettings(**d)`` reads it back).
+    fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        fields_dict(slf.as_any(), &IkSettings::KEYS)
+    }
+
+    /// ``"equilibrium"`` (default): the loaded robot reaches the target;
+    /// ``"geometric"``: the seed's fit that ignores weight and load, applied
+    /// to the loaded robot.
+    #[getter]
+    fn strategy(&self) -> &'static str {
+        self.inner.strategy.name()
+    }
+    #[setter]
+    fn set_strategy(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.assign("strategy", value)
+    }
+    /// Tip position tolerance, m (default 1e-9, in [1e-12 L, 1e-2 L]); a
+    /// direction's tolerance is tol / L.
+    #[getter]
+    fn tol(&self) -> f64 {
+        self.inner.tol
+    }
+    #[setter]
+    fn set_tol(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.assign("tol", value)
+    }
+    /// Iteration limit of one descent (default 60); a missed target tries at
+    /// most 8 descents in all.
+    #[getter]
+    fn max_iterations(&self) -> usize {
+        self.inner.max_iterations
+    }
+    #[setter]
+    fn set_max_iterations(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.assign("max_iterations", value)
+    }
+
+    /// Pickling goes through ``to_dict``.
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (), Bound<'py, PyAny>)> {
+        let state = Self::to_dict(slf)?.into_any();
+        Ok((slf.get_type().into_any(), (), state))
+    }
+
+    fn __setstate__(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
+        *self = PyIkSettings::new(Some(state))?;
+        Ok(())
+    }
+
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        settings_repr(slf.as_any(), "IkSettings", &IkSettings::KEYS)
+    }
+}
+
+impl PyIkSettings {
+    fn assign(&mut self, key: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        Ok(self.inner.set(key, &field_value(key, value)?)?)
+    }
+}
+
+/// The IK settings of a call: `settings` (an `IkSettings`, a dict of its
+/// fields or None) with the given keywords over it, read by the core.
+pub(super) fn ik_settings_arg(
+    settings: Option<&Bound<'_, PyAny>>,
+    keywords: &[(&str, Option<&Bound<'_, PyAny>>)],
+) -> PyResult<IkSettings> {
+    let mut out = match given(settings) {
+        None => IkSettings::default(),
+        Some(s) => {
+            if let Ok(s) = s.cast::<PyIkSettings>() {
+                s.borrow().inner.clone()
+            } else if s.is_instance_of::<PyDict>() {
+                IkSettings::from_value(&to_value(&s, &Path::input("settings"))?)?
+            } else {
+                return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                    "settings: expected an IkSettings or a dict of its fields, got {}",
+                    type_name(&s)
+                )));
+            }
+        }
+    };
+    for (key, value) in keywords {
+        if let Some(v) = given(*value) {
+            out.set(key, &field_value(key, &v)?)?;
+        }
+    }
+    out.validate()?;
+    Ok(out)
 }

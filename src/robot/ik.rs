@@ -23,7 +23,9 @@ use super::bounds::Bounds;
 use super::Robot;
 use crate::error::{Error, Result};
 use crate::quat::Quat;
+use crate::read::{as_argument, count, finite, string, Table};
 use crate::solver::{Settings, Solution, Solver};
+use crate::value::Value;
 use nalgebra::{DMatrix, DVector, Vector2, Vector3};
 
 /// Relative accuracy to which the actuation is the one closest to the reference.
@@ -70,17 +72,23 @@ impl std::str::FromStr for Strategy {
     }
 }
 
-/// Options of one inverse solve.
+impl Strategy {
+    /// The name [`Strategy::from_str`](std::str::FromStr) reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Equilibrium => "equilibrium",
+            Strategy::Geometric => "geometric",
+        }
+    }
+}
+
+/// Settings of inverse kinematics; every field has a documented default.
 #[derive(Debug, Clone, PartialEq)]
-pub struct IkOptions {
-    /// Tip mass [kg] (default 0).
-    pub tip_mass: f64,
-    /// Actuation to stay closest to (default: zero curvature).
-    pub reference: Option<Vec<[f64; 2]>>,
-    /// Also reach this tip direction (unit vector, world frame).
-    pub direction: Option<Vector3<f64>>,
+pub struct IkSettings {
+    /// How the actuation is found (default [`Strategy::Equilibrium`]).
     pub strategy: Strategy,
-    /// Tip position tolerance [m] (default 1e-9); a direction's tolerance is tol / L.
+    /// Tip position tolerance [m] (default 1e-9, in [1e-12 L, 1e-2 L]); a
+    /// direction's tolerance is tol / L.
     pub tol: f64,
     /// Iteration limit of one descent (default 60). A missed target is retried
     /// from at most 6 other starts and then settled on its closest tip, each
@@ -88,17 +96,94 @@ pub struct IkOptions {
     pub max_iterations: usize,
 }
 
-impl Default for IkOptions {
+impl Default for IkSettings {
     fn default() -> Self {
-        IkOptions {
-            tip_mass: 0.0,
-            reference: None,
-            direction: None,
+        IkSettings {
             strategy: Strategy::Equilibrium,
             tol: 1e-9,
             max_iterations: 60,
         }
     }
+}
+
+/// Largest iteration limit of one descent a setting accepts.
+const MAX_IK_ITERATIONS: usize = 1_000_000;
+
+impl IkSettings {
+    /// Every key of [`IkSettings::set`].
+    pub const KEYS: [&'static str; 3] = ["strategy", "tol", "max_iterations"];
+
+    /// Set one field from a value, named by [`IkSettings::KEYS`]; the range
+    /// of `tol` is [`validate`](IkSettings::validate)'s.
+    pub fn set(&mut self, key: &str, value: &Value) -> Result<()> {
+        match key {
+            "strategy" => self.strategy = string(value, key).map_err(as_argument)?.parse()?,
+            "tol" => self.tol = finite(value, key).map_err(as_argument)?,
+            "max_iterations" => {
+                self.max_iterations = count(value, key, MAX_IK_ITERATIONS).map_err(as_argument)?
+            }
+            other => {
+                return Err(Error::argument(
+                    other,
+                    format!(
+                        "unknown setting (expected one of: {})",
+                        Self::KEYS.join(", ")
+                    ),
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    /// Settings from a table of [`IkSettings::KEYS`] over the defaults.
+    pub fn from_value(v: &Value) -> Result<IkSettings> {
+        let mut settings = IkSettings::default();
+        for (k, x) in Table::top(v, "settings").map_err(as_argument)?.entries {
+            settings.set(k, x)?;
+        }
+        settings.validate()?;
+        Ok(settings)
+    }
+
+    /// Every field as a table ([`IkSettings::from_value`] reads it back).
+    pub fn to_value(&self) -> Value {
+        Value::Map(vec![
+            (
+                "strategy".into(),
+                Value::String(self.strategy.name().into()),
+            ),
+            ("tol".into(), Value::Number(self.tol)),
+            (
+                "max_iterations".into(),
+                Value::Number(self.max_iterations as f64),
+            ),
+        ])
+    }
+
+    /// Refuse a tolerance that is not positive and finite (its range relative
+    /// to a robot's length is checked by the inverse solve).
+    pub fn validate(&self) -> Result<()> {
+        if !(self.tol.is_finite() && self.tol > 0.0) {
+            return Err(Error::argument(
+                "tol",
+                format!("must be positive, got {}", self.tol),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Options of one inverse solve: what it aims at, under which load, and the
+/// settings of the solver.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct IkOptions {
+    /// Tip mass [kg] (default 0).
+    pub tip_mass: f64,
+    /// Actuation to stay closest to (default: zero curvature).
+    pub reference: Option<Vec<[f64; 2]>>,
+    /// Also reach this tip direction (unit vector, world frame).
+    pub direction: Option<Vector3<f64>>,
+    pub settings: IkSettings,
 }
 
 /// Why an inverse solve ended.
@@ -393,6 +478,33 @@ impl InverseSolver {
         let mut result = self.conclude(&goal, best.state, ending, starts);
         result.seconds = started.elapsed().as_secs_f64();
         Ok(result)
+    }
+
+    /// [`InverseSolver::solve`] with the tolerance and iteration limit of
+    /// `settings`. An inverse solver finds the equilibrium of the load it was
+    /// built for: the geometric strategy is [`Robot::track`]'s.
+    pub fn solve_with(
+        &mut self,
+        target: Vector3<f64>,
+        direction: Option<Vector3<f64>>,
+        reference: Option<&[[f64; 2]]>,
+        settings: &IkSettings,
+    ) -> Result<IkResult> {
+        settings.validate()?;
+        if settings.strategy != Strategy::Equilibrium {
+            return Err(Error::argument(
+                "strategy",
+                "an InverseSolver finds the loaded equilibrium; the geometric strategy is \
+                 Robot::inverse's and Robot::track's",
+            ));
+        }
+        self.solve(
+            target,
+            direction,
+            reference,
+            settings.tol,
+            settings.max_iterations,
+        )
     }
 
     fn goal(
@@ -991,11 +1103,10 @@ impl Robot {
     /// Inverse kinematics of a sequence of targets, each warm-started from the
     /// previous one and choosing the actuation closest to it (smooth motion).
     pub fn track(&self, targets: &[Vector3<f64>], options: &IkOptions) -> Result<Vec<IkResult>> {
-        if !(options.tol.is_finite() && options.tol > 0.0) {
-            return Err(Error::argument("tol", "must be positive"));
-        }
+        let settings = &options.settings;
+        settings.validate()?;
         let mut loaded = InverseSolver::new(self, options.tip_mass)?;
-        let mut weightless = match options.strategy {
+        let mut weightless = match settings.strategy {
             Strategy::Equilibrium => None,
             Strategy::Geometric => Some(InverseSolver::new(&self.weightless(), 0.0)?),
         };
@@ -1007,18 +1118,18 @@ impl Robot {
                     *target,
                     options.direction,
                     reference.as_deref(),
-                    options.tol,
-                    options.max_iterations,
+                    settings.tol,
+                    settings.max_iterations,
                 )?,
                 Some(geometric) => {
                     let fit = geometric.solve(
                         *target,
                         options.direction,
                         reference.as_deref(),
-                        options.tol,
-                        options.max_iterations,
+                        settings.tol,
+                        settings.max_iterations,
                     )?;
-                    loaded.apply_geometric_fit(fit, *target, options.tol)?
+                    loaded.apply_geometric_fit(fit, *target, settings.tol)?
                 }
             };
             reference = Some(result.rest_curvature.clone());

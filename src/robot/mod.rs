@@ -19,7 +19,7 @@ mod bounds;
 mod ik;
 pub mod trajectory;
 
-pub use ik::{IkEnding, IkOptions, IkResult, InverseSolver, Strategy};
+pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, InverseSolver, Strategy};
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;

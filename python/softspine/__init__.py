@@ -87,13 +87,16 @@ def solve(
         four, five, ten or twenty sections, 21 for three). With accuracy on
         demand, the first ``n`` tried (the same default, raised to an ``n`` that
         resolves the rest shape).
-    method : {"newton", "lm", "paper", "paper-literal"}, optional
+    method : {"newton", "lm", "paper", "paper-literal", "shooting"}, optional
         ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
         continuation when a direct solve fails (default). ``"lm"``:
         Levenberg-Marquardt on the same residual (dense, for comparison).
         ``"paper"``: the seed paper's method, particle swarm then LM over the raw
         quaternions and nodal forces, with the unit-norm rows; ``"paper-literal"``:
         the published system without them (its |q| drifts: see the README).
+        ``"shooting"``: classic RK4 on the Kirchhoff rod equations, one step an
+        element, and Newton on the base wrench (fourth order at the nodes; no
+        guides); the baseline of the report.
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
     accuracy : Accuracy or dict, optional

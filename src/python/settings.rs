@@ -267,7 +267,8 @@ impl PySettings {
     fn set_n_elements(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
         self.assign(py, "n_elements", value)
     }
-    /// ``"newton"`` (default), ``"lm"``, ``"paper"`` or ``"paper-literal"``.
+    /// ``"newton"`` (default), ``"lm"``, ``"paper"``, ``"paper-literal"`` or
+    /// ``"shooting"`` (RK4 on the rod equations, Newton on the base wrench).
     #[getter]
     fn method(&self) -> &'static str {
         self.inner.method.name()

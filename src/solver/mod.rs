@@ -15,6 +15,7 @@
 //! adaptive.rs      accuracy on demand
 //! sensitivity.rs   the tip's derivatives (implicit function theorem)
 //! paper.rs         the seed paper's method, reported like the others
+//! shooting.rs      shooting: RK4 on the rod equations, Newton on the base wrench
 //! ```
 
 mod adaptive;
@@ -26,6 +27,7 @@ mod newton;
 mod paper;
 mod sensitivity;
 mod settings;
+mod shooting;
 mod solution;
 mod workspace;
 
@@ -73,10 +75,16 @@ impl Solver {
         scene.check_derived()?;
         scene.check_elements(n)?;
         let reach_limit = scene.check_constraints(n)?;
+        if settings.method == Method::Shooting && !scene.guides.is_empty() {
+            return Err(Error::argument(
+                "method",
+                "shooting does not support guides (held interior points); use 'newton'",
+            ));
+        }
         let model = RodModel::new(scene, n);
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
-            Method::Newton => Box::new(newton::Newton),
+            Method::Newton | Method::Shooting => Box::new(newton::Newton),
             Method::LevenbergMarquardt | Method::Paper | Method::PaperLiteral => {
                 Box::new(lm::LevenbergMarquardt::new(&model))
             }
@@ -168,6 +176,9 @@ impl Solver {
                 ),
             };
             return Ok(self.finish(ending, 0, 0));
+        }
+        if self.settings.method == Method::Shooting {
+            return Ok(self.solve_shooting(initial));
         }
         if initial.is_none() && model.is_trivial() {
             // Nothing loads the rod: the rest shape is exact, no iteration needed.

@@ -21,6 +21,9 @@ pub enum Method {
     Paper,
     /// The paper's system as printed, without the unit-norm rows (it collapses).
     PaperLiteral,
+    /// Shooting: RK4 on the Kirchhoff rod equations, one step an element, and
+    /// Newton on the base wrench (no guides). The baseline of the report.
+    Shooting,
 }
 
 impl Method {
@@ -31,6 +34,7 @@ impl Method {
             Method::LevenbergMarquardt => "lm",
             Method::Paper => "paper",
             Method::PaperLiteral => "paper-literal",
+            Method::Shooting => "shooting",
         }
     }
 }
@@ -43,9 +47,10 @@ impl std::str::FromStr for Method {
             "lm" => Ok(Method::LevenbergMarquardt),
             "paper" => Ok(Method::Paper),
             "paper-literal" => Ok(Method::PaperLiteral),
+            "shooting" => Ok(Method::Shooting),
             other => Err(Error::argument(
                 "method",
-                format!("unknown method '{other}' (expected 'newton', 'lm', 'paper' or 'paper-literal')"),
+                format!("unknown method '{other}' (expected 'newton', 'lm', 'paper', 'paper-literal' or 'shooting')"),
             )),
         }
     }
@@ -145,7 +150,7 @@ impl Settings {
     pub fn has_long_passes(&self) -> bool {
         let n = self.n_elements.unwrap_or(DEFAULT_ELEMENTS);
         match self.method {
-            Method::Newton => n >= LONG_PASS_ELEMENTS,
+            Method::Newton | Method::Shooting => n >= LONG_PASS_ELEMENTS,
             _ => n >= LONG_DENSE_PASS_ELEMENTS,
         }
     }
@@ -167,7 +172,7 @@ impl Settings {
 
     pub fn validate(&self) -> Result<()> {
         let limit = match self.method {
-            Method::Newton => MAX_ELEMENTS,
+            Method::Newton | Method::Shooting => MAX_ELEMENTS,
             Method::LevenbergMarquardt => MAX_DENSE_ELEMENTS,
             Method::Paper | Method::PaperLiteral => MAX_PAPER_ELEMENTS,
         };

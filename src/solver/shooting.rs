@@ -1,0 +1,539 @@
+//! Shooting (`Method::Shooting`): the baseline most continuum-robot users
+//! know. The Kirchhoff rod equations are integrated from the base by classic
+//! fourth-order Runge-Kutta, one step an element (so the nodes are the step
+//! points, point loads and section ends fall on them, and the rest curvature
+//! is constant within a step), and Newton with a finite-difference Jacobian
+//! finds the unknown base wrench that meets the tip's conditions.
+//!
+//! ```text
+//! r' = R e3        q' = q (0, u) / 2      u = u0 + K^-1 R^T m
+//! n' = -f          m' = n x r'            (world frame; n, m: what the distal part exerts)
+//! ```
+//!
+//! For dead loads the internal force is explicit, `n(s) = n(0) - f s - (point
+//! loads passed)`, so only `r`, `q` and `m` are integrated. A free tip's base
+//! force is known (the sum of the loads): Newton has 3 unknowns, the base
+//! moment. A pinned or clamped tip adds the base force (6 unknowns). Guides
+//! (held interior points) are not supported by this method.
+//!
+//! A direct attempt from the rigid estimate of the base moment is followed,
+//! if it fails, by load continuation from the rest shape (and for a held tip
+//! by a second leg that moves the tip from where the loaded free rod puts it
+//! to its target), the same strategy as the finite-element driver's.
+
+use super::solution::judge;
+use super::workspace::{evaluate, is_stable};
+use super::{Settings, Solution, Solver, Status};
+use crate::model::{slerp, RodModel};
+use crate::quat::Quat;
+use crate::scene::Scene;
+use nalgebra::{SMatrix, SVector, Vector3};
+
+type Vector6 = SVector<f64, 6>;
+type Matrix6 = SMatrix<f64, 6, 6>;
+
+/// What the tip must meet: its applied moment (free or pinned), its position
+/// (pinned, clamped) and orientation (clamped).
+#[derive(Debug, Clone, Copy)]
+struct TipTarget {
+    position: Option<Vector3<f64>>,
+    orientation: Option<Quat>,
+}
+
+/// The loads at one load scale and the rod's fixed data, as the integration needs them.
+struct Rod<'a> {
+    model: &'a RodModel,
+    inverse_stiffness: Vector3<f64>,
+    /// Distributed force [N/m], world frame.
+    distributed: Vector3<f64>,
+    /// Point load at each node (index = node), world frame [N]; the tip's
+    /// counts in the tip condition.
+    point: Vec<Vector3<f64>>,
+    /// The free rod's base force (the sum of every load) [N].
+    free_base_force: Vector3<f64>,
+    tip_force: Vector3<f64>,
+    tip_moment: Vector3<f64>,
+}
+
+/// The end state of one integration.
+#[derive(Debug, Clone, Copy)]
+struct TipState {
+    position: Vector3<f64>,
+    quaternion: Quat,
+    moment: Vector3<f64>,
+    force: Vector3<f64>,
+}
+
+impl<'a> Rod<'a> {
+    fn new(model: &'a RodModel, scene: &Scene, lambda: f64) -> Self {
+        let mut point = vec![Vector3::zeros(); model.n + 1];
+        for p in &scene.point_loads {
+            let node = ((p.s / model.ds).round() as usize).min(model.n);
+            point[node] += lambda * p.force;
+        }
+        let distributed = lambda * scene.distributed_force();
+        Rod {
+            model,
+            inverse_stiffness: model.stiffness.map(|k| 1.0 / k),
+            distributed,
+            free_base_force: lambda * scene.tip_force
+                + distributed * model.length
+                + point.iter().sum::<Vector3<f64>>(),
+            point,
+            tip_force: lambda * scene.tip_force,
+            tip_moment: lambda * scene.tip_moment,
+        }
+    }
+
+    /// `(q', r', m')` at a state, with the internal force `force` and rest curvature `u0`.
+    #[inline]
+    fn derivative(
+        &self,
+        q: Quat,
+        m: Vector3<f64>,
+        force: Vector3<f64>,
+        u0: Vector3<f64>,
+    ) -> (Quat, Vector3<f64>, Vector3<f64>) {
+        let u = u0 + self.inverse_stiffness.component_mul(&q.inverse_rotate(m));
+        let dq = q * Quat::pure(0.5 * u);
+        let t = q.tangent();
+        (dq, t, force.cross(&t))
+    }
+
+    /// Integrate from the base with base moment `m0` and force `n0`; with
+    /// `nodes`, store the node quaternions and positions.
+    fn integrate(
+        &self,
+        m0: Vector3<f64>,
+        n0: Vector3<f64>,
+        mut nodes: Option<(&mut [Quat], &mut [Vector3<f64>])>,
+    ) -> TipState {
+        let model = self.model;
+        let h = model.ds;
+        let (mut q, mut r, mut m) = (model.base, model.base_position, m0);
+        let mut force = n0;
+        if let Some((qs, rs)) = nodes.as_mut() {
+            qs[0] = q;
+            rs[0] = r;
+        }
+        for i in 0..model.n {
+            let u0 = model.rest_curvature[i];
+            let f_mid = force - 0.5 * h * self.distributed;
+            let f_end = force - h * self.distributed;
+            let (dq1, dr1, dm1) = self.derivative(q, m, force, u0);
+            let (dq2, dr2, dm2) =
+                self.derivative(add(q, dq1, 0.5 * h), m + 0.5 * h * dm1, f_mid, u0);
+            let (dq3, dr3, dm3) =
+                self.derivative(add(q, dq2, 0.5 * h), m + 0.5 * h * dm2, f_mid, u0);
+            let (dq4, dr4, dm4) = self.derivative(add(q, dq3, h), m + h * dm3, f_end, u0);
+            let sixth = h / 6.0;
+            let dq = Quat {
+                w: dq1.w + 2.0 * (dq2.w + dq3.w) + dq4.w,
+                v: dq1.v + 2.0 * (dq2.v + dq3.v) + dq4.v,
+            };
+            // Renormalised each step: RK4 keeps |q| = 1 only to its own order.
+            q = add(q, dq, sixth).normalized();
+            r += sixth * (dr1 + 2.0 * (dr2 + dr3) + dr4);
+            m += sixth * (dm1 + 2.0 * (dm2 + dm3) + dm4);
+            force = f_end;
+            if i + 1 < model.n {
+                // Past a node, its point load no longer acts on the distal part.
+                force -= self.point[i + 1];
+            }
+            if let Some((qs, rs)) = nodes.as_mut() {
+                qs[i + 1] = q;
+                rs[i + 1] = r;
+            }
+        }
+        TipState {
+            position: r,
+            quaternion: q,
+            moment: m,
+            force,
+        }
+    }
+
+    /// The scaled tip mismatch (dimensionless, angle-like): the moment rows
+    /// over `k_c / L` in the tip's frame (free, pinned), the position over
+    /// `L` (pinned, clamped), the orientation's rotation vector (clamped).
+    fn mismatch(&self, tip: &TipState, target: &TipTarget) -> Vector6 {
+        let model = self.model;
+        let mut out = Vector6::zeros();
+        match target.orientation {
+            Some(q_target) => {
+                let rel = q_target.conj() * tip.quaternion;
+                let sign = if rel.w < 0.0 { -1.0 } else { 1.0 };
+                out.fixed_rows_mut::<3>(0).copy_from(&(2.0 * sign * rel.v));
+            }
+            None => {
+                let moment = tip
+                    .quaternion
+                    .inverse_rotate(tip.moment - self.tip_moment)
+                    .component_div(&model.residual_scale);
+                out.fixed_rows_mut::<3>(0).copy_from(&moment);
+            }
+        }
+        if let Some(p) = target.position {
+            out.fixed_rows_mut::<3>(3)
+                .copy_from(&((tip.position - p) / model.length));
+        }
+        out
+    }
+}
+
+/// `q + h dq` (no normalisation).
+#[inline]
+fn add(q: Quat, dq: Quat, h: f64) -> Quat {
+    Quat {
+        w: q.w + h * dq.w,
+        v: q.v + h * dq.v,
+    }
+}
+
+/// Newton on the base wrench `x = [m0; n0]` (the force only when `held`).
+struct Newton<'r, 'a> {
+    rod: &'r Rod<'a>,
+    target: TipTarget,
+    held: bool,
+    /// Unknowns' scales: moments `k/L`, forces `k/L^2`.
+    scale: Vector6,
+}
+
+impl Newton<'_, '_> {
+    fn unknowns(&self) -> usize {
+        if self.held {
+            6
+        } else {
+            3
+        }
+    }
+
+    fn split(&self, x: &Vector6) -> (Vector3<f64>, Vector3<f64>) {
+        let m0 = x.fixed_rows::<3>(0).into_owned();
+        let n0 = if self.held {
+            x.fixed_rows::<3>(3).into_owned()
+        } else {
+            self.rod.free_base_force
+        };
+        (m0, n0)
+    }
+
+    fn residual(&self, x: &Vector6) -> Vector6 {
+        let (m0, n0) = self.split(x);
+        self.rod
+            .mismatch(&self.rod.integrate(m0, n0, None), &self.target)
+    }
+
+    /// Iterate from `x` until the largest scaled mismatch is below `tol`;
+    /// returns whether it converged and the iterations spent.
+    fn run(&self, x: &mut Vector6, budget: usize, tol: f64) -> (bool, usize) {
+        let k = self.unknowns();
+        let mut res = self.residual(x);
+        for iteration in 0..budget {
+            if !res.iter().all(|v| v.is_finite()) {
+                return (false, iteration);
+            }
+            if res.amax() <= tol {
+                return (true, iteration);
+            }
+            // Forward differences, one integration a column.
+            let mut jac = Matrix6::identity();
+            for c in 0..k {
+                let step = 1e-7 * x[c].abs().max(self.scale[c]);
+                let mut probe = *x;
+                probe[c] += step;
+                let column = (self.residual(&probe) - res) / step;
+                jac.set_column(c, &column);
+            }
+            let Some(lu) = Some(jac.lu()).filter(|lu| lu.is_invertible()) else {
+                return (false, iteration + 1);
+            };
+            let Some(dx) = lu.solve(&(-res)) else {
+                return (false, iteration + 1);
+            };
+            // Backtrack on the squared mismatch (Armijo, halving).
+            let merit = res.norm_squared();
+            let mut alpha = 1.0;
+            let mut accepted = None;
+            for _ in 0..30 {
+                let trial = *x + alpha * dx;
+                let r = self.residual(&trial);
+                if r.iter().all(|v| v.is_finite())
+                    && r.norm_squared() <= (1.0 - 1e-4 * alpha) * merit
+                {
+                    accepted = Some((trial, r));
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            match accepted {
+                Some((trial, r)) => {
+                    *x = trial;
+                    res = r;
+                }
+                None => return (false, iteration + 1),
+            }
+        }
+        (res.amax() <= tol, budget)
+    }
+}
+
+/// The outcome of a shooting solve: the base wrench and how it ended.
+struct Shot {
+    x: Vector6,
+    converged: bool,
+    iterations: usize,
+    steps: usize,
+    residual: f64,
+}
+
+/// Adaptive continuation over `t` in `[0, 1]`: `solve_at(t, x, budget)` runs
+/// Newton at `t` from `x`. Starts from `x` at `t = 0` (a solved state).
+fn continuation(
+    mut solve_at: impl FnMut(f64, &mut Vector6, usize) -> (bool, usize),
+    x: &mut Vector6,
+    budget: usize,
+    min_step: f64,
+) -> (bool, usize, usize) {
+    let (mut t, mut dt, mut spent, mut steps) = (0.0f64, 0.25f64, 0usize, 0usize);
+    while t < 1.0 && spent < budget {
+        let next = (t + dt).min(1.0);
+        let mut trial = *x;
+        let (ok, its) = solve_at(next, &mut trial, (budget - spent).min(STEP_ITERATIONS));
+        spent += its;
+        steps += 1;
+        if ok {
+            *x = trial;
+            t = next;
+            dt = (2.0 * dt).min(1.0);
+        } else {
+            dt *= 0.5;
+            if dt < min_step {
+                return (false, spent, steps);
+            }
+        }
+    }
+    (t >= 1.0, spent, steps)
+}
+
+/// Newton iterations of one continuation step, and of the direct attempt.
+const STEP_ITERATIONS: usize = 25;
+const DIRECT_ITERATIONS: usize = 60;
+
+impl Solver {
+    /// Solve by shooting (see the module documentation).
+    pub(super) fn solve_shooting(&mut self, initial: Option<&[Quat]>) -> Solution {
+        let model = &self.model;
+        let settings: &Settings = &self.settings;
+        let tol = model.effective_tol(settings.residual_tol);
+        let budget = settings.max_iterations;
+        let held = !model.constraints.is_empty();
+        let moment_scale = model.stiffness.max() / model.length;
+        let mut scale = Vector6::repeat(moment_scale);
+        scale
+            .fixed_rows_mut::<3>(3)
+            .fill(moment_scale / model.length);
+        let full = Rod::new(model, &self.scene, 1.0);
+        let free_target = TipTarget {
+            position: None,
+            orientation: None,
+        };
+        let held_target = TipTarget {
+            position: model.constraints.last().map(|c| c.target),
+            orientation: model.clamped_tip,
+        };
+        let mut x = Vector6::zeros();
+        x.fixed_rows_mut::<3>(0)
+            .copy_from(&start_moment(model, &full, initial));
+        x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
+        let direct = Newton {
+            rod: &full,
+            target: if held { held_target } else { free_target },
+            held,
+            scale,
+        };
+        let (mut converged, mut iterations) =
+            direct.run(&mut x, budget.min(DIRECT_ITERATIONS), tol);
+        let mut steps = 0;
+        if !converged {
+            // Leg 1: the loads from zero on the free rod (exact rest shape at 0).
+            let mut free = Vector6::zeros();
+            let (ok, spent, taken) = continuation(
+                |lambda, x, its| {
+                    let rod = Rod::new(model, &self.scene, lambda);
+                    let newton = Newton {
+                        rod: &rod,
+                        target: free_target,
+                        held: false,
+                        scale,
+                    };
+                    newton.run(x, its, tol)
+                },
+                &mut free,
+                budget - iterations.min(budget),
+                settings.min_continuation_step,
+            );
+            iterations += spent;
+            steps += taken;
+            converged = ok;
+            x = free;
+            x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
+            if ok && held {
+                // Leg 2: the held tip from where the loaded free rod puts it.
+                let released = full.integrate(
+                    free.fixed_rows::<3>(0).into_owned(),
+                    full.free_base_force,
+                    None,
+                );
+                let goal = held_target;
+                let start_q = goal.orientation.map(|g| {
+                    if g.dot(released.quaternion) < 0.0 {
+                        -released.quaternion
+                    } else {
+                        released.quaternion
+                    }
+                });
+                let (ok, spent, taken) = continuation(
+                    |mu, x, its| {
+                        let target = TipTarget {
+                            position: goal
+                                .position
+                                .map(|p| released.position + mu * (p - released.position)),
+                            orientation: goal
+                                .orientation
+                                .zip(start_q)
+                                .map(|(g, s)| slerp(s, g, mu)),
+                        };
+                        let newton = Newton {
+                            rod: &full,
+                            target,
+                            held: true,
+                            scale,
+                        };
+                        newton.run(x, its, tol)
+                    },
+                    &mut x,
+                    budget - iterations.min(budget),
+                    settings.min_continuation_step,
+                );
+                iterations += spent;
+                steps += taken;
+                converged = ok;
+            }
+        }
+        let residual = direct.residual(&x).amax();
+        self.finish_shooting(Shot {
+            x,
+            converged,
+            iterations,
+            steps,
+            residual,
+        })
+    }
+
+    fn finish_shooting(&mut self, shot: Shot) -> Solution {
+        let (model, w) = (&self.model, &mut self.work);
+        let full = Rod::new(model, &self.scene, 1.0);
+        let held = !model.constraints.is_empty();
+        let m0 = shot.x.fixed_rows::<3>(0).into_owned();
+        let n0 = if held {
+            shot.x.fixed_rows::<3>(3).into_owned()
+        } else {
+            full.free_base_force
+        };
+        let mut positions = vec![Vector3::zeros(); model.n + 1];
+        let tip = full.integrate(m0, n0, Some((&mut w.q, &mut positions)));
+        // The held tip's reactions: what the tip's support adds to the loads.
+        w.kkt
+            .reactions
+            .iter_mut()
+            .for_each(|r| *r = Vector3::zeros());
+        if held {
+            let tip_load = full.point[model.n] + full.tip_force;
+            if let Some(r) = w.kkt.reactions.last_mut() {
+                *r = tip.force - tip_load;
+            }
+            w.kkt.tip_torque = tip.quaternion.inverse_rotate(tip.moment - full.tip_moment);
+        }
+        let solved = if shot.converged {
+            Ok(())
+        } else if shot.iterations >= self.settings.max_iterations {
+            Err(Status::IterationLimit)
+        } else {
+            Err(Status::NotConverged)
+        };
+        let tol = model.effective_tol(self.settings.residual_tol);
+        let (status, note) = judge(model, &w.q, &positions, shot.residual, solved, tol);
+        // Stability from the finite-difference scheme's Hessian at the shot
+        // shape (a second-order neighbour of its equilibrium).
+        evaluate(model, w, 1.0);
+        let stable = status == Status::Converged && is_stable(model, w);
+        let message = note.unwrap_or_else(|| match status {
+            Status::Converged => format!(
+                "converged by shooting (RK4, {} steps{})",
+                model.n,
+                if shot.steps > 0 {
+                    format!(", {} continuation steps", shot.steps)
+                } else {
+                    String::new()
+                }
+            ),
+            _ => format!(
+                "shooting did not converge: tip mismatch {:.1e} after {} iterations",
+                shot.residual, shot.iterations
+            ),
+        });
+        let reactions = w.kkt.reactions.clone();
+        Solution {
+            n_elements: model.n,
+            length: model.length,
+            quaternions: w.q.clone(),
+            positions,
+            forces: model.node_forces(&reactions),
+            stiffness: model.stiffness,
+            rest_curvature: self.scene.rest_curvature.clone(),
+            tip_moment: model.tip_moment,
+            tip_reaction_force: held.then(|| reactions[reactions.len() - 1]),
+            tip_reaction_moment: model.clamped_tip.map(|_| tip.moment - full.tip_moment),
+            guide_reactions: Vec::new(),
+            status,
+            iterations: shot.iterations,
+            continuation_steps: shot.steps,
+            residual_norm: shot.residual,
+            energy: model.energy(&w.q),
+            stable,
+            message,
+            error_estimate: None,
+            extrapolated_tip: None,
+            solve_time: 0.0,
+        }
+    }
+}
+
+/// The base moment to start from: from a warm start's first element, else
+/// the loads' moment about the base on the rest shape (exact for a rigid rod).
+fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector3<f64> {
+    if let Some(q) = initial {
+        let (a, b) = (model.base, q[1].normalized());
+        let b = if a.dot(b) < 0.0 { -b } else { b };
+        let u = (2.0 / model.ds) * (a.conj() * b).v;
+        return a.rotate(
+            model
+                .stiffness
+                .component_mul(&(u - model.rest_curvature[0])),
+        );
+    }
+    let rest = model.rest_shape();
+    let mut r = vec![Vector3::zeros(); model.n + 1];
+    model.positions(&rest, &mut r);
+    let base = r[0];
+    let mut moment = rod.tip_moment;
+    for i in 0..model.n {
+        let mid = 0.5 * (r[i] + r[i + 1]) - base;
+        moment += mid.cross(&(rod.distributed * model.ds));
+    }
+    for (node, p) in rod.point.iter().enumerate() {
+        moment += (r[node] - base).cross(p);
+    }
+    moment + (r[model.n] - base).cross(&rod.tip_force)
+}

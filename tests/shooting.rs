@@ -1,0 +1,131 @@
+//! `Method::Shooting` against closed forms and against the finite-difference
+//! scheme (an independent discretisation of the same rod): order 4 at the nodes,
+//! point loads at section ends, held tips and their reactions.
+
+use nalgebra::Vector3;
+use softspine::{solve, Method, PointLoad, Quat, Scene, Settings, Solution, TipCondition};
+
+fn settings(n: usize, method: Method) -> Settings {
+    Settings {
+        n_elements: Some(n),
+        method,
+        ..Settings::default()
+    }
+}
+
+fn shoot(scene: &Scene, n: usize) -> Solution {
+    let sol = solve(scene, settings(n, Method::Shooting), None).unwrap();
+    assert!(sol.converged(), "n = {n}: {}", sol.message);
+    sol
+}
+
+/// Largest node distance between two solutions at the nodes of the coarser.
+fn distance(coarse: &[Vector3<f64>], fine: &[Vector3<f64>]) -> f64 {
+    let stride = (fine.len() - 1) / (coarse.len() - 1);
+    coarse
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (r - fine[i * stride]).norm())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_cantilever_tip_converges_at_order_four_to_bisshopp_drucker() {
+    // alpha = P L^2 / EI = 10: deflection and shortening over L (docs/model.md).
+    let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0 / 1.3);
+    scene.tip_force = Vector3::new(10.0, 0.0, 0.0);
+    let exact = Vector3::new(0.810_609_02, 0.0, 1.0 - 0.554_995_60);
+    let errors: Vec<f64> = [10, 20, 40]
+        .iter()
+        .map(|&n| (shoot(&scene, n).tip_position() - exact).norm())
+        .collect();
+    for pair in errors.windows(2) {
+        let order = (pair[0] / pair[1]).log2();
+        assert!((3.7..4.3).contains(&order), "{errors:?}");
+    }
+}
+
+/// A 3D rod of four sections with rest curvature, gravity and point loads at
+/// two section ends, its base turned and moved.
+fn loaded_sections() -> Scene {
+    let mut s = Scene::new(0.8, 0.9, 1.3, 0.7);
+    s.rest_curvature = vec![[1.2, -0.4], [-0.6, 0.9], [2.0, 0.5], [0.0, -1.5]];
+    s.distributed_force = Vector3::new(0.3, -1.1, -2.0);
+    s.tip_force = Vector3::new(-0.7, 0.4, 0.5);
+    s.tip_moment = Vector3::new(0.2, -0.3, 0.15);
+    s.base_quaternion = Quat::new(0.9, 0.2, -0.3, 0.1).normalized();
+    s.base_position = Vector3::new(0.1, -0.2, 0.3);
+    s.point_loads = vec![
+        PointLoad {
+            s: 0.2,
+            force: Vector3::new(0.5, 0.2, -0.8),
+        },
+        PointLoad {
+            s: 0.6,
+            force: Vector3::new(-0.3, 0.6, 0.1),
+        },
+    ];
+    s
+}
+
+#[test]
+fn shooting_and_the_finite_difference_scheme_agree_on_the_whole_backbone() {
+    let scene = loaded_sections();
+    // The finite-difference scheme is second order with an even expansion:
+    // Richardson over the whole backbone from n = 640 and 1280 is a
+    // reference good to about 1e-10 L.
+    let fd = |n| solve(&scene, settings(n, Method::Newton), None).unwrap();
+    let (a, b) = (fd(640), fd(1280));
+    let reference: Vec<Vector3<f64>> = a
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (4.0 * b.positions[2 * i] - r) / 3.0)
+        .collect();
+    let errors: Vec<f64> = [16, 32, 64]
+        .iter()
+        .map(|&n| distance(&shoot(&scene, n).positions, &reference))
+        .collect();
+    for pair in errors.windows(2) {
+        let order = (pair[0] / pair[1]).log2();
+        assert!((3.7..4.3).contains(&order), "{errors:?}");
+    }
+    assert!(errors[2] < 1e-7 * scene.length, "{errors:?}");
+    // Base force explicit: every load summed (the point loads included).
+    let sol = shoot(&scene, 16);
+    let total = scene.tip_force
+        + scene.distributed_force * scene.length
+        + scene
+            .point_loads
+            .iter()
+            .map(|p| p.force)
+            .sum::<Vector3<f64>>();
+    assert!((sol.forces[0] - total).norm() < 1e-12);
+}
+
+#[test]
+fn holding_the_tip_where_the_free_rod_puts_it_returns_the_tip_loads() {
+    let scene = loaded_sections();
+    let free = shoot(&scene, 40);
+    let mut pinned = scene.clone();
+    pinned.tip_force = Vector3::zeros();
+    pinned.tip = TipCondition::Pinned {
+        position: free.tip_position(),
+    };
+    let sol = shoot(&pinned, 40);
+    assert!(sol.stable);
+    let reaction = sol.tip_reaction_force.unwrap();
+    assert!((reaction - scene.tip_force).norm() < 1e-8, "{reaction}");
+    assert!(distance(&sol.positions, &free.positions) < 1e-9);
+
+    let mut clamped = pinned.clone();
+    clamped.tip_moment = Vector3::zeros();
+    clamped.tip = TipCondition::Clamped {
+        position: free.tip_position(),
+        quaternion: free.tip_quaternion(),
+    };
+    let sol = shoot(&clamped, 40);
+    let moment = sol.tip_reaction_moment.unwrap();
+    assert!((moment - scene.tip_moment).norm() < 1e-8, "{moment}");
+    assert!((sol.tip_reaction_force.unwrap() - scene.tip_force).norm() < 1e-8);
+}

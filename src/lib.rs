@@ -30,6 +30,7 @@
 
 pub mod blocktri;
 pub mod error;
+mod fe4;
 pub mod interrupt;
 pub mod model;
 pub mod paper_method;
@@ -52,7 +53,7 @@ pub use nalgebra;
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
-pub use model::RodModel;
+pub use model::{RodModel, Scheme};
 pub use quat::Quat;
 pub use robot::{IkEnding, IkOptions, IkResult, IkSettings, InverseSolver, Robot, Strategy};
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};

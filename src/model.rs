@@ -14,6 +14,7 @@
 //! equilibrium is exact, and `lambda = 1` is the scene.
 
 use crate::blocktri::BlockTridiagonal;
+use crate::fe4;
 use crate::quat::{skew, tangent_bilinear, tangent_form_apply, Quat};
 use crate::scene::{Scene, TipCondition};
 use nalgebra::{Matrix3, Vector3};
@@ -75,10 +76,63 @@ impl PointConstraint {
     }
 }
 
+/// The discretisation of the backbone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Scheme {
+    /// The seed's finite differences: one rotation a node, the curvature of
+    /// each element from its two nodes, the exact mean tangent. Second order.
+    #[default]
+    Fd2,
+    /// Quadratic elements of the rotation (an internal node at each element's
+    /// middle, condensed out) with two-point Gauss quadrature: fourth order
+    /// at the nodes (see `fe4.rs`). Free tips only, for now.
+    Fe4,
+}
+
+impl Scheme {
+    /// The name [`Scheme::from_str`](std::str::FromStr) reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::Fd2 => "fd2",
+            Scheme::Fe4 => "fe4",
+        }
+    }
+
+    /// The order of convergence of the node positions as `n` grows.
+    pub fn order(self) -> i32 {
+        match self {
+            Scheme::Fd2 => 2,
+            Scheme::Fe4 => 4,
+        }
+    }
+}
+
+impl std::str::FromStr for Scheme {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
+        match s {
+            "fd2" => Ok(Scheme::Fd2),
+            "fe4" => Ok(Scheme::Fe4),
+            other => Err(crate::error::Error::argument(
+                "scheme",
+                format!("unknown scheme '{other}' (expected 'fd2' or 'fe4')"),
+            )),
+        }
+    }
+}
+
 /// A scene discretised by `n` elements of length `ds`.
 #[derive(Debug, Clone)]
 pub struct RodModel {
     pub n: usize,
+    /// The discretisation (set by [`RodModel::with_scheme`]).
+    pub scheme: Scheme,
+    /// Distributed dead force [N/m], world frame (gravity included).
+    pub distributed_force: Vector3<f64>,
+    /// The unloaded rest shape (see [`RodModel::rest_shape`]).
+    rest_nodes: Vec<Quat>,
+    /// Fourth-order scheme: the internal nodes of the last evaluation.
+    mids: fe4::MidCache,
     pub length: f64,
     pub ds: f64,
     /// Diagonal stiffness `(kx, ky, kz)` [N m^2].
@@ -194,6 +248,10 @@ impl RodModel {
         }
         let mut model = RodModel {
             n,
+            scheme: Scheme::Fd2,
+            distributed_force: f,
+            rest_nodes: Vec::new(),
+            mids: fe4::MidCache::default(),
             length,
             ds,
             stiffness,
@@ -221,10 +279,40 @@ impl RodModel {
         model
     }
 
+    /// The same rod in another discretisation.
+    pub fn with_scheme(mut self, scheme: Scheme) -> Self {
+        if scheme != self.scheme {
+            self.scheme = scheme;
+            *self.mids.lock() = vec![Quat::new(f64::NAN, 0.0, 0.0, 0.0); self.n];
+            self.refresh_rest();
+        }
+        self
+    }
+
+    /// Element `i`'s data for the fourth-order scheme at load scale `load`.
+    fn fe4_element(&self, i: usize, load: f64) -> fe4::Element {
+        let shift = self.distributed_force * (self.ds * fe4::GAUSS_OFFSET);
+        let mean = self.mean_force[i - 1];
+        fe4::Element {
+            h: self.ds,
+            stiffness: self.stiffness,
+            rest: self.rest_curvature[i - 1],
+            force: [load * (mean + shift), load * (mean - shift)],
+        }
+    }
+
     /// The unloaded rod in its rest shape: each element turns by exactly its
-    /// rest curvature, `(2/ds) vec(conj(q_{i-1}) q_i) = kappa0_i`, so the
-    /// elastic energy and the residual vanish (the load path starts exactly).
+    /// rest curvature, `(2/ds) vec(conj(q_{i-1}) q_i) = kappa0_i` (with the
+    /// fourth-order scheme: at both Gauss points), so the elastic energy and
+    /// the residual vanish (the load path starts exactly).
     pub fn rest_shape(&self) -> Vec<Quat> {
+        self.rest_nodes.clone()
+    }
+
+    fn compute_rest_shape(&self) -> Vec<Quat> {
+        if self.scheme == Scheme::Fe4 {
+            return fe4::rest_chain(self.base, (1..=self.n).map(|i| self.fe4_element(i, 0.0)));
+        }
         let mut q = Vec::with_capacity(self.n + 1);
         q.push(self.base);
         for (i, k) in self.rest_curvature.iter().enumerate() {
@@ -241,11 +329,14 @@ impl RodModel {
     /// nodes (the load path's start) and its tip orientation (a clamped tip's
     /// start, whose quaternion is taken on the same side of the sphere).
     fn refresh_rest(&mut self) {
-        let rest = self.rest_shape();
-        let mut positions = vec![Vector3::zeros(); self.n + 1];
-        self.positions(&rest, &mut positions);
-        for c in &mut self.constraints {
-            c.rest = positions[c.node];
+        let rest = self.compute_rest_shape();
+        self.rest_nodes = rest.clone();
+        if !self.constraints.is_empty() {
+            let mut positions = vec![Vector3::zeros(); self.n + 1];
+            self.positions(&rest, &mut positions);
+            for c in &mut self.constraints {
+                c.rest = positions[c.node];
+            }
         }
         self.rest_tip = rest[self.n];
         if let Some(q) = self.clamped_tip.as_mut() {
@@ -607,11 +698,26 @@ impl RodModel {
         debug_assert_eq!(g.len(), self.n);
         let ds = self.ds;
         let load = self.load_scale(lambda);
-        // Elements: elastic energy and the bilinear part of the load potential.
-        // They write every entry of `g` and `jac`: no clearing pass.
-        self.assemble_elements(q, load, reactions, g, jac.as_deref_mut(), ASSEMBLY_CHUNK);
+        if self.scheme == Scheme::Fe4 {
+            debug_assert!(
+                reactions.is_empty(),
+                "fe4: held points are refused by the solver"
+            );
+            let mut mids = self.mids.lock();
+            fe4::assemble(
+                q,
+                |i| self.fe4_element(i, load),
+                &mut mids,
+                g,
+                jac.as_deref_mut(),
+            );
+        } else {
+            // Elements: elastic energy and the bilinear part of the load potential.
+            // They write every entry of `g` and `jac`: no clearing pass.
+            self.assemble_elements(q, load, reactions, g, jac.as_deref_mut(), ASSEMBLY_CHUNK);
+        }
         // Nodes: the quadratic part of the load potential, h . T(q_j).
-        for j in 1..=self.n {
+        for j in (1..=self.n).filter(|_| self.scheme == Scheme::Fd2) {
             let mut weight = load * self.node_force_weight[j - 1];
             if !reactions.is_empty() {
                 weight += self.reactions_from(reactions, j) + self.reactions_from(reactions, j + 1);
@@ -769,8 +875,20 @@ impl RodModel {
 
     /// Node positions `r_0` (the base position), `r_i = r_{i-1} + ds T_i`
     /// with the exact mean tangent.
+    /// (Fourth-order scheme: by its Gauss quadrature of the tangent, with
+    /// the internal nodes of the full loads.)
     pub fn positions(&self, q: &[Quat], out: &mut [Vector3<f64>]) {
         out[0] = self.base_position;
+        if self.scheme == Scheme::Fe4 {
+            let mut mids = self.mids.lock();
+            for i in 1..=self.n {
+                let el = self.fe4_element(i, 1.0);
+                let m = fe4::solve_mid(q[i - 1], q[i], &el, fe4::start_of(&mids, i));
+                mids[i - 1] = m;
+                out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], self.ds);
+            }
+            return;
+        }
         for i in 1..=self.n {
             out[i] = out[i - 1] + self.ds * mean_tangent(q[i - 1], q[i]);
         }
@@ -786,6 +904,17 @@ impl RodModel {
     pub fn energy_at(&self, q: &[Quat], lambda: f64) -> f64 {
         let mut total = 0.0;
         let load = self.load_scale(lambda);
+        if self.scheme == Scheme::Fe4 {
+            let mut mids = self.mids.lock();
+            return (1..=self.n)
+                .map(|i| {
+                    let el = self.fe4_element(i, load);
+                    let m = fe4::solve_mid(q[i - 1], q[i], &el, fe4::start_of(&mids, i));
+                    mids[i - 1] = m;
+                    fe4::energy([q[i - 1], m, q[i]], &el)
+                })
+                .sum();
+        }
         for i in 1..=self.n {
             let (a, b) = (q[i - 1], q[i]);
             let e = (2.0 / self.ds) * (a.conj() * b).v - self.rest_curvature[i - 1];

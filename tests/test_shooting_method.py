@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_held_references import ROD, held_scenes
 
 import softspine
 
 from closed_forms import observed_orders
-from test_held_references import ROD, held_scenes
 from validation import shooting, shooting_held
 
 FREE_3D = {

@@ -63,6 +63,7 @@ def solve(
     *,
     n_elements: int | None = None,
     method: str | None = None,
+    scheme: str | None = None,
     initial: Solution | npt.ArrayLike | None = None,
     accuracy: Accuracy | dict[str, Any] | None = None,
     tol: float | None = None,
@@ -97,6 +98,11 @@ def solve(
         ``"shooting"``: classic RK4 on the Kirchhoff rod equations, one step an
         element, and Newton on the base wrench (fourth order at the nodes; no
         guides); the baseline of the report.
+    scheme : {"fd2", "fe4"}, optional
+        The discretisation of the backbone. ``"fd2"`` (default): the seed's
+        finite differences, second order. ``"fe4"``: quadratic elements of the
+        rotation with two-point Gauss quadrature, fourth order at the nodes
+        (free tips only, for now). The paper's method and shooting have their own.
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
     accuracy : Accuracy or dict, optional
@@ -145,6 +151,7 @@ def solve(
         settings,
         n_elements=n_elements,
         method=method,
+        scheme=scheme,
         initial=initial,
         accuracy=accuracy,
         tol=tol,

@@ -274,6 +274,10 @@ class Settings:
     def method(self) -> str: ...
     @method.setter
     def method(self, value: str) -> None: ...
+    @property
+    def scheme(self) -> str: ...
+    @scheme.setter
+    def scheme(self, value: str) -> None: ...
     residual_tol: float
     max_iterations: int
     min_continuation_step: float
@@ -308,6 +312,7 @@ def solve(
     *,
     n_elements: int | None = None,
     method: str | None = None,
+    scheme: str | None = None,
     initial: Solution | npt.ArrayLike | None = None,
     accuracy: Accuracy | dict[str, Any] | None = None,
     tol: float | None = None,

@@ -277,6 +277,17 @@ impl PySettings {
     fn set_method(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
         self.assign(py, "method", value)
     }
+    /// The discretisation of the backbone: ``"fd2"`` (default; the seed's
+    /// finite differences, second order) or ``"fe4"`` (quadratic elements with
+    /// two-point Gauss quadrature, fourth order at the nodes; free tips only).
+    #[getter]
+    fn scheme(&self) -> &'static str {
+        self.inner.scheme.name()
+    }
+    #[setter]
+    fn set_scheme(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.assign(py, "scheme", value)
+    }
     /// Tolerance on the relative residual, the largest torque imbalance of a
     /// row over its stiffness scale k_c/L (default 1e-10, in [1e-14, 1e-4];
     /// never below the residual's round-off floor).

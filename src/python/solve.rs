@@ -17,7 +17,7 @@ use pyo3::types::PyDict;
 
 /// Solve the statics of a scene. See ``softspine.solve`` for the documentation.
 #[pyfunction]
-#[pyo3(signature = (scene, settings=None, *, n_elements=None, method=None, initial=None, accuracy=None, tol=None, refine=None, residual_tol=None, max_iterations=None, check=false, paper=None))]
+#[pyo3(signature = (scene, settings=None, *, n_elements=None, method=None, scheme=None, initial=None, accuracy=None, tol=None, refine=None, residual_tol=None, max_iterations=None, check=false, paper=None))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve(
     py: Python<'_>,
@@ -25,6 +25,7 @@ pub(super) fn solve(
     settings: Option<&Bound<'_, PyAny>>,
     n_elements: Option<&Bound<'_, PyAny>>,
     method: Option<&Bound<'_, PyAny>>,
+    scheme: Option<&Bound<'_, PyAny>>,
     initial: Option<&Bound<'_, PyAny>>,
     accuracy: Option<&Bound<'_, PyAny>>,
     tol: Option<&Bound<'_, PyAny>>,
@@ -41,6 +42,7 @@ pub(super) fn solve(
     for (key, value) in [
         ("n_elements", n_elements),
         ("method", method),
+        ("scheme", scheme),
         ("residual_tol", residual_tol),
         ("max_iterations", max_iterations),
         ("paper", paper),

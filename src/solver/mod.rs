@@ -47,10 +47,10 @@ pub(crate) use workspace::{evaluate, is_stable};
 
 use crate::error::{Error, Result};
 use crate::interrupt;
-use crate::model::RodModel;
+use crate::model::{RodModel, Scheme};
 
 use crate::quat::Quat;
-use crate::scene::{ReachLimit, Scene};
+use crate::scene::{ReachLimit, Scene, TipCondition};
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -81,7 +81,15 @@ impl Solver {
                 "shooting does not support guides (held interior points); use 'newton'",
             ));
         }
-        let model = RodModel::new(scene, n);
+        if settings.scheme == Scheme::Fe4
+            && (!scene.guides.is_empty() || scene.tip != TipCondition::Free)
+        {
+            return Err(Error::argument(
+                "scheme",
+                "'fe4' does not support held tips or guides yet; use scheme='fd2'",
+            ));
+        }
+        let model = RodModel::new(scene, n).with_scheme(settings.scheme);
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
             Method::Newton | Method::Shooting => Box::new(newton::Newton),

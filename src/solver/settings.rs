@@ -4,6 +4,7 @@
 //! [`Settings::validate`].
 
 use crate::error::{Error, Result};
+use crate::model::Scheme;
 use crate::paper_method::PaperSettings;
 use crate::read::{as_argument, count, finite, string, Table};
 use crate::scene::Scene;
@@ -65,6 +66,9 @@ pub struct Settings {
     pub n_elements: Option<usize>,
     /// The numerical method (default [`Method::Newton`]).
     pub method: Method,
+    /// The discretisation of the backbone (default [`Scheme::Fd2`]); the
+    /// paper's method and shooting have their own and take only the default.
+    pub scheme: Scheme,
     /// Convergence tolerance on the relative residual: the largest torque
     /// imbalance of a row over its own scale `k_c / L` (default 1e-10, within
     /// [`RESIDUAL_TOL_RANGE`]). The tolerance in effect is never below the
@@ -88,6 +92,7 @@ impl Default for Settings {
         Settings {
             n_elements: None,
             method: Method::Newton,
+            scheme: Scheme::Fd2,
             residual_tol: 1e-10,
             max_iterations: 500,
             min_continuation_step: 1e-6,
@@ -187,6 +192,20 @@ impl Settings {
                 ));
             }
         }
+        if self.scheme != Scheme::Fd2
+            && matches!(
+                self.method,
+                Method::Paper | Method::PaperLiteral | Method::Shooting
+            )
+        {
+            return Err(Error::argument(
+                "scheme",
+                format!(
+                    "method '{}' has its own discretisation; only the default 'fd2' applies",
+                    self.method.name()
+                ),
+            ));
+        }
         check_tolerance("residual_tol", self.residual_tol, RESIDUAL_TOL_RANGE)?;
         if self.max_iterations == 0 {
             return Err(Error::argument("max_iterations", "must be positive"));
@@ -209,9 +228,10 @@ const MAX_ITERATION_SETTING: usize = 1_000_000_000;
 
 impl Settings {
     /// Every key of [`Settings::set`], in the order of the fields.
-    pub const KEYS: [&'static str; 6] = [
+    pub const KEYS: [&'static str; 7] = [
         "n_elements",
         "method",
+        "scheme",
         "residual_tol",
         "max_iterations",
         "min_continuation_step",
@@ -236,6 +256,7 @@ impl Settings {
                 }
             }
             "method" => self.method = string(value, key)?.parse()?,
+            "scheme" => self.scheme = string(value, key)?.parse()?,
             "residual_tol" => self.residual_tol = finite(value, key)?,
             "max_iterations" => self.max_iterations = count(value, key, MAX_ITERATION_SETTING)?,
             "min_continuation_step" => self.min_continuation_step = finite(value, key)?,
@@ -277,6 +298,7 @@ impl Settings {
                     .map_or(Value::Null, |n| Value::Number(n as f64)),
             ),
             ("method".into(), Value::String(self.method.name().into())),
+            ("scheme".into(), Value::String(self.scheme.name().into())),
             ("residual_tol".into(), Value::Number(self.residual_tol)),
             (
                 "max_iterations".into(),

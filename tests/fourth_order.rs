@@ -1,9 +1,10 @@
-//! `Method::Shooting` against closed forms and against the finite-difference
-//! scheme (an independent discretisation of the same rod): order 4 at the nodes,
-//! point loads at section ends, held tips and their reactions.
+//! The fourth-order discretisations, `Method::Shooting` and `Scheme::Fe4`,
+//! against closed forms and against the finite-difference scheme's Richardson
+//! limit (an independent discretisation of the same rod): order 4 at the
+//! nodes, point loads at section ends, held tips and their reactions.
 
 use nalgebra::Vector3;
-use softspine::{solve, Method, PointLoad, Quat, Scene, Settings, Solution, TipCondition};
+use softspine::{solve, Method, PointLoad, Quat, Scene, Scheme, Settings, Solution, TipCondition};
 
 fn settings(n: usize, method: Method) -> Settings {
     Settings {
@@ -68,29 +69,37 @@ fn loaded_sections() -> Scene {
     s
 }
 
-#[test]
-fn shooting_and_the_finite_difference_scheme_agree_on_the_whole_backbone() {
-    let scene = loaded_sections();
-    // The finite-difference scheme is second order with an even expansion:
-    // Richardson over the whole backbone from n = 640 and 1280 is a
-    // reference good to about 1e-10 L.
-    let fd = |n| solve(&scene, settings(n, Method::Newton), None).unwrap();
+/// The whole backbone of `loaded_sections` to about 1e-10 L: the
+/// finite-difference scheme is second order with an even expansion, so
+/// Richardson from n = 640 and 1280 removes its leading error.
+fn richardson_reference(scene: &Scene) -> Vec<Vector3<f64>> {
+    let fd = |n| solve(scene, settings(n, Method::Newton), None).unwrap();
     let (a, b) = (fd(640), fd(1280));
-    let reference: Vec<Vector3<f64>> = a
-        .positions
+    a.positions
         .iter()
         .enumerate()
         .map(|(i, r)| (4.0 * b.positions[2 * i] - r) / 3.0)
-        .collect();
-    let errors: Vec<f64> = [16, 32, 64]
-        .iter()
-        .map(|&n| distance(&shoot(&scene, n).positions, &reference))
-        .collect();
+        .collect()
+}
+
+/// Errors at n = 16, 32, 64 are of order 4 and below `finest` at n = 64.
+fn assert_fourth_order(errors: &[f64], finest: f64) {
     for pair in errors.windows(2) {
         let order = (pair[0] / pair[1]).log2();
         assert!((3.7..4.3).contains(&order), "{errors:?}");
     }
-    assert!(errors[2] < 1e-7 * scene.length, "{errors:?}");
+    assert!(errors[errors.len() - 1] < finest, "{errors:?}");
+}
+
+#[test]
+fn shooting_and_the_finite_difference_scheme_agree_on_the_whole_backbone() {
+    let scene = loaded_sections();
+    let reference = richardson_reference(&scene);
+    let errors: Vec<f64> = [16, 32, 64]
+        .iter()
+        .map(|&n| distance(&shoot(&scene, n).positions, &reference))
+        .collect();
+    assert_fourth_order(&errors, 1e-7 * scene.length);
     // Base force explicit: every load summed (the point loads included).
     let sol = shoot(&scene, 16);
     let total = scene.tip_force
@@ -101,6 +110,25 @@ fn shooting_and_the_finite_difference_scheme_agree_on_the_whole_backbone() {
             .map(|p| p.force)
             .sum::<Vector3<f64>>();
     assert!((sol.forces[0] - total).norm() < 1e-12);
+}
+
+#[test]
+fn the_fourth_order_scheme_agrees_with_the_finite_difference_limit() {
+    let scene = loaded_sections();
+    let reference = richardson_reference(&scene);
+    let errors: Vec<f64> = [16, 32, 64]
+        .iter()
+        .map(|&n| {
+            let fe4 = Settings {
+                scheme: Scheme::Fe4,
+                ..settings(n, Method::Newton)
+            };
+            let sol = solve(&scene, fe4, None).unwrap();
+            assert!(sol.converged() && sol.stable, "n = {n}: {}", sol.message);
+            distance(&sol.positions, &reference)
+        })
+        .collect();
+    assert_fourth_order(&errors, 1e-7 * scene.length);
 }
 
 #[test]

@@ -1,0 +1,608 @@
+//! The fourth-order scheme (`Scheme::Fe4`, docs/model.md "A fourth-order
+//! backbone"): quadratic finite elements of the rotation with two-point Gauss
+//! quadrature of the total potential.
+//!
+//! Element `i` joins the nodes `a = q_{i-1}` and `b = q_i` through an internal
+//! node `m` at its middle. Along the element (`tau` in `[0, 1]`) the quaternion
+//! is the quadratic interpolant `q = N_a a + N_m m + N_b b`, normalised; with
+//! `p = dq/ds` the curvature and tangent at a point are
+//!
+//! ```text
+//! omega = 2 vec(conj(q) p) / |q|^2        t = T(q) / |q|^2
+//! ```
+//!
+//! and the element's potential is `h/2 sum_g [1/2 (omega - omega0)^T K (omega - omega0)
+//! - F(s_g) . t]` over the Gauss points `tau = 1/2 -+ sqrt(3)/6`. This is a
+//! Galerkin discretisation of degree 2 with Gauss quadrature (two-stage Gauss
+//! collocation): order 4 at the nodes. Positions follow from the same
+//! quadrature, `r_b = r_a + h/2 (t_1 + t_2)`.
+//!
+//! The internal node is condensed out exactly: for given element ends it
+//! minimises the element's potential (a three-unknown Newton iteration), so
+//! the scheme's unknowns are the `n + 1` node rotations, its residual is the
+//! gradient of the reduced potential (the envelope theorem) and its Jacobian
+//! the Schur complement: block-tridiagonal, as for the second-order scheme.
+
+use crate::blocktri::BlockTridiagonal;
+use crate::quat::{skew, Quat};
+use nalgebra::{Matrix3, Matrix3x4, Matrix4, SMatrix, Vector3, Vector4};
+
+type Matrix4x3 = SMatrix<f64, 4, 3>;
+
+/// `sqrt(3) / 6`: the Gauss points sit at `1/2 -+` this.
+pub(crate) const GAUSS_OFFSET: f64 = 0.288_675_134_594_812_9;
+/// Gauss points on `[0, 1]`.
+pub(crate) const GAUSS: [f64; 2] = [0.5 - GAUSS_OFFSET, 0.5 + GAUSS_OFFSET];
+
+/// Newton iterations of the internal node, and when to stop them: Newton
+/// converges quadratically, so after a step below `MID_STEP_TOL` radians the
+/// node is within about its square of the optimum (at round-off); the rest
+/// chain, solved once, iterates until its steps are themselves at round-off.
+const MID_ITERATIONS: usize = 12;
+const MID_STEP_TOL: f64 = 1e-8;
+const REST_STEP_TOL: f64 = 1e-13;
+
+/// What one element needs besides its nodes.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Element {
+    /// Length [m].
+    pub h: f64,
+    /// Diagonal stiffness [N m^2].
+    pub stiffness: Vector3<f64>,
+    /// Rest curvature, material frame [1/m].
+    pub rest: Vector3<f64>,
+    /// Internal force at the two Gauss points, world frame [N].
+    pub force: [Vector3<f64>; 2],
+}
+
+/// Gradient and Jacobian of an element in the body-frame rotations of its
+/// nodes `(a, m, b)` (see `model.rs` for the update and the residual).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Derivatives {
+    pub grad: [Vector3<f64>; 3],
+    pub jac: [[Matrix3<f64>; 3]; 3],
+}
+
+/// The quadratic basis on `tau = 0, 1/2, 1` and its derivative in `tau`.
+fn basis(tau: f64) -> ([f64; 3], [f64; 3]) {
+    (
+        [
+            (1.0 - tau) * (1.0 - 2.0 * tau),
+            4.0 * tau * (1.0 - tau),
+            tau * (2.0 * tau - 1.0),
+        ],
+        [4.0 * tau - 3.0, 4.0 - 8.0 * tau, 4.0 * tau - 1.0],
+    )
+}
+
+fn v4(q: Quat) -> Vector4<f64> {
+    Vector4::new(q.w, q.v.x, q.v.y, q.v.z)
+}
+
+fn vec_part(x: &Vector4<f64>) -> Vector3<f64> {
+    Vector3::new(x[1], x[2], x[3])
+}
+
+/// `x (0, mu)`, the quaternion product with a pure quaternion.
+fn times_pure(x: &Vector4<f64>, mu: &Vector3<f64>) -> Vector4<f64> {
+    let xv = vec_part(x);
+    let v = x[0] * mu + xv.cross(mu);
+    Vector4::new(-xv.dot(mu), v.x, v.y, v.z)
+}
+
+/// `B(x)`, the 3x4 matrix of `y -> vec(conj(x) y)`; `B(x)^T mu = x (0, mu)`.
+fn conj_product(x: &Vector4<f64>) -> Matrix3x4<f64> {
+    let xv = vec_part(x);
+    let m = Matrix3::identity() * x[0] - skew(&xv);
+    Matrix3x4::from_columns(&[
+        -xv,
+        m.column(0).into(),
+        m.column(1).into(),
+        m.column(2).into(),
+    ])
+}
+
+/// The 4x4 matrix of `x -> x (0, mu)` (antisymmetric).
+fn right_pure(mu: &Vector3<f64>) -> Matrix4<f64> {
+    Matrix4::new(
+        0.0, -mu.x, -mu.y, -mu.z, //
+        mu.x, 0.0, mu.z, -mu.y, //
+        mu.y, -mu.z, 0.0, mu.x, //
+        mu.z, mu.y, -mu.x, 0.0,
+    )
+}
+
+/// `S_F`, symmetric, with `q^T S_F q = F . T(q)` (`T` the third column of `R(q)`).
+fn tangent_form(f: &Vector3<f64>) -> Matrix4<f64> {
+    Matrix4::new(
+        f.z, -f.y, f.x, 0.0, //
+        -f.y, -f.z, 0.0, f.x, //
+        f.x, 0.0, -f.z, f.y, //
+        0.0, f.x, f.y, f.z,
+    )
+}
+
+/// The potential density at one point and its derivatives in `(q, p)`,
+/// the interpolated quaternion and its arc-length derivative.
+struct PointTerms {
+    value: f64,
+    grad_q: Vector4<f64>,
+    grad_p: Vector4<f64>,
+    hqq: Matrix4<f64>,
+    /// Rows `q`, columns `p`.
+    hqp: Matrix4<f64>,
+    hpp: Matrix4<f64>,
+}
+
+fn point_terms(
+    q: &Vector4<f64>,
+    p: &Vector4<f64>,
+    el: &Element,
+    force: &Vector3<f64>,
+    hessian: bool,
+) -> PointTerms {
+    let inv = 1.0 / q.norm_squared();
+    let bq = conj_product(q);
+    let omega = 2.0 * inv * (bq * p);
+    let delta = omega - el.rest;
+    let mu = el.stiffness.component_mul(&delta);
+    let s = tangent_form(force);
+    let sq = s * q;
+    let phi = inv * q.dot(&sq);
+    let g = mu.dot(&omega);
+    let p_mu = times_pure(p, &mu);
+    let q_mu = times_pure(q, &mu);
+    let mut terms = PointTerms {
+        value: 0.5 * delta.dot(&mu) - phi,
+        grad_q: -2.0 * inv * (p_mu + g * q + sq - phi * q),
+        grad_p: 2.0 * inv * q_mu,
+        hqq: Matrix4::zeros(),
+        hqp: Matrix4::zeros(),
+        hpp: Matrix4::zeros(),
+    };
+    if !hessian {
+        return terms;
+    }
+    let k = Matrix3::from_diagonal(&el.stiffness);
+    let jq = -2.0 * inv * (conj_product(p) + omega * q.transpose());
+    let jp = 2.0 * inv * bq;
+    let kjq = k * jq;
+    let kjp = k * jp;
+    let inv2 = inv * inv;
+    let eye = Matrix4::identity();
+    // mu . omega as a function of (q, p) with mu fixed: 2 q^T M p / |q|^2,
+    // M = -right_pure(mu), so M p = -p (0, mu) and M^T q = q (0, mu).
+    let m = -right_pure(&mu);
+    let mp = -p_mu;
+    let curvature_qq = -4.0 * inv2 * (mp * q.transpose() + q * mp.transpose())
+        + 8.0 * inv2 * g * q * q.transpose()
+        - 2.0 * inv * g * eye;
+    let curvature_qp = 2.0 * inv * m - 4.0 * inv2 * q * q_mu.transpose();
+    let load_qq = -2.0 * inv * s + 4.0 * inv2 * (sq * q.transpose() + q * sq.transpose())
+        - 8.0 * inv2 * phi * q * q.transpose()
+        + 2.0 * inv * phi * eye;
+    terms.hqq = jq.transpose() * kjq + curvature_qq + load_qq;
+    terms.hqp = jq.transpose() * kjp + curvature_qp;
+    terms.hpp = jp.transpose() * kjp;
+    terms
+}
+
+/// The element's nodes on one side of the quaternion sphere: the quadratic
+/// interpolant of `a`, `-m` and `b` would pass near zero.
+fn aligned(nodes: [Quat; 3]) -> [Vector4<f64>; 3] {
+    let a = v4(nodes[0]);
+    let mut m = v4(nodes[1]);
+    if a.dot(&m) < 0.0 {
+        m = -m;
+    }
+    let mut b = v4(nodes[2]);
+    if m.dot(&b) < 0.0 {
+        b = -b;
+    }
+    [a, m, b]
+}
+
+/// The interpolated quaternion and its arc-length derivative at Gauss point `g`.
+fn interpolate(
+    x: &[Vector4<f64>; 3],
+    h: f64,
+    g: usize,
+) -> (Vector4<f64>, Vector4<f64>, [f64; 3], [f64; 3]) {
+    let (n, dn) = basis(GAUSS[g]);
+    let q = n[0] * x[0] + n[1] * x[1] + n[2] * x[2];
+    let p = (dn[0] * x[0] + dn[1] * x[1] + dn[2] * x[2]) / h;
+    (q, p, n, dn)
+}
+
+/// The element's potential [J].
+pub(crate) fn energy(nodes: [Quat; 3], el: &Element) -> f64 {
+    let x = aligned(nodes);
+    (0..2)
+        .map(|g| {
+            let (q, p, _, _) = interpolate(&x, el.h, g);
+            0.5 * el.h * point_terms(&q, &p, el, &el.force[g], false).value
+        })
+        .sum()
+}
+
+/// The element's chord `r_b - r_a = h/2 (t_1 + t_2)` [m].
+pub(crate) fn chord(nodes: [Quat; 3], h: f64) -> Vector3<f64> {
+    let x = aligned(nodes);
+    (0..2)
+        .map(|g| {
+            let (q, _, _, _) = interpolate(&x, h, g);
+            let t = Quat::new(q[0], q[1], q[2], q[3]).tangent() / q.norm_squared();
+            0.5 * h * t
+        })
+        .sum()
+}
+
+/// Gradient of the element in its nodes' rotations; with `jacobian`, the
+/// exact derivative of that gradient under the same updates (its diagonal
+/// blocks carry the update's second-order terms, as in `model.rs`). With
+/// `mid_only`, only the internal node's gradient and block.
+pub(crate) fn derivatives(
+    nodes: [Quat; 3],
+    el: &Element,
+    jacobian: bool,
+    mid_only: bool,
+) -> Derivatives {
+    let x = aligned(nodes);
+    let h = el.h;
+    let weight = 0.5 * h;
+    let mut euclid = [Vector4::zeros(); 3];
+    let mut hess = [[Matrix4::zeros(); 3]; 3];
+    for g in 0..2 {
+        let (q, p, n, dn) = interpolate(&x, h, g);
+        let t = point_terms(&q, &p, el, &el.force[g], jacobian);
+        let d = [dn[0] / h, dn[1] / h, dn[2] / h];
+        for k in 0..3 {
+            euclid[k] += weight * (n[k] * t.grad_q + d[k] * t.grad_p);
+        }
+        if jacobian {
+            let hpq = t.hqp.transpose();
+            for k in 0..3 {
+                if mid_only && k != 1 {
+                    continue;
+                }
+                for l in 0..3 {
+                    if mid_only && l != 1 {
+                        continue;
+                    }
+                    hess[k][l] += weight
+                        * (n[k] * n[l] * t.hqq
+                            + n[k] * d[l] * t.hqp
+                            + d[k] * n[l] * hpq
+                            + d[k] * d[l] * t.hpp);
+                }
+            }
+        }
+    }
+    // d x_k / d theta_k = E_k = B(x_k)^T / 2 (columns x_k (0, e_c) / 2).
+    let e: [Matrix4x3; 3] = [0, 1, 2].map(|k| 0.5 * conj_product(&x[k]).transpose());
+    let mut out = Derivatives {
+        grad: [Vector3::zeros(); 3],
+        jac: [[Matrix3::zeros(); 3]; 3],
+    };
+    for k in 0..3 {
+        out.grad[k] = e[k].transpose() * euclid[k];
+    }
+    if jacobian {
+        for k in 0..3 {
+            for l in 0..3 {
+                if mid_only && (k != 1 || l != 1) {
+                    continue;
+                }
+                out.jac[k][l] = e[k].transpose() * hess[k][l] * e[l];
+            }
+            let radial = -0.25 * x[k].dot(&euclid[k]);
+            out.jac[k][k] += radial * Matrix3::identity() + 0.5 * skew(&out.grad[k]);
+        }
+    }
+    out
+}
+
+/// The internal node that minimises the element's potential for its ends
+/// (Newton from `start`; the slerp midpoint of the ends if `None`).
+pub(crate) fn solve_mid(a: Quat, b: Quat, el: &Element, start: Option<Quat>) -> Quat {
+    let b = if a.dot(b) < 0.0 { -b } else { b };
+    let mut m = start.unwrap_or_else(|| {
+        Quat {
+            w: a.w + b.w,
+            v: a.v + b.v,
+        }
+        .normalized()
+    });
+    for _ in 0..MID_ITERATIONS {
+        let d = derivatives([a, m, b], el, true, true);
+        let Some(inverse) = d.jac[1][1].try_inverse() else {
+            break;
+        };
+        let step = -(inverse * d.grad[1]);
+        m = m.perturbed(step);
+        if step.norm() < MID_STEP_TOL {
+            break;
+        }
+    }
+    m
+}
+
+/// The condensed terms of one element on its end nodes: gradient and
+/// Jacobian blocks of the reduced potential (the internal node at its optimum).
+pub(crate) struct Condensed {
+    /// The internal node at its optimum.
+    pub mid: Quat,
+    pub ga: Vector3<f64>,
+    pub gb: Vector3<f64>,
+    pub jaa: Matrix3<f64>,
+    pub jab: Matrix3<f64>,
+    pub jba: Matrix3<f64>,
+    pub jbb: Matrix3<f64>,
+}
+
+pub(crate) fn condensed(
+    a: Quat,
+    b: Quat,
+    el: &Element,
+    start: Option<Quat>,
+    jacobian: bool,
+) -> Condensed {
+    let m = solve_mid(a, b, el, start);
+    let d = derivatives([a, m, b], el, jacobian, false);
+    let mut out = Condensed {
+        mid: m,
+        ga: d.grad[0],
+        gb: d.grad[2],
+        jaa: Matrix3::zeros(),
+        jab: Matrix3::zeros(),
+        jba: Matrix3::zeros(),
+        jbb: Matrix3::zeros(),
+    };
+    if !jacobian {
+        return out;
+    }
+    let j = &d.jac;
+    let inverse = j[1][1].try_inverse().unwrap_or_else(Matrix3::zeros);
+    // Eliminating the internal node's step, -J_mm^-1 (g_m + J_ma x_a + J_mb x_b).
+    let ma = inverse * j[1][0];
+    let mb = inverse * j[1][2];
+    let gm = inverse * d.grad[1];
+    out.ga -= j[0][1] * gm;
+    out.gb -= j[2][1] * gm;
+    out.jaa = j[0][0] - j[0][1] * ma;
+    out.jab = j[0][2] - j[0][1] * mb;
+    out.jba = j[2][0] - j[2][1] * ma;
+    out.jbb = j[2][2] - j[2][1] * mb;
+    out
+}
+
+/// Add the condensed element terms of a rod to `g` and `jac` (node `j` at
+/// index `j - 1`; both cleared first). `element(i)` gives element `i = 1..=n`;
+/// `mids` holds each element's internal node of the last evaluation (the
+/// start of its Newton iteration) and receives the new ones.
+pub(crate) fn assemble(
+    q: &[Quat],
+    element: impl Fn(usize) -> Element,
+    mids: &mut [Quat],
+    g: &mut [Vector3<f64>],
+    mut jac: Option<&mut BlockTridiagonal>,
+) {
+    let n = g.len();
+    g.iter_mut().for_each(|x| *x = Vector3::zeros());
+    if let Some(j) = jac.as_deref_mut() {
+        j.diag.iter_mut().for_each(|x| *x = Matrix3::zeros());
+    }
+    for i in 1..=n {
+        let c = condensed(
+            q[i - 1],
+            q[i],
+            &element(i),
+            start_of(mids, i),
+            jac.is_some(),
+        );
+        mids[i - 1] = c.mid;
+        g[i - 1] += c.gb;
+        if i >= 2 {
+            g[i - 2] += c.ga;
+        }
+        if let Some(j) = jac.as_deref_mut() {
+            j.diag[i - 1] += c.jbb;
+            if i >= 2 {
+                j.diag[i - 2] += c.jaa;
+                j.upper[i - 2] = c.jab;
+                j.lower[i - 2] = c.jba;
+            }
+        }
+    }
+}
+
+/// The cached internal node of element `i` as a start, if there is one.
+pub(crate) fn start_of(mids: &[Quat], i: usize) -> Option<Quat> {
+    mids.get(i - 1)
+        .copied()
+        .filter(|m| m.w.is_finite() && m.norm() > 0.5)
+}
+
+/// Each element's internal node of the last evaluation, the start of the
+/// next one's Newton iteration (a cache: the optimum does not depend on it).
+#[derive(Debug, Default)]
+pub(crate) struct MidCache(std::sync::Mutex<Vec<Quat>>);
+
+impl Clone for MidCache {
+    fn clone(&self) -> Self {
+        MidCache(std::sync::Mutex::new(self.lock().clone()))
+    }
+}
+
+impl MidCache {
+    /// The cached nodes, `n` of them (invalid entries: no start).
+    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Quat>> {
+        // A panic while holding the lock leaves only a start behind.
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// The node quaternions of a chain whose every element is at rest
+/// (`omega = omega0` at both Gauss points, so its potential is zero) from
+/// `base`, each element by Newton on its internal node and end.
+pub(crate) fn rest_chain(base: Quat, elements: impl Iterator<Item = Element>) -> Vec<Quat> {
+    let mut out = vec![base];
+    for el in elements {
+        let a = *out.last().expect("starts with the base");
+        // The arc of constant curvature: exact to the scheme's order.
+        let mut m = a.perturbed(0.5 * el.h * el.rest);
+        let mut b = a.perturbed(el.h * el.rest);
+        for _ in 0..MID_ITERATIONS {
+            let d = derivatives([a, m, b], &el, true, false);
+            let mut jac = SMatrix::<f64, 6, 6>::zeros();
+            let mut rhs = SMatrix::<f64, 6, 1>::zeros();
+            for (r, k) in [1usize, 2].iter().enumerate() {
+                rhs.fixed_rows_mut::<3>(3 * r).copy_from(&(-d.grad[*k]));
+                for (c, l) in [1usize, 2].iter().enumerate() {
+                    jac.fixed_view_mut::<3, 3>(3 * r, 3 * c)
+                        .copy_from(&d.jac[*k][*l]);
+                }
+            }
+            let Some(step) = jac.lu().solve(&rhs) else {
+                break;
+            };
+            m = m.perturbed(step.fixed_rows::<3>(0).into_owned());
+            b = b.perturbed(step.fixed_rows::<3>(3).into_owned());
+            if step.norm() < REST_STEP_TOL {
+                break;
+            }
+        }
+        out.push(b);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn element() -> Element {
+        Element {
+            h: 0.13,
+            stiffness: Vector3::new(0.9, 1.3, 0.7),
+            rest: Vector3::new(1.2, -0.8, 0.0),
+            force: [Vector3::new(0.4, -1.1, 2.0), Vector3::new(0.3, -1.0, 1.7)],
+        }
+    }
+
+    fn nodes() -> [Quat; 3] {
+        let a = Quat::new(0.9, 0.2, -0.3, 0.1).normalized();
+        let m = a.perturbed(Vector3::new(0.05, -0.08, 0.03));
+        let b = m.perturbed(Vector3::new(0.07, -0.02, 0.06));
+        [a, m, b]
+    }
+
+    #[test]
+    fn gradient_matches_central_differences_of_the_energy() {
+        let (el, x) = (element(), nodes());
+        let d = derivatives(x, &el, false, false);
+        let h = 1e-6;
+        for k in 0..3 {
+            for c in 0..3 {
+                let step = Vector3::ith(c, h);
+                let (mut p, mut m) = (x, x);
+                p[k] = x[k].perturbed(step);
+                m[k] = x[k].perturbed(-step);
+                let fd = (energy(p, &el) - energy(m, &el)) / (2.0 * h);
+                assert!(
+                    (fd - d.grad[k][c]).abs() < 1e-8,
+                    "node {k} row {c}: {fd} vs {}",
+                    d.grad[k][c]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn jacobian_matches_central_differences_of_the_gradient() {
+        let (el, x) = (element(), nodes());
+        let d = derivatives(x, &el, true, false);
+        let h = 1e-6;
+        for l in 0..3 {
+            for c in 0..3 {
+                let step = Vector3::ith(c, h);
+                let (mut p, mut m) = (x, x);
+                p[l] = x[l].perturbed(step);
+                m[l] = x[l].perturbed(-step);
+                let (gp, gm) = (
+                    derivatives(p, &el, false, false),
+                    derivatives(m, &el, false, false),
+                );
+                for k in 0..3 {
+                    let fd = (gp.grad[k] - gm.grad[k]) / (2.0 * h);
+                    let column = d.jac[k][l].column(c);
+                    assert!(
+                        (fd - column).norm() < 1e-6,
+                        "block ({k}, {l}) column {c}: {fd} vs {column}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_condensed_gradient_is_that_of_the_reduced_energy() {
+        let el = element();
+        let [a, _, b] = nodes();
+        let reduced = |a: Quat, b: Quat| energy([a, solve_mid(a, b, &el, None), b], &el);
+        let c = condensed(a, b, &el, None, true);
+        let h = 1e-5;
+        for col in 0..3 {
+            let step = Vector3::ith(col, h);
+            let fd_a = (reduced(a.perturbed(step), b) - reduced(a.perturbed(-step), b)) / (2.0 * h);
+            let fd_b = (reduced(a, b.perturbed(step)) - reduced(a, b.perturbed(-step))) / (2.0 * h);
+            assert!((fd_a - c.ga[col]).abs() < 1e-8);
+            assert!((fd_b - c.gb[col]).abs() < 1e-8);
+            // The Schur complement is the derivative of the reduced gradient.
+            let ga = |a: Quat| condensed(a, b, &el, None, false).ga;
+            let gb = |b: Quat| condensed(a, b, &el, None, false).gb;
+            let dga = (ga(a.perturbed(step)) - ga(a.perturbed(-step))) / (2.0 * h);
+            let dgb = (gb(b.perturbed(step)) - gb(b.perturbed(-step))) / (2.0 * h);
+            assert!(
+                (dga - c.jaa.column(col)).norm() < 1e-6,
+                "{dga} {}",
+                c.jaa.column(col)
+            );
+            assert!(
+                (dgb - c.jbb.column(col)).norm() < 1e-6,
+                "{dgb} {}",
+                c.jbb.column(col)
+            );
+            let gab = |bb: Quat| condensed(a, bb, &el, None, false).ga;
+            let dab = (gab(b.perturbed(step)) - gab(b.perturbed(-step))) / (2.0 * h);
+            assert!(
+                (dab - c.jab.column(col)).norm() < 1e-6,
+                "{dab} {}",
+                c.jab.column(col)
+            );
+            let gba = |aa: Quat| condensed(aa, b, &el, None, false).gb;
+            let dba = (gba(a.perturbed(step)) - gba(a.perturbed(-step))) / (2.0 * h);
+            assert!(
+                (dba - c.jba.column(col)).norm() < 1e-6,
+                "{dba} {}",
+                c.jba.column(col)
+            );
+        }
+    }
+
+    #[test]
+    fn a_rest_chain_has_zero_energy_and_follows_the_arc_to_fourth_order() {
+        let mut el = element();
+        el.force = [Vector3::zeros(); 2];
+        el.rest = Vector3::new(2.0, -1.0, 0.0);
+        let chain = rest_chain(Quat::IDENTITY, std::iter::repeat_n(el, 4));
+        for w in chain.windows(2) {
+            let m = solve_mid(w[0], w[1], &el, None);
+            assert!(energy([w[0], m, w[1]], &el).abs() < 1e-24);
+        }
+        // The exact arc turns by h |kappa| an element.
+        let exact = Quat::from_rotation_vector(4.0 * el.h * el.rest);
+        let rel = exact.conj() * chain[4];
+        assert!(rel.v.norm() < 1e-6, "{}", rel.v.norm());
+    }
+}

@@ -14,10 +14,13 @@ def test_report_runs_and_writes_table_plot_and_readme(tmp_path):
     assert table.count("\n") == len(rows) + 2
     assert report.update_readme(readme, table)
     text = readme.read_text()
-    assert "old" not in text and "| newton |" in text and text.endswith("end\n")
+    assert "old" not in text and "| newton fd2 |" in text and text.endswith("end\n")
     # Every scene, every method; Newton's error falls with n on every scene.
     for scene in report.suite():
-        newton = [r for r in rows if r["scene"] == scene and r["method"] == "newton"]
-        errors = [r["error"] for r in newton if r["converged"]]
-        assert len(errors) >= 4 and errors[-1] < errors[0] / 100
-        assert {r["method"] for r in rows if r["scene"] == scene} >= {"newton", "lm", "reference"}
+        for method in ("newton fd2", "newton fe4", "shooting"):
+            own = [r for r in rows if r["scene"] == scene and r["method"] == method]
+            for key in ("error", "shape"):
+                errors = [r[key] for r in own if r["converged"]]
+                assert len(errors) >= 4 and errors[-1] < errors[0] / 100, (method, key)
+        assert {r["method"] for r in rows if r["scene"] == scene} >= {
+            "newton fd2", "newton fe4", "shooting", "lm", "reference"}

@@ -1,12 +1,14 @@
-"""Speed against error: every method on a fixed suite of scenes.
+"""Speed against error: every method and scheme on a fixed suite of scenes.
 
-``python tools/report.py [--out docs] [--readme README.md]`` solves each scene with ``newton``,
-``lm``, ``paper`` (when the build has it) and the NumPy reference at
-n = 5 ... 160, and with accuracy on demand at tol = 1e-3 ... 1e-6; it measures
-the median wall time of a solve (Python call included) and the tip error
-against a shooting solution of the continuous rod (rtol 1e-12), and writes
-``report.md`` (a Markdown table) and ``report.png`` (log-log error against time,
-one curve per method and scene).
+``python tools/report.py [--out docs] [--readme README.md]`` solves each scene
+with Newton on both schemes (``fd2``, ``fe4``), ``shooting``, ``lm``, ``paper``
+(when the build has it) and the NumPy reference at n = 5 ... 160, and with
+accuracy on demand at tol = 1e-3 ... 1e-6. It measures the median wall time of
+a solve (Python call included), the tip error and the whole backbone's error
+(the largest over the nodes) against a shooting solution of the continuous
+rod (rtol 1e-12), and writes ``report.md`` (a Markdown table) and
+``report.png`` (log-log whole-backbone error against time, one curve per method
+and scene).
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from softspine.scenes import cantilever, end_moment
 from validation import reference, shooting
 
 NS = (5, 10, 20, 40, 80, 160)
+# The reference is sampled at s = i L / SAMPLES: every n of NS divides it.
+SAMPLES = 640
 TOLS = (1e-3, 1e-4, 1e-5, 1e-6)
 REFERENCE_MAX_N = 40  # the NumPy reference is slow: dense complex-step Jacobians
 
@@ -46,20 +50,38 @@ def suite() -> dict[str, dict]:
     }
     return {
         "cantilever alpha=3": cantilever(3.0),
+        "cantilever alpha=10": cantilever(10.0),
         "full roll-up 2 pi EI/L": end_moment(1.0),
         "3D robot, 5 sections, gravity + 30 g": robot,
         "3D spiral, rest turning 8 rad, gravity": spiral,
     }
 
 
-def available_methods() -> list[str]:
-    methods = ["newton", "lm"]
+def available_methods() -> dict[str, dict]:
+    """The solve keywords of each curve, by its label."""
+    methods = {
+        "newton fd2": {"method": "newton", "scheme": "fd2"},
+        "newton fe4": {"method": "newton", "scheme": "fe4"},
+        "shooting": {"method": "shooting"},
+        "lm": {"method": "lm"},
+    }
     try:
         solve(cantilever(1.0), n_elements=4, method="paper")
-        methods.append("paper")
+        methods["paper"] = {"method": "paper"}
     except ValueError:
         pass
     return methods
+
+
+def backbone_error(positions: np.ndarray, exact: np.ndarray) -> float:
+    """Largest distance of a node from the continuous rod, at the nodes the
+    solution and the reference samples share."""
+    n = len(positions) - 1
+    if SAMPLES % n == 0:
+        return float(np.abs(positions - exact[:: SAMPLES // n]).max())
+    if n % SAMPLES == 0:
+        return float(np.abs(positions[:: n // SAMPLES] - exact).max())
+    return float("nan")
 
 
 def timed(fn, repeats: int):
@@ -76,54 +98,60 @@ def run(out: Path, quick: bool = False) -> list[dict]:
     rows = []
     methods = available_methods()
     for name, scene in suite().items():
-        exact = shooting.solve(scene, rtol=1e-12)["tip_position"]
+        ref = shooting.solve(scene, rtol=1e-12, n_samples=SAMPLES + 1)
+        exact, exact_tip = ref["positions"], ref["tip_position"]
         length = scene["length"]
         sections = len(scene.get("rest_curvature", [[0, 0]]))
-        for method in methods + ["reference"]:
+
+        def add(method, setting, t, tip, positions, ok, name=name, length=length,
+                exact=exact, exact_tip=exact_tip):
+            rows.append({"scene": name, "method": method, "setting": setting, "time": t,
+                         "error": np.linalg.norm(tip - exact_tip) / length,
+                         "shape": backbone_error(positions, exact) / length,
+                         "converged": ok})
+
+        for label in [*methods, "reference"]:
             for n in NS:
-                if n % sections or (method == "reference" and n > REFERENCE_MAX_N):
+                if n % sections or (label == "reference" and n > REFERENCE_MAX_N):
                     continue
-                if method == "paper" and n > 40:
+                if label == "paper" and n > 40:
                     continue
-                repeats = 1 if method in ("reference", "paper") or quick else 7
-                if method == "reference":
+                repeats = 1 if label in ("reference", "paper") or quick else 7
+                if label == "reference":
                     try:
                         res, t = timed(
                             lambda n=n, s=scene: reference.solve(s, n_elements=n), repeats
                         )
                     except RuntimeError:  # its own continuation gave up (coarse n)
                         continue
-                    tip, ok = res["tip_position"], True
+                    add(label, f"n={n}", t, res["tip_position"], res["positions"], True)
                 else:
                     sol, t = timed(
-                        lambda m=method, n=n, s=scene: solve(s, n_elements=n, method=m), repeats
+                        lambda k=methods[label], n=n, s=scene: solve(s, n_elements=n, **k),
+                        repeats,
                     )
-                    tip, ok = sol.tip_position, sol.converged
-                rows.append({"scene": name, "method": method, "setting": f"n={n}",
-                             "time": t, "error": np.linalg.norm(tip - exact) / length,
-                             "converged": ok})
+                    add(label, f"n={n}", t, sol.tip_position, sol.positions, sol.converged)
         for tol in TOLS:
             for refine in (None, "richardson"):
                 sol, t = timed(
                     lambda tol=tol, refine=refine, s=scene: solve(s, tol=tol, refine=refine),
                     1 if quick else 5,
                 )
-                label = "newton, tol" + (" + Richardson" if refine else "")
-                rows.append({"scene": name, "method": label,
-                             "setting": f"tol={tol:g} (n={sol.n_elements})", "time": t,
-                             "error": np.linalg.norm(sol.tip_position - exact) / length,
-                             "converged": sol.converged})
+                label = "newton fd2, tol" + (" + Richardson" if refine else "")
+                add(label, f"tol={tol:g} (n={sol.n_elements})", t, sol.tip_position,
+                    sol.positions, sol.converged)
     write_table(rows, out / "report.md")
     write_plot(rows, out / "report.png")
     return rows
 
 
 def write_table(rows: list[dict], path: Path) -> None:
-    lines = ["| scene | method | setting | median time | tip error / L | converged |",
-             "|---|---|---|---:|---:|---|"]
+    lines = ["| scene | method | setting | median time | tip error / L "
+             "| backbone error / L | converged |",
+             "|---|---|---|---:|---:|---:|---|"]
     for r in rows:
         lines.append(f"| {r['scene']} | {r['method']} | {r['setting']} | "
-                     f"{format_time(r['time'])} | {r['error']:.1e} | "
+                     f"{format_time(r['time'])} | {r['error']:.1e} | {r['shape']:.1e} | "
                      f"{'yes' if r['converged'] else 'no'} |")
     path.write_text("\n".join(lines) + "\n")
 
@@ -144,11 +172,12 @@ def write_plot(rows: list[dict], path: Path) -> None:
 
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     methods = list(dict.fromkeys(r["method"] for r in rows))
-    fig, axes = plt.subplots(2, 2, figsize=(11, 9), sharex=True, sharey=True)
+    fig, axes = plt.subplots(2, 3, figsize=(15, 9), sharex=True, sharey=True)
     for ax, scene in zip(axes.flat, scenes, strict=False):
         for method in methods:
-            pts = [(r["time"], max(r["error"], 1e-12)) for r in rows
-                   if r["scene"] == scene and r["method"] == method and r["converged"]]
+            pts = [(r["time"], max(r["shape"], 1e-12)) for r in rows
+                   if r["scene"] == scene and r["method"] == method and r["converged"]
+                   and math.isfinite(r["shape"])]
             if pts:
                 t, e = zip(*sorted(pts), strict=True)
                 ax.loglog(t, e, "o-", ms=4, label=method)
@@ -157,9 +186,11 @@ def write_plot(rows: list[dict], path: Path) -> None:
     for ax in axes[-1]:
         ax.set_xlabel("median time per solve [s] (Python call included)")
     for ax in axes[:, 0]:
-        ax.set_ylabel("tip error / L")
+        ax.set_ylabel("whole-backbone error / L")
     axes.flat[0].legend(fontsize=8)
-    fig.suptitle("softspine: tip error against time (each point one n or tol)")
+    for ax in axes.flat[len(scenes):]:
+        ax.set_visible(False)
+    fig.suptitle("softspine: whole-backbone error against time (each point one n or tol)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

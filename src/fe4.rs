@@ -330,8 +330,8 @@ pub(crate) fn solve_mid(a: Quat, b: Quat, el: &Element, start: Option<Quat>) -> 
 /// The condensed terms of one element on its end nodes: gradient and
 /// Jacobian blocks of the reduced potential (the internal node at its optimum).
 pub(crate) struct Condensed {
-    /// The internal node at its optimum.
-    pub mid: Quat,
+    /// The internal node at its optimum and its linear response to the ends.
+    pub mid: MidState,
     pub ga: Vector3<f64>,
     pub gb: Vector3<f64>,
     pub jaa: Matrix3<f64>,
@@ -350,7 +350,13 @@ pub(crate) fn condensed(
     let m = solve_mid(a, b, el, start);
     let d = derivatives([a, m, b], el, jacobian, false);
     let mut out = Condensed {
-        mid: m,
+        mid: MidState {
+            a,
+            b,
+            m,
+            ma: Matrix3::zeros(),
+            mb: Matrix3::zeros(),
+        },
         ga: d.grad[0],
         gb: d.grad[2],
         jaa: Matrix3::zeros(),
@@ -367,6 +373,7 @@ pub(crate) fn condensed(
     let ma = inverse * j[1][0];
     let mb = inverse * j[1][2];
     let gm = inverse * d.grad[1];
+    (out.mid.ma, out.mid.mb) = (ma, mb);
     out.ga -= j[0][1] * gm;
     out.gb -= j[2][1] * gm;
     out.jaa = j[0][0] - j[0][1] * ma;
@@ -378,12 +385,12 @@ pub(crate) fn condensed(
 
 /// Add the condensed element terms of a rod to `g` and `jac` (node `j` at
 /// index `j - 1`; both cleared first). `element(i)` gives element `i = 1..=n`;
-/// `mids` holds each element's internal node of the last evaluation (the
-/// start of its Newton iteration) and receives the new ones.
+/// `mids` holds each element's state of the last evaluation (the start of
+/// its internal node's Newton iteration) and receives the new ones.
 pub(crate) fn assemble(
     q: &[Quat],
     element: impl Fn(usize) -> Element,
-    mids: &mut [Quat],
+    mids: &mut [Option<MidState>],
     g: &mut [Vector3<f64>],
     mut jac: Option<&mut BlockTridiagonal>,
 ) {
@@ -397,10 +404,15 @@ pub(crate) fn assemble(
             q[i - 1],
             q[i],
             &element(i),
-            start_of(mids, i),
+            mids[i - 1].map(|s| s.predict(q[i - 1], q[i])),
             jac.is_some(),
         );
-        mids[i - 1] = c.mid;
+        if jac.is_some() {
+            mids[i - 1] = Some(c.mid);
+        } else if let Some(s) = mids[i - 1].as_mut() {
+            // Without the Jacobian the response is not new: keep the last one.
+            (s.a, s.b, s.m) = (c.mid.a, c.mid.b, c.mid.m);
+        }
         g[i - 1] += c.gb;
         if i >= 2 {
             g[i - 2] += c.ga;
@@ -416,17 +428,43 @@ pub(crate) fn assemble(
     }
 }
 
-/// The cached internal node of element `i` as a start, if there is one.
-pub(crate) fn start_of(mids: &[Quat], i: usize) -> Option<Quat> {
-    mids.get(i - 1)
-        .copied()
-        .filter(|m| m.w.is_finite() && m.norm() > 0.5)
+/// What an element's last evaluation leaves for the next: its ends, its
+/// internal node and that node's linear response to the ends, `dm = -(M_a da
+/// + M_b db)` (`M = J_mm^-1 J_m.`, the back-substitution of the condensation).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MidState {
+    a: Quat,
+    b: Quat,
+    m: Quat,
+    ma: Matrix3<f64>,
+    mb: Matrix3<f64>,
 }
 
-/// Each element's internal node of the last evaluation, the start of the
-/// next one's Newton iteration (a cache: the optimum does not depend on it).
+impl MidState {
+    /// The internal node predicted for the ends `a`, `b`: a start of its
+    /// Newton iteration within about the square of the ends' move.
+    pub(crate) fn predict(&self, a: Quat, b: Quat) -> Quat {
+        let da = rotation_from(self.a, a);
+        let db = rotation_from(self.b, b);
+        self.m.perturbed(-(self.ma * da + self.mb * db))
+    }
+}
+
+/// The body-frame rotation vector from `from` to `to` (to first order: a
+/// predictor's input), on the short arc.
+fn rotation_from(from: Quat, to: Quat) -> Vector3<f64> {
+    let rel = from.conj() * to;
+    if rel.w < 0.0 {
+        -2.0 * rel.v
+    } else {
+        2.0 * rel.v
+    }
+}
+
+/// Each element's [`MidState`] of the last evaluation (a cache: the optimum
+/// it predicts does not depend on it).
 #[derive(Debug, Default)]
-pub(crate) struct MidCache(std::sync::Mutex<Vec<Quat>>);
+pub(crate) struct MidCache(std::sync::Mutex<Vec<Option<MidState>>>);
 
 impl Clone for MidCache {
     fn clone(&self) -> Self {
@@ -435,11 +473,32 @@ impl Clone for MidCache {
 }
 
 impl MidCache {
-    /// The cached nodes, `n` of them (invalid entries: no start).
-    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Quat>> {
+    /// A cache of `n` elements, empty.
+    pub(crate) fn new(n: usize) -> Self {
+        MidCache(std::sync::Mutex::new(vec![None; n]))
+    }
+
+    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Option<MidState>>> {
         // A panic while holding the lock leaves only a start behind.
         self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
+}
+
+/// The optimal internal node of element `i` (from 1) for the ends `a`, `b`,
+/// from the cache's prediction; the cache keeps the node.
+pub(crate) fn cached_mid(
+    cache: &mut [Option<MidState>],
+    i: usize,
+    a: Quat,
+    b: Quat,
+    el: &Element,
+) -> Quat {
+    let slot = &mut cache[i - 1];
+    let m = solve_mid(a, b, el, slot.map(|s| s.predict(a, b)));
+    if let Some(s) = slot.as_mut() {
+        (s.a, s.b, s.m) = (a, b, m);
+    }
+    m
 }
 
 /// The node quaternions of a chain whose every element is at rest

@@ -283,7 +283,7 @@ impl RodModel {
     pub fn with_scheme(mut self, scheme: Scheme) -> Self {
         if scheme != self.scheme {
             self.scheme = scheme;
-            *self.mids.lock() = vec![Quat::new(f64::NAN, 0.0, 0.0, 0.0); self.n];
+            self.mids = fe4::MidCache::new(self.n);
             self.refresh_rest();
         }
         self
@@ -883,8 +883,7 @@ impl RodModel {
             let mut mids = self.mids.lock();
             for i in 1..=self.n {
                 let el = self.fe4_element(i, 1.0);
-                let m = fe4::solve_mid(q[i - 1], q[i], &el, fe4::start_of(&mids, i));
-                mids[i - 1] = m;
+                let m = fe4::cached_mid(&mut mids, i, q[i - 1], q[i], &el);
                 out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], self.ds);
             }
             return;
@@ -909,8 +908,7 @@ impl RodModel {
             return (1..=self.n)
                 .map(|i| {
                     let el = self.fe4_element(i, load);
-                    let m = fe4::solve_mid(q[i - 1], q[i], &el, fe4::start_of(&mids, i));
-                    mids[i - 1] = m;
+                    let m = fe4::cached_mid(&mut mids, i, q[i - 1], q[i], &el);
                     fe4::energy([q[i - 1], m, q[i]], &el)
                 })
                 .sum();

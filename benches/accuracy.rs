@@ -38,7 +38,7 @@ fn settings(n: usize, method: Method, scheme: Scheme) -> Settings {
     Settings {
         n_elements: Some(n),
         method,
-        scheme,
+        scheme: Some(scheme),
         ..Settings::default()
     }
 }

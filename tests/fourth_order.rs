@@ -120,7 +120,7 @@ fn the_fourth_order_scheme_agrees_with_the_finite_difference_limit() {
         .iter()
         .map(|&n| {
             let fe4 = Settings {
-                scheme: Scheme::Fe4,
+                scheme: Some(Scheme::Fe4),
                 ..settings(n, Method::Newton)
             };
             let sol = solve(&scene, fe4, None).unwrap();

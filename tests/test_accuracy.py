@@ -70,3 +70,39 @@ def test_bad_accuracy_arguments():
         softspine.solve(cantilever(1.0), tol=1e-3, initial=sol)
     with pytest.raises(ValueError, match="^tol:"):
         softspine.solve(cantilever(1.0), tol=0.0)
+
+
+CANTILEVER_10 = cantilever(10.0)
+
+
+@pytest.mark.parametrize(("scheme", "tol"), [
+    ("fd2", 1e-5), ("fd2", 1e-6), ("fe4", 1e-6), ("fe4", 1e-8),
+])
+def test_a_request_returns_about_what_was_asked(scheme, tol):
+    """The n is predicted from the scheme's order: the error lands within a
+    small factor below the tolerance (it used to land up to 1e-4 of it), and
+    the estimate (the difference of two solves over k^p - 1) is honest."""
+    exact = shooting.solve(SCENE_3D, rtol=1e-13, n_samples=2)["tip_position"]
+    sol = softspine.solve(SCENE_3D, tol=tol, scheme=scheme, check=True)
+    assert sol.scheme == scheme
+    error = np.linalg.norm(sol.tip_position - exact) / SCENE_3D["length"]
+    backbone = sol.error_estimate / SCENE_3D["length"]
+    assert error <= backbone * 1.3 and backbone <= tol
+    assert backbone >= tol / 30, (sol.n_elements, backbone)
+
+
+def test_the_estimate_follows_the_order_of_the_scheme():
+    deflection, shortening, _ = BISSHOPP_DRUCKER[10.0]
+    exact = np.array([deflection, 0.0, 1.0 - shortening])
+    sol = softspine.solve(CANTILEVER_10, tol=1e-6, scheme="fe4", check=True)
+    assert sol.error_estimate == pytest.approx(np.linalg.norm(sol.tip_position - exact), rel=0.3)
+
+
+def test_the_default_scheme_is_the_faster_for_the_accuracy():
+    assert softspine.solve(CANTILEVER_10).scheme == "fd2"
+    assert softspine.solve(CANTILEVER_10, tol=1e-4).scheme == "fd2"
+    assert softspine.solve(CANTILEVER_10, tol=1e-6).scheme == "fe4"
+    pinned = {**CANTILEVER_10, "tip_force": [0, 0, 0],
+              "tip": {"type": "pinned", "position": [0.5, 0.0, 0.8]}}
+    assert softspine.solve(pinned, tol=1e-6).scheme == "fd2"
+    assert softspine.solve(CANTILEVER_10, method="shooting").scheme == "rk4"

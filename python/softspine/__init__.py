@@ -99,22 +99,27 @@ def solve(
         element, and Newton on the base wrench (fourth order at the nodes; no
         guides); the baseline of the report.
     scheme : {"fd2", "fe4"}, optional
-        The discretisation of the backbone. ``"fd2"`` (default): the seed's
-        finite differences, second order. ``"fe4"``: quadratic elements of the
-        rotation with two-point Gauss quadrature, fourth order at the nodes
-        (free tips only, for now). The paper's method and shooting have their own.
+        The discretisation of the backbone. ``"fd2"``: the seed's finite
+        differences, second order. ``"fe4"``: quadratic elements of the rotation
+        with two-point Gauss quadrature, fourth order at the nodes (free tips
+        only, for now). Default: ``"fe4"`` for accuracy on demand below 1e-5 L
+        on a scene without held points (there it is the faster), ``"fd2"``
+        otherwise. The paper's method and shooting have their own.
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
     accuracy : Accuracy or dict, optional
-        Accuracy on demand (``softspine.Accuracy``): ``n`` doubles until the
-        estimated error of the whole backbone (the largest over the nodes, from
-        the solves at n and 2n, second order) is below ``tol * L``; the Solution
-        carries ``error_estimate`` (m) and the ``n_elements`` used.
+        Accuracy on demand (``softspine.Accuracy``): from a first resolving
+        ``n`` and ``2n``, the estimated error of the whole backbone (the largest
+        over the nodes, the difference of two solves over ``k^p - 1`` for the
+        scheme's order ``p``) predicts the ``n`` that meets ``tol * L``, which is
+        solved and checked in turn; the Solution carries ``error_estimate`` (m),
+        the ``n_elements`` and the ``scheme`` used.
     tol : float, optional
         Accuracy on demand with this ``tol`` (over ``accuracy``'s).
     refine : {"richardson"}, optional
-        With ``tol``: return the Richardson-extrapolated tip ``(4 r_2n - r_n)/3``
-        as ``tip_position`` (``extrapolated`` is then True).
+        With ``tol``: return the Richardson-extrapolated tip
+        ``r_kn + (r_kn - r_n) / (k^p - 1)`` as ``tip_position`` (``extrapolated``
+        is then True).
     residual_tol : float, optional
         Tolerance in [1e-14, 1e-4] (default 1e-10) on the relative residual
         (the largest torque imbalance of a row over its own stiffness ``k_c / L``)

@@ -69,6 +69,8 @@ class Solution:
     @property
     def n_elements(self) -> int: ...
     @property
+    def scheme(self) -> str: ...
+    @property
     def length(self) -> float: ...
     @property
     def arc_length(self) -> _Array: ...
@@ -275,9 +277,9 @@ class Settings:
     @method.setter
     def method(self, value: str) -> None: ...
     @property
-    def scheme(self) -> str: ...
+    def scheme(self) -> str | None: ...
     @scheme.setter
-    def scheme(self, value: str) -> None: ...
+    def scheme(self, value: str | None) -> None: ...
     residual_tol: float
     max_iterations: int
     min_continuation_step: float
@@ -290,7 +292,7 @@ class Settings:
 
 @final
 class Accuracy:
-    """Accuracy on demand: n doubles until the backbone's error is below ``tol * L``."""
+    """Accuracy on demand: the n whose backbone's error is below ``tol * L``."""
 
     def __new__(
         cls, tol: float, refine: str | None = None, max_elements: int = 10240

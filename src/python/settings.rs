@@ -277,12 +277,14 @@ impl PySettings {
     fn set_method(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
         self.assign(py, "method", value)
     }
-    /// The discretisation of the backbone: ``"fd2"`` (default; the seed's
-    /// finite differences, second order) or ``"fe4"`` (quadratic elements with
-    /// two-point Gauss quadrature, fourth order at the nodes; free tips only).
+    /// The discretisation of the backbone: ``"fd2"`` (the seed's finite
+    /// differences, second order), ``"fe4"`` (quadratic elements with two-point
+    /// Gauss quadrature, fourth order at the nodes; free tips only) or None
+    /// (default: ``"fe4"`` for accuracy on demand below 1e-5 L on a scene
+    /// without held points, where it is the faster, ``"fd2"`` otherwise).
     #[getter]
-    fn scheme(&self) -> &'static str {
-        self.inner.scheme.name()
+    fn scheme(&self) -> Option<&'static str> {
+        self.inner.scheme.map(|s| s.name())
     }
     #[setter]
     fn set_scheme(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
@@ -385,7 +387,7 @@ impl PySettings {
 }
 
 /// Accuracy on demand (``softspine.solve(scene, accuracy=Accuracy(1e-6))``):
-/// n doubles until the backbone's estimated error is below ``tol * L``.
+/// the n whose backbone's estimated error is below ``tol * L``.
 #[pyclass(name = "Accuracy", module = "softspine._core", eq, skip_from_py_object)]
 #[derive(Clone, PartialEq)]
 pub struct PyAccuracy {

@@ -26,6 +26,12 @@ impl PySolution {
     fn n_elements(&self) -> usize {
         self.inner.n_elements
     }
+    /// How the nodes were computed: ``"fd2"`` or ``"fe4"`` (the scheme), or
+    /// ``"rk4"`` (shooting's integrator).
+    #[getter]
+    fn scheme(&self) -> &'static str {
+        self.inner.scheme
+    }
     /// Length of the rod, m.
     #[getter]
     fn length(&self) -> f64 {
@@ -178,6 +184,7 @@ impl PySolution {
         let s = &self.inner;
         let d = PyDict::new(py);
         d.set_item("n_elements", s.n_elements)?;
+        d.set_item("scheme", s.scheme)?;
         d.set_item("length", s.length)?;
         d.set_item("positions", rows3(py, &s.positions))?;
         d.set_item("quaternions", rows4(py, &s.quaternions))?;
@@ -209,6 +216,21 @@ impl PySolution {
         let d = Fields::new("solution", data)?;
         let solution = Solution {
             n_elements: int_arg("solution.n_elements", &d.get("n_elements")?)?,
+            scheme: {
+                let name = str_arg("solution.scheme", &d.get("scheme")?)?;
+                Solution::SCHEMES
+                    .into_iter()
+                    .find(|s| *s == name)
+                    .ok_or_else(|| {
+                        crate::error::Error::argument(
+                            "solution.scheme",
+                            format!(
+                                "unknown scheme '{name}' (expected one of {:?})",
+                                Solution::SCHEMES
+                            ),
+                        )
+                    })?
+            },
             length: float_arg("solution.length", &d.get("length")?)?,
             positions: d.vectors("positions")?,
             quaternions: d

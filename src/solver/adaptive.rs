@@ -1,8 +1,12 @@
-//! Accuracy on demand: the solver chooses the discretisation. The scheme is
-//! second order, so the error of a node of the solve at 2n is about a third
-//! of the difference between that node at n and 2n; n doubles until the
-//! largest such estimate over the backbone is below the tolerance. Richardson extrapolation `(4 r_2n - r_n) / 3` removes
-//! the leading error term and typically gains two to four digits.
+//! Accuracy on demand: the solver chooses the discretisation. With a scheme
+//! of order `p` (2 for `fd2`, 4 for `fe4` and shooting) the error of the
+//! solve at `k n` is about the difference between the nodes of the solves at
+//! `n` and `k n`, over `k^p - 1`. From a first resolving `n` (the base) the
+//! solve at `2 n` gives an estimate, which predicts the `n` that meets the
+//! tolerance with a small margin; that `n` (a multiple of the base) is solved
+//! and estimated against the base in turn, until the largest estimate over
+//! the backbone is below the tolerance. Richardson extrapolation `r_kn +
+//! (r_kn - r_n) / (k^p - 1)` of the tip removes its leading error term.
 
 use super::{check_tolerance, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
@@ -50,6 +54,20 @@ pub const ACCURACY_TOL_RANGE: (f64, f64) = (1e-12, 1e-1);
 /// solves at n and 2n is trusted (the error is then in its asymptotic,
 /// second-order regime); coarser solves only lead to finer ones.
 pub const ASYMPTOTIC_TURN: f64 = 0.25;
+
+/// [`ASYMPTOTIC_TURN`] of a scheme of order `order`: a quadratic element
+/// (order 4) follows twice the turn of a linear one as closely.
+pub fn asymptotic_turn(order: i32) -> f64 {
+    if order >= 4 {
+        2.0 * ASYMPTOTIC_TURN
+    } else {
+        ASYMPTOTIC_TURN
+    }
+}
+
+/// The first n of accuracy on demand without `n_elements`: a fourth-order
+/// solve of a few elements is often already within the tolerance.
+const FOURTH_ORDER_START: usize = 4;
 
 impl Accuracy {
     /// Whether one pass of this solve may outlast the interrupt poll (see
@@ -155,6 +173,11 @@ impl Accuracy {
 /// [`ASYMPTOTIC_TURN`] at rest (a coiled rod needs many elements before any
 /// estimate means anything).
 pub fn starting_elements(scene: &Scene, requested: usize) -> usize {
+    starting_elements_of_order(scene, requested, 2)
+}
+
+/// [`starting_elements`] for a scheme of order `order` (see [`asymptotic_turn`]).
+pub fn starting_elements_of_order(scene: &Scene, requested: usize, order: i32) -> usize {
     let m = scene.sections();
     let rest_turn = scene
         .rest_curvature
@@ -162,14 +185,14 @@ pub fn starting_elements(scene: &Scene, requested: usize) -> usize {
         .map(|k| k[0].hypot(k[1]))
         .fold(0.0, f64::max)
         * scene.length;
-    let resolving = (rest_turn / ASYMPTOTIC_TURN)
+    let resolving = (rest_turn / asymptotic_turn(order))
         .ceil()
         .min(MAX_ELEMENTS as f64) as usize;
     requested.max(resolving).max(1).div_ceil(m) * m
 }
 
-/// Solve `scene` to a tip accuracy of `accuracy.tol * L`, starting at
-/// [`starting_elements`] and doubling.
+/// Solve `scene` to an accuracy of `accuracy.tol * L` over the whole
+/// backbone, starting at [`starting_elements`] (see the module documentation).
 pub fn solve_to_accuracy(
     scene: &Scene,
     settings: Settings,
@@ -181,97 +204,143 @@ pub fn solve_to_accuracy(
     Ok(solution)
 }
 
-/// The doubling of [`solve_to_accuracy`].
+/// Margin of the predicted n: it aims at the tolerance over this factor.
+const PREDICTION_MARGIN: f64 = 1.5;
+
+/// The refinement of [`solve_to_accuracy`].
 fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> Result<Solution> {
     accuracy.validate()?;
     let length = scene.length;
-    let mut n = starting_elements(scene, settings.elements_for(scene));
+    let target = accuracy.tol * length;
+    let settings = Settings {
+        scheme: Some(settings.scheme_for(scene, Some(accuracy.tol))),
+        ..settings
+    };
+    let order = settings.order();
+    let solve_at = |n: usize, initial: Option<&[Quat]>| -> Result<Solution> {
+        let settings = Settings {
+            n_elements: Some(n),
+            ..settings.clone()
+        };
+        Solver::new(scene, settings)?.solve(initial)
+    };
+    let requested = match (settings.n_elements, order) {
+        (Some(n), _) => n,
+        (None, 4..) => FOURTH_ORDER_START,
+        (None, _) => settings.elements_for(scene),
+    };
+    let n0 = starting_elements_of_order(scene, requested, order);
     let mut solver = Solver::new(
         scene,
         Settings {
-            n_elements: Some(n),
+            n_elements: Some(n0),
             ..settings.clone()
         },
     )?;
-    let mut coarse = solver.solve(None)?;
+    let mut base = solver.solve(None)?;
     let straight = scene
         .rest_curvature
         .iter()
         .all(|k| k[0] == 0.0 && k[1] == 0.0);
     if straight && solver.model().is_trivial() {
         // The unloaded straight rod is exact at any n: nothing to refine.
-        coarse.error_estimate = Some(0.0);
-        return Ok(coarse);
+        base.error_estimate = Some(0.0);
+        return Ok(base);
     }
-    let mut iterations = coarse.iterations;
+    let mut iterations = base.iterations;
     // An underresolved equilibrium is no answer yet, but a finer n may resolve it.
     let usable = |s: &Solution| s.converged() || s.status == Status::Underresolved;
-    loop {
-        if !usable(&coarse) {
-            coarse.iterations = iterations;
-            return Ok(coarse);
+    let not_met = |mut s: Solution, iterations: usize, why: String| {
+        s.iterations = iterations;
+        if s.converged() {
+            s.status = Status::ToleranceNotMet;
+            s.message = why;
         }
-        if 2 * n > accuracy.max_elements {
-            coarse.iterations = iterations;
-            if coarse.converged() {
-                coarse.status = Status::ToleranceNotMet;
-                coarse.message = format!(
-                    "tolerance not met: no error estimate, the first resolving n = {n} leaves no finer n within max_elements {}",
-                    accuracy.max_elements
-                );
-            }
-            return Ok(coarse);
+        s
+    };
+    // Pre-asymptotic bases (an element turning by more than ASYMPTOTIC_TURN)
+    // only lead to finer ones.
+    loop {
+        if !usable(&base) {
+            base.iterations = iterations;
+            return Ok(base);
+        }
+        if base.converged() && max_turn(scene, &base) <= asymptotic_turn(order) {
+            break;
+        }
+        let n = 2 * base.n_elements;
+        if n > accuracy.max_elements {
+            let why = format!(
+                "tolerance not met: no error estimate, the first resolving n = {} leaves no finer n within max_elements {}",
+                base.n_elements, accuracy.max_elements
+            );
+            return Ok(not_met(base, iterations, why));
         }
         crate::interrupt::check()?;
-        let warm = refine(&coarse.quaternions);
-        let mut fine = Solver::new(
-            scene,
-            Settings {
-                n_elements: Some(2 * n),
-                ..settings.clone()
-            },
-        )?
-        .solve(Some(&warm))?;
+        base = solve_at(n, Some(&refine(&base.quaternions, 2)))?;
+        iterations += base.iterations;
+    }
+    let n_base = base.n_elements;
+    let mut k = 2;
+    loop {
+        if k * n_base > accuracy.max_elements {
+            let why = format!(
+                "tolerance not met: {} elements would be needed, beyond max_elements {}",
+                k * n_base,
+                accuracy.max_elements
+            );
+            return Ok(not_met(base, iterations, why));
+        }
+        crate::interrupt::check()?;
+        let mut fine = solve_at(k * n_base, Some(&refine(&base.quaternions, k)))?;
         iterations += fine.iterations;
         if !usable(&fine) {
             fine.iterations = iterations;
             return Ok(fine);
         }
-        let (r_n, r_2n) = (coarse.tip_position(), fine.tip_position());
         // The whole backbone: a held tip never moves, so the tip alone would
         // estimate the error of a pinned rod as zero.
-        let estimate = backbone_difference(&coarse, &fine) / 3.0;
-        let asymptotic = coarse.converged() && max_turn(scene, &coarse) <= ASYMPTOTIC_TURN;
-        let met = asymptotic && estimate <= accuracy.tol * length;
-        if met || 4 * n > accuracy.max_elements {
+        let ratio = (k as f64).powi(order) - 1.0;
+        let estimate = backbone_difference(&base, &fine, k) / ratio;
+        fine.error_estimate = Some(estimate);
+        if accuracy.richardson {
+            let (r_n, r_kn) = (base.tip_position(), fine.tip_position());
+            fine.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
+        }
+        if estimate <= target {
             fine.iterations = iterations;
-            fine.error_estimate = asymptotic.then_some(estimate);
-            if accuracy.richardson && asymptotic {
-                fine.extrapolated_tip = Some((4.0 * r_2n - r_n) / 3.0);
-            }
-            if !met && fine.converged() {
-                fine.status = Status::ToleranceNotMet;
-                fine.message = format!(
-                    "tolerance not met: {} elements reached the limit (max_elements {}), error estimate {estimate:.2e} m > tol * L = {:.2e} m",
-                    2 * n,
-                    accuracy.max_elements,
-                    accuracy.tol * length
-                );
-            }
             return Ok(fine);
         }
-        coarse = fine;
-        n *= 2;
+        // The n that meets the tolerance with a margin, if the error falls
+        // as n^-p: a multiple of the base, finer than this one.
+        let needed =
+            (k * n_base) as f64 * (PREDICTION_MARGIN * estimate / target).powf(1.0 / order as f64);
+        let next = ((needed / n_base as f64).ceil() as usize).max(k + 1);
+        if next * n_base > accuracy.max_elements {
+            if k * n_base < accuracy.max_elements / n_base * n_base {
+                // The finest n allowed is worth one more solve.
+                k = accuracy.max_elements / n_base;
+                continue;
+            }
+            let why = format!(
+                "tolerance not met: {} elements reached the limit (max_elements {}), error estimate {estimate:.2e} m > tol * L = {:.2e} m",
+                k * n_base,
+                accuracy.max_elements,
+                target
+            );
+            return Ok(not_met(fine, iterations, why));
+        }
+        k = next;
     }
 }
 
 /// Largest distance between the nodes of `coarse` and the same nodes of the
-/// twice finer `fine` [m].
-fn backbone_difference(coarse: &Solution, fine: &Solution) -> f64 {
+/// `k` times finer `fine` [m].
+fn backbone_difference(coarse: &Solution, fine: &Solution, k: usize) -> f64 {
     coarse
         .positions
         .iter()
-        .zip(fine.positions.iter().step_by(2))
+        .zip(fine.positions.iter().step_by(k))
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, f64::max)
 }
@@ -290,13 +359,18 @@ fn max_turn(scene: &Scene, sol: &Solution) -> f64 {
         .fold(rest, f64::max)
 }
 
-/// The nodes of a twice finer discretisation: every node kept, a midpoint
-/// (half-way rotation) between neighbours.
-fn refine(q: &[Quat]) -> Vec<Quat> {
-    let mut out = Vec::with_capacity(2 * q.len() - 1);
+/// The nodes of a `k` times finer discretisation: every node kept, `k - 1`
+/// evenly turned rotations between neighbours.
+fn refine(q: &[Quat], k: usize) -> Vec<Quat> {
+    let mut out = Vec::with_capacity(k * (q.len() - 1) + 1);
     for pair in q.windows(2) {
+        let b = if pair[0].dot(pair[1]) < 0.0 {
+            -pair[1]
+        } else {
+            pair[1]
+        };
         out.push(pair[0]);
-        out.push(slerp(pair[0], pair[1], 0.5));
+        out.extend((1..k).map(|j| slerp(pair[0], b, j as f64 / k as f64)));
     }
     out.push(q[q.len() - 1]);
     out

@@ -81,15 +81,14 @@ impl Solver {
                 "shooting does not support guides (held interior points); use 'newton'",
             ));
         }
-        if settings.scheme == Scheme::Fe4
-            && (!scene.guides.is_empty() || scene.tip != TipCondition::Free)
-        {
+        let scheme = settings.scheme_for(scene, None);
+        if scheme == Scheme::Fe4 && (!scene.guides.is_empty() || scene.tip != TipCondition::Free) {
             return Err(Error::argument(
                 "scheme",
                 "'fe4' does not support held tips or guides yet; use scheme='fd2'",
             ));
         }
-        let model = RodModel::new(scene, n).with_scheme(settings.scheme);
+        let model = RodModel::new(scene, n).with_scheme(scheme);
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
             Method::Newton | Method::Shooting => Box::new(newton::Newton),
@@ -363,6 +362,7 @@ impl Solver {
         let tip_reaction_moment = model.clamped_tip.map(|_| tip_q.rotate(w.kkt.tip_torque));
         Solution {
             n_elements: model.n,
+            scheme: model.scheme.name(),
             length: model.length,
             quaternions: w.q.clone(),
             positions,

@@ -64,6 +64,7 @@ impl Solver {
         let tip_reaction_moment = model.clamped_tip.map(|_| w.q[n].rotate(w.kkt.tip_torque));
         Ok(Solution {
             n_elements: n,
+            scheme: "fd2",
             length: model.length,
             quaternions: out.quaternions.clone(),
             positions: out.positions,

@@ -486,6 +486,7 @@ impl Solver {
         let reactions = w.kkt.reactions.clone();
         Solution {
             n_elements: model.n,
+            scheme: "rk4",
             length: model.length,
             quaternions: w.q.clone(),
             positions,

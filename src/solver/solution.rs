@@ -82,6 +82,9 @@ pub const MAX_RESOLVED_TURN: f64 = 1.0;
 #[derive(Debug, Clone)]
 pub struct Solution {
     pub n_elements: usize,
+    /// How the nodes were computed: `"fd2"` or `"fe4"` (the [`Scheme`]
+    /// names), or `"rk4"` (shooting's integrator).
+    pub scheme: &'static str,
     /// Length of the rod [m]: node `i` sits at arc length `i L / n`.
     pub length: f64,
     /// Node quaternions `q_0..q_n`, `q_0` the base.
@@ -120,10 +123,11 @@ pub struct Solution {
     pub message: String,
     /// Accuracy on demand: the estimated largest distance of a node from
     /// the continuous rod's [m], over the whole backbone (from the solves at
-    /// n/2 and n, second order).
+    /// n/k and n: their difference over `k^p - 1`, `p` the scheme's order).
     pub error_estimate: Option<f64>,
-    /// Accuracy on demand with Richardson extrapolation: `(4 r_n - r_{n/2}) / 3`,
-    /// returned by [`Solution::tip_position`] in place of the last node.
+    /// Accuracy on demand with Richardson extrapolation: `r_n + (r_n -
+    /// r_{n/k}) / (k^p - 1)`, returned by [`Solution::tip_position`] in place
+    /// of the last node.
     pub extrapolated_tip: Option<Vector3<f64>>,
     /// Wall-clock time of the solve [s], the set-up of the discretisation
     /// included (every n of accuracy on demand).
@@ -208,6 +212,9 @@ impl Solution {
     pub fn rotation_matrices(&self) -> Vec<Matrix3<f64>> {
         self.quaternions.iter().map(|q| q.rotation()).collect()
     }
+
+    /// The names [`Solution::scheme`] takes.
+    pub const SCHEMES: [&'static str; 3] = ["fd2", "fe4", "rk4"];
 
     /// Refuse a Solution whose arrays do not fit its `n_elements` (one
     /// rebuilt from stored fields), naming the field.

@@ -71,13 +71,15 @@ impl PySolution {
     /// moment that the rod beyond node j exerts on the rod before it.
     /// ``moments[0]`` is the moment of the rod on its base support;
     /// ``moments[-1]`` is the tip's applied moment (plus a clamp's reaction).
-    /// Interior nodes: the mean of the two elements' moments (second order).
+    /// Interior nodes: the mean of the two elements' moments (second order,
+    /// whatever the ``scheme``: read from the nodes by finite differences).
     #[getter]
     fn moments<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows3(py, &self.inner.moments())
     }
     /// Curvature and twist ``(kappa_x, kappa_y, tau)`` of each element in its
-    /// material frame, shape (n, 3), 1/m (the scheme's discrete curvature).
+    /// material frame, shape (n, 3), 1/m (the finite-difference curvature of
+    /// the nodes, second order whatever the ``scheme``).
     #[getter]
     fn curvatures<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows3(py, &self.inner.curvatures())

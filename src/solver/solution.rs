@@ -159,8 +159,9 @@ impl Solution {
 
     /// Curvature and twist of each element in its own (material) frame
     /// [1/m], `n` entries: `u_i = (2/ds) vec(c)`, `c = conj(q_{i-1}) q_i`, the
-    /// scheme's discrete curvature. It is the same in the frames of both
-    /// nodes (the axis of the relative rotation).
+    /// finite-difference scheme's discrete curvature (for the other schemes,
+    /// the same reading of their nodes: second order). It is the same in the
+    /// frames of both nodes (the axis of the relative rotation).
     pub fn curvatures(&self) -> Vec<Vector3<f64>> {
         let ds = self.length / self.n_elements as f64;
         self.quaternions

@@ -41,6 +41,9 @@ pub(crate) const GAUSS: [f64; 2] = [0.5 - GAUSS_OFFSET, 0.5 + GAUSS_OFFSET];
 const MID_ITERATIONS: usize = 12;
 const MID_STEP_TOL: f64 = 1e-8;
 const REST_STEP_TOL: f64 = 1e-13;
+/// A chord iteration whose step shrinks by less than this factor switches to
+/// Newton (its error after a step is about this factor times the step).
+const CHORD_CONTRACTION: f64 = 0.01;
 
 /// What one element needs besides its nodes.
 #[derive(Debug, Clone, Copy)]
@@ -260,12 +263,13 @@ pub(crate) fn derivatives(
             euclid[k] += weight * (n[k] * t.grad_q + d[k] * t.grad_p);
         }
         if jacobian {
+            // The Hessian is symmetric: the blocks k <= l only.
             let hpq = t.hqp.transpose();
             for k in 0..3 {
                 if mid_only && k != 1 {
                     continue;
                 }
-                for l in 0..3 {
+                for l in k..3 {
                     if mid_only && l != 1 {
                         continue;
                     }
@@ -289,12 +293,15 @@ pub(crate) fn derivatives(
     }
     if jacobian {
         for k in 0..3 {
-            for l in 0..3 {
+            for l in k..3 {
                 if mid_only && (k != 1 || l != 1) {
                     continue;
                 }
                 out.jac[k][l] = e[k].transpose() * hess[k][l] * e[l];
+                out.jac[l][k] = out.jac[k][l].transpose();
             }
+        }
+        for k in 0..3 {
             let radial = -0.25 * x[k].dot(&euclid[k]);
             out.jac[k][k] += radial * Matrix3::identity() + 0.5 * skew(&out.grad[k]);
         }
@@ -304,7 +311,16 @@ pub(crate) fn derivatives(
 
 /// The internal node that minimises the element's potential for its ends
 /// (Newton from `start`; the slerp midpoint of the ends if `None`).
-pub(crate) fn solve_mid(a: Quat, b: Quat, el: &Element, start: Option<Quat>) -> Quat {
+/// With `chord`, the inverse of the node's block from a nearby evaluation:
+/// the iteration then only evaluates gradients (a chord iteration) while its
+/// steps keep shrinking fast, and goes on with Newton if they do not.
+pub(crate) fn solve_mid(
+    a: Quat,
+    b: Quat,
+    el: &Element,
+    start: Option<Quat>,
+    mut chord: Option<Matrix3<f64>>,
+) -> Quat {
     let b = if a.dot(b) < 0.0 { -b } else { b };
     let mut m = start.unwrap_or_else(|| {
         Quat {
@@ -313,16 +329,28 @@ pub(crate) fn solve_mid(a: Quat, b: Quat, el: &Element, start: Option<Quat>) -> 
         }
         .normalized()
     });
+    let mut last = f64::INFINITY;
     for _ in 0..MID_ITERATIONS {
-        let d = derivatives([a, m, b], el, true, true);
-        let Some(inverse) = d.jac[1][1].try_inverse() else {
-            break;
+        let (grad, inverse) = match chord {
+            Some(inverse) => (derivatives([a, m, b], el, false, true).grad[1], inverse),
+            None => {
+                let d = derivatives([a, m, b], el, true, true);
+                let Some(inverse) = d.jac[1][1].try_inverse() else {
+                    break;
+                };
+                (d.grad[1], inverse)
+            }
         };
-        let step = -(inverse * d.grad[1]);
+        let step = -(inverse * grad);
+        let size = step.norm();
         m = m.perturbed(step);
-        if step.norm() < MID_STEP_TOL {
+        if size < MID_STEP_TOL {
             break;
         }
+        if size > CHORD_CONTRACTION * last {
+            chord = None;
+        }
+        last = size;
     }
     m
 }
@@ -344,10 +372,16 @@ pub(crate) fn condensed(
     a: Quat,
     b: Quat,
     el: &Element,
-    start: Option<Quat>,
+    last: Option<&MidState>,
     jacobian: bool,
 ) -> Condensed {
-    let m = solve_mid(a, b, el, start);
+    let m = solve_mid(
+        a,
+        b,
+        el,
+        last.map(|s| s.predict(a, b)),
+        last.map(|s| s.inverse),
+    );
     let d = derivatives([a, m, b], el, jacobian, false);
     let mut out = Condensed {
         mid: MidState {
@@ -356,6 +390,7 @@ pub(crate) fn condensed(
             m,
             ma: Matrix3::zeros(),
             mb: Matrix3::zeros(),
+            inverse: Matrix3::zeros(),
         },
         ga: d.grad[0],
         gb: d.grad[2],
@@ -373,7 +408,7 @@ pub(crate) fn condensed(
     let ma = inverse * j[1][0];
     let mb = inverse * j[1][2];
     let gm = inverse * d.grad[1];
-    (out.mid.ma, out.mid.mb) = (ma, mb);
+    (out.mid.ma, out.mid.mb, out.mid.inverse) = (ma, mb, inverse);
     out.ga -= j[0][1] * gm;
     out.gb -= j[2][1] * gm;
     out.jaa = j[0][0] - j[0][1] * ma;
@@ -404,7 +439,7 @@ pub(crate) fn assemble(
             q[i - 1],
             q[i],
             &element(i),
-            mids[i - 1].map(|s| s.predict(q[i - 1], q[i])),
+            mids[i - 1].as_ref(),
             jac.is_some(),
         );
         if jac.is_some() {
@@ -438,6 +473,8 @@ pub(crate) struct MidState {
     m: Quat,
     ma: Matrix3<f64>,
     mb: Matrix3<f64>,
+    /// `J_mm^-1`, for a chord iteration of the next evaluation.
+    inverse: Matrix3<f64>,
 }
 
 impl MidState {
@@ -494,7 +531,13 @@ pub(crate) fn cached_mid(
     el: &Element,
 ) -> Quat {
     let slot = &mut cache[i - 1];
-    let m = solve_mid(a, b, el, slot.map(|s| s.predict(a, b)));
+    let m = solve_mid(
+        a,
+        b,
+        el,
+        slot.map(|s| s.predict(a, b)),
+        slot.map(|s| s.inverse),
+    );
     if let Some(s) = slot.as_mut() {
         (s.a, s.b, s.m) = (a, b, m);
     }
@@ -608,7 +651,7 @@ mod tests {
     fn the_condensed_gradient_is_that_of_the_reduced_energy() {
         let el = element();
         let [a, _, b] = nodes();
-        let reduced = |a: Quat, b: Quat| energy([a, solve_mid(a, b, &el, None), b], &el);
+        let reduced = |a: Quat, b: Quat| energy([a, solve_mid(a, b, &el, None, None), b], &el);
         let c = condensed(a, b, &el, None, true);
         let h = 1e-5;
         for col in 0..3 {
@@ -656,7 +699,7 @@ mod tests {
         el.rest = Vector3::new(2.0, -1.0, 0.0);
         let chain = rest_chain(Quat::IDENTITY, std::iter::repeat_n(el, 4));
         for w in chain.windows(2) {
-            let m = solve_mid(w[0], w[1], &el, None);
+            let m = solve_mid(w[0], w[1], &el, None, None);
             assert!(energy([w[0], m, w[1]], &el).abs() < 1e-24);
         }
         // The exact arc turns by h |kappa| an element.

@@ -83,3 +83,40 @@ def test_shooting_reports_an_exhausted_budget():
     sol = softspine.solve(scene, method="shooting", max_iterations=1)
     assert sol.status == "iteration_limit" and not sol.stable
     assert sol.iterations <= 1
+
+
+# Random scenes (tools/scale_statistics.py, seed 11, scenes 147 and 313) on
+# which the direct shooting attempt converged to an unstable equilibrium
+# (energy 5.1 and 1.7 J against 0.027 and 0.33 J for the stable one).
+UNSTABLE_BRANCH_SCENES = [
+    {"length": 1.348662661243758,
+     "stiffness": {"kx": 0.4087191205237548, "ky": 1.1392367909114356, "kz": 0.19467126536844037},
+     "rest_curvature": [[0.46991548194044935, -0.6611462826590128],
+                        [0.4780966519635226, -3.79582173909425],
+                        [0.7005775248332992, 4.051693585962575],
+                        [0.07483380842667575, 1.3987845376478631]],
+     "gravity": {"linear_density": 0.07614944085328831,
+                 "vector": [-1.586791797007164, -9.033190268823589, -3.4813309753859394]},
+     "tip_force": [0.29177179183794594, -0.759064439498569, -0.8445532525467868],
+     "tip_moment": [0.14210450603745386, 0.2002213831771328, -0.8949376578322207]},
+    {"length": 0.7179295621404197,
+     "stiffness": {"kx": 1.2122168245732263, "ky": 0.425937142471721, "kz": 0.41189361253047857},
+     "rest_curvature": [[-3.6970403833805325, -2.079830802376986],
+                        [2.7866164459002105, 2.091576662575475],
+                        [5.588323154062628, 1.5109966781317985],
+                        [0.5778206359626583, 1.1531754215273151]],
+     "gravity": {"linear_density": 0.038698731973431655,
+                 "vector": [-0.8756382563095324, -2.5517621574110003, -9.43174785159635]},
+     "tip_force": [1.8245060223146017, -3.223495334320462, -1.9107953346219824],
+     "tip_moment": [-0.2721240669222711, 0.2354442628188846, -0.4585058239717305],
+     "base_quaternion": [-0.5080153126208642, 0.05144493610637062,
+                         -0.015422882759117214, 0.8596720277984713]},
+]
+
+
+@pytest.mark.parametrize("scene", UNSTABLE_BRANCH_SCENES)
+def test_an_unstable_direct_answer_gives_way_to_the_load_path(scene):
+    shot = softspine.solve(scene, n_elements=96, method="shooting", check=True)
+    newton = softspine.solve(scene, n_elements=96, scheme="fe4", check=True)
+    assert shot.stable and newton.stable
+    assert np.abs(shot.positions - newton.positions).max() < 1e-6 * scene["length"]

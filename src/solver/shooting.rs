@@ -24,7 +24,7 @@
 use super::solution::judge;
 use super::workspace::{evaluate, is_stable};
 use super::{Settings, Solution, Solver, Status};
-use crate::model::{slerp, RodModel};
+use crate::model::{element_turn, slerp, RodModel};
 use crate::quat::Quat;
 use crate::scene::Scene;
 use nalgebra::{SMatrix, SVector, Vector3};
@@ -101,19 +101,22 @@ impl<'a> Rod<'a> {
     }
 
     /// Integrate from the base with base moment `m0` and force `n0`; with
-    /// `nodes`, store the node quaternions and positions.
+    /// `quats` and `points`, store the node quaternions and positions.
     fn integrate(
         &self,
         m0: Vector3<f64>,
         n0: Vector3<f64>,
-        mut nodes: Option<(&mut [Quat], &mut [Vector3<f64>])>,
+        mut quats: Option<&mut [Quat]>,
+        mut points: Option<&mut [Vector3<f64>]>,
     ) -> TipState {
         let model = self.model;
         let h = model.ds;
         let (mut q, mut r, mut m) = (model.base, model.base_position, m0);
         let mut force = n0;
-        if let Some((qs, rs)) = nodes.as_mut() {
+        if let Some(qs) = quats.as_mut() {
             qs[0] = q;
+        }
+        if let Some(rs) = points.as_mut() {
             rs[0] = r;
         }
         for i in 0..model.n {
@@ -140,8 +143,10 @@ impl<'a> Rod<'a> {
                 // Past a node, its point load no longer acts on the distal part.
                 force -= self.point[i + 1];
             }
-            if let Some((qs, rs)) = nodes.as_mut() {
+            if let Some(qs) = quats.as_mut() {
                 qs[i + 1] = q;
+            }
+            if let Some(rs) = points.as_mut() {
                 rs[i + 1] = r;
             }
         }
@@ -221,7 +226,7 @@ impl Newton<'_, '_> {
     fn residual(&self, x: &Vector6) -> Vector6 {
         let (m0, n0) = self.split(x);
         self.rod
-            .mismatch(&self.rod.integrate(m0, n0, None), &self.target)
+            .mismatch(&self.rod.integrate(m0, n0, None, None), &self.target)
     }
 
     /// Iterate from `x` until the largest scaled mismatch is below `tol`;
@@ -289,21 +294,38 @@ struct Shot {
 
 /// Adaptive continuation over `t` in `[0, 1]`: `solve_at(t, x, budget)` runs
 /// Newton at `t` from `x`. Starts from `x` at `t = 0` (a solved state).
+/// A step is accepted only if no node's frame turned by more than
+/// `MAX_FRAME_TURN` since the last accepted one (`frames(t, x, out)` puts the
+/// node quaternions of `x` at `t` in `out`): shooting problems have many
+/// roots, and a long step can land on another branch.
 fn continuation(
     mut solve_at: impl FnMut(f64, &mut Vector6, usize) -> (bool, usize),
+    mut frames: impl FnMut(f64, &Vector6, &mut [Quat]),
+    nodes: usize,
     x: &mut Vector6,
     budget: usize,
     min_step: f64,
 ) -> (bool, usize, usize) {
     let (mut t, mut dt, mut spent, mut steps) = (0.0f64, 0.25f64, 0usize, 0usize);
+    let mut accepted = vec![Quat::IDENTITY; nodes];
+    let mut trial_frames = accepted.clone();
+    frames(0.0, x, &mut accepted);
     while t < 1.0 && spent < budget {
         let next = (t + dt).min(1.0);
         let mut trial = *x;
-        let (ok, its) = solve_at(next, &mut trial, (budget - spent).min(STEP_ITERATIONS));
+        let (mut ok, its) = solve_at(next, &mut trial, (budget - spent).min(STEP_ITERATIONS));
         spent += its;
         steps += 1;
         if ok {
+            frames(next, &trial, &mut trial_frames);
+            ok = accepted
+                .iter()
+                .zip(&trial_frames)
+                .all(|(a, b)| element_turn(*a, *b) <= MAX_FRAME_TURN);
+        }
+        if ok {
             *x = trial;
+            std::mem::swap(&mut accepted, &mut trial_frames);
             t = next;
             dt = (2.0 * dt).min(1.0);
         } else {
@@ -316,6 +338,9 @@ fn continuation(
     (t >= 1.0, spent, steps)
 }
 
+/// Largest turn of a node's frame in one continuation step [rad].
+const MAX_FRAME_TURN: f64 = 0.5;
+
 /// Newton iterations of one continuation step, and of the direct attempt.
 const STEP_ITERATIONS: usize = 25;
 const DIRECT_ITERATIONS: usize = 60;
@@ -323,7 +348,7 @@ const DIRECT_ITERATIONS: usize = 60;
 impl Solver {
     /// Solve by shooting (see the module documentation).
     pub(super) fn solve_shooting(&mut self, initial: Option<&[Quat]>) -> Solution {
-        let model = &self.model;
+        let (model, work) = (&self.model, &mut self.work);
         let settings: &Settings = &self.settings;
         let tol = model.effective_tol(settings.residual_tol);
         let budget = settings.max_iterations;
@@ -355,7 +380,13 @@ impl Solver {
         let (mut converged, mut iterations) =
             direct.run(&mut x, budget.min(DIRECT_ITERATIONS), tol);
         let mut steps = 0;
-        if !converged {
+        // Shooting converges to whatever equilibrium is nearest its start: a
+        // direct answer on an unstable branch (found on 8 of 426 random free
+        // scenes) gives way to the load path from rest, which stays on the
+        // stable branch, as in the finite-element driver.
+        let direct_unstable = converged && !held && !free_rod_is_stable(model, &full, work, &x);
+        let direct_x = x;
+        if !converged || direct_unstable {
             // Leg 1: the loads from zero on the free rod (exact rest shape at 0).
             let mut free = Vector6::zeros();
             let (ok, spent, taken) = continuation(
@@ -369,6 +400,12 @@ impl Solver {
                     };
                     newton.run(x, its, tol)
                 },
+                |lambda, x, out| {
+                    let rod = Rod::new(model, &self.scene, lambda);
+                    let m0 = x.fixed_rows::<3>(0).into_owned();
+                    rod.integrate(m0, rod.free_base_force, Some(out), None);
+                },
+                model.n + 1,
                 &mut free,
                 budget - iterations.min(budget),
                 settings.min_continuation_step,
@@ -383,6 +420,7 @@ impl Solver {
                 let released = full.integrate(
                     free.fixed_rows::<3>(0).into_owned(),
                     full.free_base_force,
+                    None,
                     None,
                 );
                 let goal = held_target;
@@ -412,6 +450,11 @@ impl Solver {
                         };
                         newton.run(x, its, tol)
                     },
+                    |_, x, out| {
+                        let (m0, n0) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
+                        full.integrate(m0.into_owned(), n0.into_owned(), Some(out), None);
+                    },
+                    model.n + 1,
                     &mut x,
                     budget - iterations.min(budget),
                     settings.min_continuation_step,
@@ -419,6 +462,10 @@ impl Solver {
                 iterations += spent;
                 steps += taken;
                 converged = ok;
+            }
+            if direct_unstable && !(converged && free_rod_is_stable(model, &full, work, &x)) {
+                // The path failed or ended unstable too: the direct answer stands.
+                (x, converged) = (direct_x, true);
             }
         }
         let residual = direct.residual(&x).amax();
@@ -442,7 +489,7 @@ impl Solver {
             full.free_base_force
         };
         let mut positions = vec![Vector3::zeros(); model.n + 1];
-        let tip = full.integrate(m0, n0, Some((&mut w.q, &mut positions)));
+        let tip = full.integrate(m0, n0, Some(&mut w.q), Some(&mut positions));
         // The held tip's reactions: what the tip's support adds to the loads.
         w.kkt
             .reactions
@@ -509,6 +556,20 @@ impl Solver {
             solve_time: 0.0,
         }
     }
+}
+
+/// Whether the free rod shot with the base wrench `x` is a stable
+/// equilibrium, judged by the finite-difference scheme's Hessian at its nodes
+/// (`w.q` is overwritten).
+fn free_rod_is_stable(model: &RodModel, rod: &Rod, w: &mut super::Workspace, x: &Vector6) -> bool {
+    rod.integrate(
+        x.fixed_rows::<3>(0).into_owned(),
+        rod.free_base_force,
+        Some(&mut w.q),
+        None,
+    );
+    evaluate(model, w, 1.0);
+    is_stable(model, w)
 }
 
 /// The base moment to start from: from a warm start's first element, else

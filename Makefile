@@ -43,8 +43,10 @@ report: $(PY)
 	$(PY) -m pip install -q ".[test]"
 	$(PY) tools/report.py --out docs --readme README.md
 
-# Criterion benchmarks (medians in the README): forward statics, IK, the paper.
+# Criterion benchmarks (medians in the README): forward statics, time to
+# accuracy of every scheme and method, IK, the paper.
 bench:
 	cargo bench --bench forward
+	cargo bench --bench accuracy
 	cargo bench --bench robot
 	cargo bench --bench paper

@@ -137,8 +137,9 @@ def run(out: Path, quick: bool = False) -> list[dict]:
                     lambda tol=tol, refine=refine, s=scene: solve(s, tol=tol, refine=refine),
                     1 if quick else 5,
                 )
-                label = "newton fd2, tol" + (" + Richardson" if refine else "")
-                add(label, f"tol={tol:g} (n={sol.n_elements})", t, sol.tip_position,
+                # The scheme is the default's choice for the tolerance.
+                label = "newton, tol" + (" + Richardson" if refine else "")
+                add(label, f"tol={tol:g} ({sol.scheme}, n={sol.n_elements})", t, sol.tip_position,
                     sol.positions, sol.converged)
     write_table(rows, out / "report.md")
     write_plot(rows, out / "report.png")

@@ -391,6 +391,7 @@ pub(crate) fn condensed(
             ma: Matrix3::zeros(),
             mb: Matrix3::zeros(),
             inverse: Matrix3::zeros(),
+            minimum: false,
         },
         ga: d.grad[0],
         gb: d.grad[2],
@@ -409,6 +410,7 @@ pub(crate) fn condensed(
     let mb = inverse * j[1][2];
     let gm = inverse * d.grad[1];
     (out.mid.ma, out.mid.mb, out.mid.inverse) = (ma, mb, inverse);
+    out.mid.minimum = (0.5 * (j[1][1] + j[1][1].transpose())).cholesky().is_some();
     out.ga -= j[0][1] * gm;
     out.gb -= j[2][1] * gm;
     out.jaa = j[0][0] - j[0][1] * ma;
@@ -475,6 +477,10 @@ pub(crate) struct MidState {
     mb: Matrix3<f64>,
     /// `J_mm^-1`, for a chord iteration of the next evaluation.
     inverse: Matrix3<f64>,
+    /// Whether `J_mm` is positive definite: the internal node sits at a
+    /// minimum of its element's potential. The reduced Hessian's definiteness
+    /// says the equilibrium is stable only where every one is.
+    pub minimum: bool,
 }
 
 impl MidState {
@@ -513,6 +519,12 @@ impl MidCache {
     /// A cache of `n` elements, empty.
     pub(crate) fn new(n: usize) -> Self {
         MidCache(std::sync::Mutex::new(vec![None; n]))
+    }
+
+    /// Whether every internal node of the last evaluation with the
+    /// Jacobian sits at a minimum of its element (see [`MidState::minimum`]).
+    pub(crate) fn all_minima(&self) -> bool {
+        self.lock().iter().all(|s| s.is_some_and(|s| s.minimum))
     }
 
     pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Option<MidState>>> {

@@ -279,6 +279,13 @@ impl RodModel {
         model
     }
 
+    /// Fourth-order scheme: whether every internal node of the last
+    /// evaluation with the Jacobian is a minimum of its element's potential
+    /// (the condensed Hessian then decides stability); true for `fd2`.
+    pub fn internal_nodes_at_minima(&self) -> bool {
+        self.scheme != Scheme::Fe4 || self.mids.all_minima()
+    }
+
     /// The same rod in another discretisation.
     pub fn with_scheme(mut self, scheme: Scheme) -> Self {
         if scheme != self.scheme {

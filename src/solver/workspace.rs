@@ -101,6 +101,11 @@ pub(super) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
 }
 
 pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
+    // Condensed internal nodes (fe4): the full Hessian is positive definite
+    // iff every internal block and the Schur complement are.
+    if !model.internal_nodes_at_minima() {
+        return false;
+    }
     if model.is_constrained() {
         constrained::is_stable(model, w)
     } else {

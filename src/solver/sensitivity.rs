@@ -24,6 +24,12 @@ impl Solver {
         if self.model.is_constrained() {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
         }
+        if self.model.scheme != crate::model::Scheme::Fd2 {
+            return Err(Error::argument(
+                "tip_sensitivity",
+                "available for scheme 'fd2' only, for now",
+            ));
+        }
         if sections == 0 || n % sections != 0 {
             return Err(Error::argument(
                 "sections",

@@ -484,6 +484,21 @@ pub(crate) struct MidState {
 }
 
 impl MidState {
+    /// Whether this state was evaluated at exactly these ends.
+    pub(crate) fn at(&self, a: Quat, b: Quat) -> bool {
+        self.a == a && self.b == b
+    }
+
+    /// The internal node.
+    pub(crate) fn node(&self) -> Quat {
+        self.m
+    }
+
+    /// `(J_mm^-1 J_ma, J_mm^-1 J_mb, J_mm^-1)` of the last evaluation with the Jacobian.
+    pub(crate) fn response(&self) -> (Matrix3<f64>, Matrix3<f64>, Matrix3<f64>) {
+        (self.ma, self.mb, self.inverse)
+    }
+
     /// The internal node predicted for the ends `a`, `b`: a start of its
     /// Newton iteration within about the square of the ends' move.
     pub(crate) fn predict(&self, a: Quat, b: Quat) -> Quat {
@@ -531,6 +546,41 @@ impl MidCache {
         // A panic while holding the lock leaves only a start behind.
         self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
+}
+
+/// The internal node of element `i` (from 1) for the ends `a`, `b`: the last
+/// evaluation's if it was at these ends (it then includes the reactions of
+/// held points), else the optimum for `el`, from the cache's prediction.
+pub(crate) fn mid_for(
+    cache: &mut [Option<MidState>],
+    i: usize,
+    a: Quat,
+    b: Quat,
+    el: &Element,
+) -> Quat {
+    match cache[i - 1] {
+        Some(s) if s.at(a, b) => s.m,
+        _ => cached_mid(cache, i, a, b, el),
+    }
+}
+
+/// `d chord / d theta` of the element's nodes `(a, m, b)` (3x3 each): the
+/// gradient of `-e_c . chord`, the potential of a unit force along `e_c`.
+pub(crate) fn chord_jacobian(nodes: [Quat; 3], h: f64) -> [Matrix3<f64>; 3] {
+    let mut out = [Matrix3::zeros(); 3];
+    for c in 0..3 {
+        let unit = Element {
+            h,
+            stiffness: Vector3::zeros(),
+            rest: Vector3::zeros(),
+            force: [Vector3::ith(c, 1.0); 2],
+        };
+        let d = derivatives(nodes, &unit, false, false);
+        for (block, grad) in out.iter_mut().zip(d.grad) {
+            block.set_row(c, &(-grad).transpose());
+        }
+    }
+    out
 }
 
 /// The optimal internal node of element `i` (from 1) for the ends `a`, `b`,

@@ -85,7 +85,7 @@ pub enum Scheme {
     Fd2,
     /// Quadratic elements of the rotation (an internal node at each element's
     /// middle, condensed out) with two-point Gauss quadrature: fourth order
-    /// at the nodes (see `fe4.rs`). Free tips only, for now.
+    /// at the nodes (see `fe4.rs`).
     Fe4,
 }
 
@@ -297,14 +297,18 @@ impl RodModel {
     }
 
     /// Element `i`'s data for the fourth-order scheme at load scale `load`.
-    fn fe4_element(&self, i: usize, load: f64) -> fe4::Element {
-        let shift = self.distributed_force * (self.ds * fe4::GAUSS_OFFSET);
-        let mean = self.mean_force[i - 1];
+    /// The reactions of held points act on it as point forces beyond it.
+    fn fe4_element(&self, i: usize, load: f64, reactions: &[Vector3<f64>]) -> fe4::Element {
+        let shift = load * self.distributed_force * (self.ds * fe4::GAUSS_OFFSET);
+        let mut mean = load * self.mean_force[i - 1];
+        if !reactions.is_empty() {
+            mean += self.reactions_from(reactions, i);
+        }
         fe4::Element {
             h: self.ds,
             stiffness: self.stiffness,
             rest: self.rest_curvature[i - 1],
-            force: [load * (mean + shift), load * (mean - shift)],
+            force: [mean + shift, mean - shift],
         }
     }
 
@@ -318,7 +322,10 @@ impl RodModel {
 
     fn compute_rest_shape(&self) -> Vec<Quat> {
         if self.scheme == Scheme::Fe4 {
-            return fe4::rest_chain(self.base, (1..=self.n).map(|i| self.fe4_element(i, 0.0)));
+            return fe4::rest_chain(
+                self.base,
+                (1..=self.n).map(|i| self.fe4_element(i, 0.0, &[])),
+            );
         }
         let mut q = Vec::with_capacity(self.n + 1);
         q.push(self.base);
@@ -706,14 +713,10 @@ impl RodModel {
         let ds = self.ds;
         let load = self.load_scale(lambda);
         if self.scheme == Scheme::Fe4 {
-            debug_assert!(
-                reactions.is_empty(),
-                "fe4: held points are refused by the solver"
-            );
             let mut mids = self.mids.lock();
             fe4::assemble(
                 q,
-                |i| self.fe4_element(i, load),
+                |i| self.fe4_element(i, load, reactions),
                 &mut mids,
                 g,
                 jac.as_deref_mut(),
@@ -779,6 +782,9 @@ impl RodModel {
     /// the Jacobian of a held node's position. The residual depends on that
     /// node's reaction `R` through `-(d r_k / d theta)^T R`.
     pub fn position_jacobian(&self, q: &[Quat], k: usize, out: &mut [Matrix3<f64>]) {
+        if self.scheme == Scheme::Fe4 {
+            return self.fe4_position_jacobian(q, k, out);
+        }
         let third = self.ds / 3.0;
         for j in 1..=self.n {
             if j > k {
@@ -801,6 +807,56 @@ impl RodModel {
             }
             out[j - 1] = block;
         }
+    }
+
+    /// [`RodModel::position_jacobian`] of the fourth-order scheme: the total
+    /// derivative, the internal nodes following the ends as the last
+    /// evaluation with the Jacobian (at `q`) linearised them.
+    fn fe4_position_jacobian(&self, q: &[Quat], k: usize, out: &mut [Matrix3<f64>]) {
+        out.iter_mut().for_each(|b| *b = Matrix3::zeros());
+        let mids = self.mids.lock();
+        for e in 1..=k {
+            let Some(state) = mids[e - 1] else { continue };
+            let c = fe4::chord_jacobian([q[e - 1], state.node(), q[e]], self.ds);
+            let (ma, mb, _) = state.response();
+            if e >= 2 {
+                out[e - 2] += c[0] - c[1] * ma;
+            }
+            out[e - 1] += c[2] - c[1] * mb;
+        }
+    }
+
+    /// Fourth-order scheme: how the held points move with their reactions at
+    /// fixed node rotations (`dh_c / dR_c'`, 3x3 blocks of a 3m x 3m matrix),
+    /// through the internal nodes, which the reactions load: `sum over the
+    /// elements before both of C_m J_mm^-1 C_m^T` with `C_m = d chord / d
+    /// theta_m`. Zero for the finite-difference scheme (None).
+    pub fn held_point_compliance(&self, q: &[Quat]) -> Option<nalgebra::DMatrix<f64>> {
+        if self.scheme != Scheme::Fe4 {
+            return None;
+        }
+        let m = self.constraints.len();
+        let mids = self.mids.lock();
+        let last = self.constraints.iter().map(|c| c.node).max().unwrap_or(0);
+        // Running sum over the elements, read off at each held node.
+        let mut running = Matrix3::zeros();
+        let mut at_node = vec![Matrix3::zeros(); last + 1];
+        for e in 1..=last {
+            if let Some(state) = mids[e - 1] {
+                let c = fe4::chord_jacobian([q[e - 1], state.node(), q[e]], self.ds);
+                let (_, _, inverse) = state.response();
+                running += c[1] * inverse * c[1].transpose();
+            }
+            at_node[e] = running;
+        }
+        let mut out = nalgebra::DMatrix::zeros(3 * m, 3 * m);
+        for (i, a) in self.constraints.iter().enumerate() {
+            for (j, b) in self.constraints.iter().enumerate() {
+                let block = at_node[a.node.min(b.node)];
+                out.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&block);
+            }
+        }
+        Some(out)
     }
 
     /// Internal force at the nodes with the reactions: the force that the distal
@@ -889,8 +945,8 @@ impl RodModel {
         if self.scheme == Scheme::Fe4 {
             let mut mids = self.mids.lock();
             for i in 1..=self.n {
-                let el = self.fe4_element(i, 1.0);
-                let m = fe4::cached_mid(&mut mids, i, q[i - 1], q[i], &el);
+                let el = self.fe4_element(i, 1.0, &[]);
+                let m = fe4::mid_for(&mut mids, i, q[i - 1], q[i], &el);
                 out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], self.ds);
             }
             return;
@@ -914,8 +970,8 @@ impl RodModel {
             let mut mids = self.mids.lock();
             return (1..=self.n)
                 .map(|i| {
-                    let el = self.fe4_element(i, load);
-                    let m = fe4::cached_mid(&mut mids, i, q[i - 1], q[i], &el);
+                    let el = self.fe4_element(i, load, &[]);
+                    let m = fe4::mid_for(&mut mids, i, q[i - 1], q[i], &el);
                     fe4::energy([q[i - 1], m, q[i]], &el)
                 })
                 .sum();

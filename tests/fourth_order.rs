@@ -131,29 +131,46 @@ fn the_fourth_order_scheme_agrees_with_the_finite_difference_limit() {
     assert_fourth_order(&errors, 1e-7 * scene.length);
 }
 
+/// A converged solve by shooting or by Newton on the fourth-order scheme.
+fn solve_fourth_order(scene: &Scene, n: usize, shooting: bool) -> Solution {
+    let settings = if shooting {
+        settings(n, Method::Shooting)
+    } else {
+        Settings {
+            scheme: Some(Scheme::Fe4),
+            ..settings(n, Method::Newton)
+        }
+    };
+    let sol = solve(scene, settings, None).unwrap();
+    assert!(sol.converged(), "n = {n}: {}", sol.message);
+    sol
+}
+
 #[test]
 fn holding_the_tip_where_the_free_rod_puts_it_returns_the_tip_loads() {
-    let scene = loaded_sections();
-    let free = shoot(&scene, 40);
-    let mut pinned = scene.clone();
-    pinned.tip_force = Vector3::zeros();
-    pinned.tip = TipCondition::Pinned {
-        position: free.tip_position(),
-    };
-    let sol = shoot(&pinned, 40);
-    assert!(sol.stable);
-    let reaction = sol.tip_reaction_force.unwrap();
-    assert!((reaction - scene.tip_force).norm() < 1e-8, "{reaction}");
-    assert!(distance(&sol.positions, &free.positions) < 1e-9);
+    for shooting in [true, false] {
+        let scene = loaded_sections();
+        let free = solve_fourth_order(&scene, 40, shooting);
+        let mut pinned = scene.clone();
+        pinned.tip_force = Vector3::zeros();
+        pinned.tip = TipCondition::Pinned {
+            position: free.tip_position(),
+        };
+        let sol = solve_fourth_order(&pinned, 40, shooting);
+        assert!(sol.stable);
+        let reaction = sol.tip_reaction_force.unwrap();
+        assert!((reaction - scene.tip_force).norm() < 1e-8, "{reaction}");
+        assert!(distance(&sol.positions, &free.positions) < 1e-9);
 
-    let mut clamped = pinned.clone();
-    clamped.tip_moment = Vector3::zeros();
-    clamped.tip = TipCondition::Clamped {
-        position: free.tip_position(),
-        quaternion: free.tip_quaternion(),
-    };
-    let sol = shoot(&clamped, 40);
-    let moment = sol.tip_reaction_moment.unwrap();
-    assert!((moment - scene.tip_moment).norm() < 1e-8, "{moment}");
-    assert!((sol.tip_reaction_force.unwrap() - scene.tip_force).norm() < 1e-8);
+        let mut clamped = pinned.clone();
+        clamped.tip_moment = Vector3::zeros();
+        clamped.tip = TipCondition::Clamped {
+            position: free.tip_position(),
+            quaternion: free.tip_quaternion(),
+        };
+        let sol = solve_fourth_order(&clamped, 40, shooting);
+        let moment = sol.tip_reaction_moment.unwrap();
+        assert!((moment - scene.tip_moment).norm() < 1e-8, "{moment}");
+        assert!((sol.tip_reaction_force.unwrap() - scene.tip_force).norm() < 1e-8);
+    }
 }

@@ -105,4 +105,5 @@ def test_the_default_scheme_is_the_faster_for_the_accuracy():
     pinned = {**CANTILEVER_10, "tip_force": [0, 0, 0],
               "tip": {"type": "pinned", "position": [0.5, 0.0, 0.8]}}
     assert softspine.solve(pinned, tol=1e-6).scheme == "fd2"
+    assert softspine.solve(pinned, tol=1e-7).scheme == "fe4"
     assert softspine.solve(CANTILEVER_10, method="shooting").scheme == "rk4"

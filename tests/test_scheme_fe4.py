@@ -1,17 +1,18 @@
 """scheme="fe4" (quadratic elements of the rotation, two-point Gauss
 quadrature): fourth order on the whole backbone against the SciPy shooting
-references of the continuous rod, and refused where it does not apply yet."""
+references of the continuous rod (free, pinned and clamped tips, guides)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_held_references import ROD, held_scenes
 from test_shooting_method import FREE_3D
 
 import softspine
 
 from closed_forms import observed_orders, quat_mul
-from validation import shooting
+from validation import shooting, shooting_held
 
 ROBOT_LIKE = {
     "length": 1.0,
@@ -61,13 +62,45 @@ def test_the_rest_shape_is_exact_in_the_scheme_without_iterating():
     assert np.abs(sol.positions - exact["positions"]).max() < 1e-5
 
 
-@pytest.mark.parametrize("tip", [
-    {"type": "pinned", "position": [0.3, 0.0, 0.9]},
-    {"type": "clamped", "position": [0.3, 0.0, 0.9], "quaternion": [1, 0, 0, 0]},
-])
-def test_held_tips_are_refused_by_name_for_now(tip):
-    with pytest.raises(ValueError, match="scheme.*fe4.*held"):
-        softspine.solve({**CANTILEVER, "tip_force": [0, 0, 0], "tip": tip}, scheme="fe4")
+@pytest.mark.parametrize("kind", ["pinned", "clamped"])
+def test_held_tips_and_their_reactions_are_fourth_order(kind):
+    """The reactions enter the internal nodes' balance, and the held points
+    move with them through those nodes: the KKT system has a lower-right block."""
+    scene = held_scenes()[kind]
+    errors = {"positions": [], "force": [], "moment": []}
+    for n in (20, 40, 80):
+        exact = shooting_held.solve(scene, n_samples=n + 1)
+        sol = softspine.solve(scene, n_elements=n, scheme="fe4", check=True)
+        assert sol.stable and sol.scheme == "fe4"
+        errors["positions"].append(np.abs(sol.positions - exact["positions"]).max())
+        errors["force"].append(np.linalg.norm(sol.tip_reaction_force - exact["tip_reaction_force"]))
+        if kind == "clamped":
+            errors["moment"].append(
+                np.linalg.norm(sol.tip_reaction_moment - exact["tip_reaction_moment"]))
+    for name, e in errors.items():
+        if e:
+            orders = observed_orders(e)
+            assert np.all((orders > 3.7) & (orders < 4.3)), (name, orders, e)
+
+
+def test_a_guide_and_its_reaction_are_fourth_order():
+    free = softspine.solve(ROD, n_elements=1280)
+    guided = {**ROD, "tip_force": [0.1, 0.0, 0.0], "guides": [
+        {"s": 0.45, "position": (free.positions[640] + [0.02, -0.01, 0.0]).tolist()}]}
+    # The second-order scheme's Richardson limit from n = 640 and 1280.
+    a = softspine.solve(guided, n_elements=640, scheme="fd2", check=True)
+    b = softspine.solve(guided, n_elements=1280, scheme="fd2", check=True)
+    positions = (4 * b.positions[::2] - a.positions) / 3
+    reaction = (4 * b.guide_reactions - a.guide_reactions) / 3
+    shape, force = [], []
+    for n in (10, 20, 40):
+        sol = softspine.solve(guided, n_elements=n, scheme="fe4", check=True)
+        assert sol.stable
+        shape.append(np.abs(sol.positions - positions[:: 640 // n]).max())
+        force.append(np.linalg.norm(sol.guide_reactions - reaction))
+    for e in (shape, force):
+        orders = observed_orders(e)
+        assert np.all((orders > 3.7) & (orders < 4.3)), (orders, e)
 
 
 @pytest.mark.parametrize("method", ["paper", "shooting"])

@@ -101,10 +101,10 @@ def solve(
     scheme : {"fd2", "fe4"}, optional
         The discretisation of the backbone. ``"fd2"``: the seed's finite
         differences, second order. ``"fe4"``: quadratic elements of the rotation
-        with two-point Gauss quadrature, fourth order at the nodes (free tips
-        only, for now). Default: ``"fe4"`` for accuracy on demand below 1e-5 L
-        on a scene without held points (there it is the faster), ``"fd2"``
-        otherwise. The paper's method and shooting have their own.
+        with two-point Gauss quadrature, fourth order at the nodes. Default:
+        ``"fe4"`` for accuracy on demand below 1e-5 L (1e-6 L on a scene with
+        held points; there it is the faster), ``"fd2"`` otherwise. The paper's
+        method and shooting have their own.
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
     accuracy : Accuracy or dict, optional

@@ -10,7 +10,9 @@
 //! [ D    0   ] [dR    ] = [-h]
 //! ```
 //!
-//! by the Schur complement `S = D A^{-1} D^T` (3m x 3m, m held nodes): two sweeps
+//! (with the fourth-order scheme the lower right block is `E = dh/dR`, the
+//! held points' motion through the internal nodes the reactions load, and
+//! `S` gains it) by the Schur complement `S = D A^{-1} D^T` (3m x 3m, m held nodes): two sweeps
 //! of the O(n) block-tridiagonal factorisation per column of `D^T`, so the cost
 //! stays linear in n. A clamped tip fixes `q_n` (a Dirichlet row); its reaction
 //! moment is what the torque balance of node n leaves over. Nothing here runs
@@ -41,6 +43,9 @@ pub(crate) struct KktWorkspace {
     /// Torque balance of a clamped tip node before it is replaced by the
     /// Dirichlet row: the reaction moment in the body frame.
     pub tip_torque: Vector3<f64>,
+    /// `dh / dR` at fixed rotations (the fourth-order scheme's internal nodes
+    /// move with the reactions; see `RodModel::held_point_compliance`).
+    pub compliance: Option<DMatrix<f64>>,
 }
 
 impl KktWorkspace {
@@ -59,6 +64,7 @@ impl KktWorkspace {
             schur: DMatrix::zeros(3 * m, 3 * m),
             rhs: DVector::zeros(3 * m),
             tip_torque: Vector3::zeros(),
+            compliance: None,
         }
     }
 }
@@ -121,6 +127,7 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
 
 /// Fill `D_c` at `w.q` (zero on a clamped tip node, which does not move).
 pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
+    w.kkt.compliance = model.held_point_compliance(&w.q);
     for (c, d) in model.constraints.iter().zip(w.kkt.d.iter_mut()) {
         model.position_jacobian(&w.q, c.node, d);
         if model.clamped_tip.is_some() {
@@ -162,6 +169,9 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
             }
             w.kkt.rhs[r] = d_times(&w.kkt.d[c], e, &w.scratch) - w.kkt.h[c][e];
         }
+    }
+    if let Some(e) = &w.kkt.compliance {
+        w.kkt.schur += e;
     }
     if !solve_small_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
         return false;
@@ -331,6 +341,10 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
         return false;
     };
     let m = model.constraints.len();
+    let s = match &w.kkt.compliance {
+        Some(e) => s + e,
+        None => s,
+    };
     let s = 0.5 * (&s + s.transpose());
     let eig = SymmetricEigen::new(s);
     let tiny = 1e-12 * eig.eigenvalues.amax().max(f64::MIN_POSITIVE);

@@ -47,10 +47,10 @@ pub(crate) use workspace::{evaluate, is_stable};
 
 use crate::error::{Error, Result};
 use crate::interrupt;
-use crate::model::{RodModel, Scheme};
+use crate::model::RodModel;
 
 use crate::quat::Quat;
-use crate::scene::{ReachLimit, Scene, TipCondition};
+use crate::scene::{ReachLimit, Scene};
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -82,12 +82,6 @@ impl Solver {
             ));
         }
         let scheme = settings.scheme_for(scene, None);
-        if scheme == Scheme::Fe4 && (!scene.guides.is_empty() || scene.tip != TipCondition::Free) {
-            return Err(Error::argument(
-                "scheme",
-                "'fe4' does not support held tips or guides yet; use scheme='fd2'",
-            ));
-        }
         let model = RodModel::new(scene, n).with_scheme(scheme);
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {

@@ -137,6 +137,7 @@ struct PointTerms {
     hpp: Matrix4<f64>,
 }
 
+#[inline(always)]
 fn point_terms(
     q: &Vector4<f64>,
     p: &Vector4<f64>,
@@ -206,6 +207,7 @@ fn aligned(nodes: [Quat; 3]) -> [Vector4<f64>; 3] {
 }
 
 /// The interpolated quaternion and its arc-length derivative at Gauss point `g`.
+#[inline(always)]
 fn interpolate(
     x: &[Vector4<f64>; 3],
     h: f64,
@@ -309,6 +311,19 @@ pub(crate) fn derivatives(
     out
 }
 
+/// `q (1, theta / 2)`, normalised: the update of an internal node. It agrees
+/// with `q exp(theta / 2)` to second order, which is all the iteration needs
+/// (its fixed point, the optimum, does not depend on the update), and costs
+/// no trigonometry.
+#[inline]
+fn nudged(q: Quat, theta: Vector3<f64>) -> Quat {
+    (q * Quat {
+        w: 1.0,
+        v: 0.5 * theta,
+    })
+    .normalized()
+}
+
 /// The internal node that minimises the element's potential for its ends
 /// (Newton from `start`; the slerp midpoint of the ends if `None`).
 /// With `chord`, the inverse of the node's block from a nearby evaluation:
@@ -343,7 +358,7 @@ pub(crate) fn solve_mid(
         };
         let step = -(inverse * grad);
         let size = step.norm();
-        m = m.perturbed(step);
+        m = nudged(m, step);
         if size < MID_STEP_TOL {
             break;
         }
@@ -504,7 +519,7 @@ impl MidState {
     pub(crate) fn predict(&self, a: Quat, b: Quat) -> Quat {
         let da = rotation_from(self.a, a);
         let db = rotation_from(self.b, b);
-        self.m.perturbed(-(self.ma * da + self.mb * db))
+        nudged(self.m, -(self.ma * da + self.mb * db))
     }
 }
 

@@ -624,36 +624,53 @@ pub(crate) fn cached_mid(
 /// The node quaternions of a chain whose every element is at rest
 /// (`omega = omega0` at both Gauss points, so its potential is zero) from
 /// `base`, each element by Newton on its internal node and end.
+///
+/// An unloaded element's potential depends only on its nodes' relative
+/// rotations, so an element at rest turns by the same `conj(a) b` wherever it
+/// is: solved once for each run of equal elements (a section).
 pub(crate) fn rest_chain(base: Quat, elements: impl Iterator<Item = Element>) -> Vec<Quat> {
     let mut out = vec![base];
+    let mut last: Option<(Vector3<f64>, Quat)> = None;
     for el in elements {
         let a = *out.last().expect("starts with the base");
-        // The arc of constant curvature: exact to the scheme's order.
-        let mut m = a.perturbed(0.5 * el.h * el.rest);
-        let mut b = a.perturbed(el.h * el.rest);
-        for _ in 0..MID_ITERATIONS {
-            let d = derivatives([a, m, b], &el, true, false);
-            let mut jac = SMatrix::<f64, 6, 6>::zeros();
-            let mut rhs = SMatrix::<f64, 6, 1>::zeros();
-            for (r, k) in [1usize, 2].iter().enumerate() {
-                rhs.fixed_rows_mut::<3>(3 * r).copy_from(&(-d.grad[*k]));
-                for (c, l) in [1usize, 2].iter().enumerate() {
-                    jac.fixed_view_mut::<3, 3>(3 * r, 3 * c)
-                        .copy_from(&d.jac[*k][*l]);
-                }
-            }
-            let Some(step) = jac.lu().solve(&rhs) else {
-                break;
-            };
-            m = m.perturbed(step.fixed_rows::<3>(0).into_owned());
-            b = b.perturbed(step.fixed_rows::<3>(3).into_owned());
-            if step.norm() < REST_STEP_TOL {
-                break;
-            }
+        if let Some((_, turn)) = last.filter(|(rest, _)| *rest == el.rest) {
+            out.push((a * turn).normalized());
+            continue;
         }
+        let b = rest_element(a, &el);
+        last = Some((el.rest, a.conj() * b));
         out.push(b);
     }
     out
+}
+
+/// The end `b` of an unloaded element at rest from `a` (Newton on its
+/// internal node and end).
+fn rest_element(a: Quat, el: &Element) -> Quat {
+    // The arc of constant curvature: exact to the scheme's order.
+    let mut m = a.perturbed(0.5 * el.h * el.rest);
+    let mut b = a.perturbed(el.h * el.rest);
+    for _ in 0..MID_ITERATIONS {
+        let d = derivatives([a, m, b], el, true, false);
+        let mut jac = SMatrix::<f64, 6, 6>::zeros();
+        let mut rhs = SMatrix::<f64, 6, 1>::zeros();
+        for (r, k) in [1usize, 2].iter().enumerate() {
+            rhs.fixed_rows_mut::<3>(3 * r).copy_from(&(-d.grad[*k]));
+            for (c, l) in [1usize, 2].iter().enumerate() {
+                jac.fixed_view_mut::<3, 3>(3 * r, 3 * c)
+                    .copy_from(&d.jac[*k][*l]);
+            }
+        }
+        let Some(step) = jac.lu().solve(&rhs) else {
+            break;
+        };
+        m = m.perturbed(step.fixed_rows::<3>(0).into_owned());
+        b = b.perturbed(step.fixed_rows::<3>(3).into_owned());
+        if step.norm() < REST_STEP_TOL {
+            break;
+        }
+    }
+    b
 }
 
 #[cfg(test)]

@@ -482,6 +482,11 @@ pub(crate) fn assemble(
         j.diag.iter_mut().for_each(|x| *x = Matrix3::zeros());
     }
     for i in 1..=n {
+        // A huge n takes long here: an interrupt leaves the residual
+        // unfinished, and the solver's loops stop on the same flag.
+        if i % crate::model::INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
+            return;
+        }
         let c = condensed(
             q[i - 1],
             q[i],

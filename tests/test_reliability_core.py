@@ -209,12 +209,16 @@ LONG_SOLVES = {
     "lm": 'softspine.solve(scene, n_elements=600, method="lm", max_iterations=100000)',
     "paper": 'softspine.solve(scene, n_elements=40, method="paper", '
     'paper={"iterations": 1000000, "particles": 200})',
+    "fe4": 'softspine.solve(scene, n_elements=1_000_000, scheme="fe4", max_iterations=500)',
+    "shooting": 'softspine.solve(scene, n_elements=2_000_000, method="shooting", '
+    "max_iterations=100000)",
 }
 
 
 # Ctrl-C at these times into each solve: the Newton solve at n = 2e6 is in
 # its allocation, its continuation, its line search; the others iterate.
-INTERRUPT_DELAYS = {"newton": (0.3, 1.0, 2.0), "lm": (1.0,), "paper": (1.0,)}
+INTERRUPT_DELAYS = {"newton": (0.3, 1.0, 2.0), "lm": (1.0,), "paper": (1.0,),
+                    "fe4": (0.5, 2.0), "shooting": (0.5, 3.0)}
 
 
 @pytest.mark.parametrize(

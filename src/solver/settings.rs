@@ -172,6 +172,8 @@ impl Settings {
     pub fn has_long_passes(&self) -> bool {
         let n = self.n_elements.unwrap_or(DEFAULT_ELEMENTS);
         match self.method {
+            // A fourth-order element costs about eight second-order ones.
+            Method::Newton if self.scheme == Some(Scheme::Fe4) => n >= LONG_PASS_ELEMENTS / 8,
             Method::Newton | Method::Shooting => n >= LONG_PASS_ELEMENTS,
             _ => n >= LONG_DENSE_PASS_ELEMENTS,
         }

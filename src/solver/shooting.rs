@@ -24,7 +24,8 @@
 use super::solution::judge;
 use super::workspace::{evaluate, is_stable};
 use super::{Settings, Solution, Solver, Status};
-use crate::model::{element_turn, slerp, RodModel};
+use crate::interrupt;
+use crate::model::{element_turn, slerp, RodModel, INTERRUPT_STRIDE};
 use crate::quat::Quat;
 use crate::scene::Scene;
 use nalgebra::{SMatrix, SVector, Vector3};
@@ -120,6 +121,11 @@ impl<'a> Rod<'a> {
             rs[0] = r;
         }
         for i in 0..model.n {
+            // A huge n takes long here: an interrupt leaves the shot
+            // unfinished, and the Newton loops stop on the same flag.
+            if i % INTERRUPT_STRIDE == 0 && interrupt::requested() {
+                break;
+            }
             let u0 = model.rest_curvature[i];
             let f_mid = force - 0.5 * h * self.distributed;
             let f_end = force - h * self.distributed;
@@ -235,7 +241,7 @@ impl Newton<'_, '_> {
         let k = self.unknowns();
         let mut res = self.residual(x);
         for iteration in 0..budget {
-            if !res.iter().all(|v| v.is_finite()) {
+            if !res.iter().all(|v| v.is_finite()) || interrupt::requested() {
                 return (false, iteration);
             }
             if res.amax() <= tol {
@@ -310,7 +316,7 @@ fn continuation(
     let mut accepted = vec![Quat::IDENTITY; nodes];
     let mut trial_frames = accepted.clone();
     frames(0.0, x, &mut accepted);
-    while t < 1.0 && spent < budget {
+    while t < 1.0 && spent < budget && !interrupt::requested() {
         let next = (t + dt).min(1.0);
         let mut trial = *x;
         let (mut ok, its) = solve_at(next, &mut trial, (budget - spent).min(STEP_ITERATIONS));

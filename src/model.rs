@@ -347,7 +347,7 @@ impl RodModel {
         self.rest_nodes = rest.clone();
         if !self.constraints.is_empty() {
             let mut positions = vec![Vector3::zeros(); self.n + 1];
-            self.positions(&rest, &mut positions);
+            self.unloaded_positions(&rest, &mut positions);
             for c in &mut self.constraints {
                 c.rest = positions[c.node];
             }
@@ -357,6 +357,20 @@ impl RodModel {
             if q.dot(self.rest_tip) < 0.0 {
                 *q = -*q;
             }
+        }
+    }
+
+    /// Node positions of the chain `q` without loads: with the fourth-order
+    /// scheme, the internal nodes of the unloaded elements (the rest shape's).
+    fn unloaded_positions(&self, q: &[Quat], out: &mut [Vector3<f64>]) {
+        if self.scheme != Scheme::Fe4 {
+            return self.positions(q, out);
+        }
+        out[0] = self.base_position;
+        for i in 1..=self.n {
+            let el = self.fe4_element(i, 0.0, &[]);
+            let m = fe4::solve_mid(q[i - 1], q[i], &el, None, None);
+            out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], self.ds);
         }
     }
 

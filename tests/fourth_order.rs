@@ -174,3 +174,29 @@ fn holding_the_tip_where_the_free_rod_puts_it_returns_the_tip_loads() {
         assert!((sol.tip_reaction_force.unwrap() - scene.tip_force).norm() < 1e-8);
     }
 }
+
+#[test]
+fn a_held_point_starts_its_load_path_where_the_unloaded_fe4_rod_puts_it() {
+    // The rest positions of held points are where the rest shape puts them,
+    // its internal nodes those of the unloaded elements (not of the loads).
+    let mut scene = loaded_sections();
+    scene.tip_force = Vector3::zeros();
+    scene.tip = TipCondition::Pinned {
+        position: Vector3::new(0.3, -0.2, 0.9),
+    };
+    let loaded = softspine::RodModel::new(&scene, 16).with_scheme(Scheme::Fe4);
+    let mut unloaded_scene = scene.clone();
+    unloaded_scene.distributed_force = Vector3::zeros();
+    unloaded_scene.point_loads.clear();
+    unloaded_scene.tip_moment = Vector3::zeros();
+    let unloaded = softspine::RodModel::new(&unloaded_scene, 16).with_scheme(Scheme::Fe4);
+    let rest = unloaded.rest_shape();
+    let mut expected = vec![Vector3::zeros(); 17];
+    unloaded.positions(&rest, &mut expected);
+    let start = loaded.constraints.last().unwrap().rest;
+    assert!(
+        (start - expected[16]).norm() < 1e-14,
+        "{start} vs {}",
+        expected[16]
+    );
+}

@@ -1,21 +1,24 @@
 //! The fourth-order scheme (`Scheme::Fe4`, docs/model.md "A fourth-order
-//! backbone"): quadratic finite elements of the rotation with two-point Gauss
-//! quadrature of the total potential.
+//! backbone"): quadratic finite elements of the rotation, the elastic energy
+//! by two-point Gauss quadrature and the loads by Simpson's rule.
 //!
 //! Element `i` joins the nodes `a = q_{i-1}` and `b = q_i` through an internal
 //! node `m` at its middle. Along the element (`tau` in `[0, 1]`) the quaternion
 //! is the quadratic interpolant `q = N_a a + N_m m + N_b b`, normalised; with
-//! `p = dq/ds` the curvature and tangent at a point are
+//! `p = dq/ds` the curvature at a point is
 //!
 //! ```text
-//! omega = 2 vec(conj(q) p) / |q|^2        t = T(q) / |q|^2
+//! omega = 2 vec(conj(q) p) / |q|^2
 //! ```
 //!
-//! and the element's potential is `h/2 sum_g [1/2 (omega - omega0)^T K (omega - omega0)
-//! - F(s_g) . t]` over the Gauss points `tau = 1/2 -+ sqrt(3)/6`. This is a
-//! Galerkin discretisation of degree 2 with Gauss quadrature (two-stage Gauss
-//! collocation): order 4 at the nodes. Positions follow from the same
-//! quadrature, `r_b = r_a + h/2 (t_1 + t_2)`.
+//! and the element's potential is `h/2 sum_g 1/2 (omega - omega0_g)^T K (omega
+//! - omega0_g)` over the Gauss points `tau = 1/2 -+ sqrt(3)/6`, minus `h/6
+//! [F_a . T(a) + 4 F_m . T(m) + F_b . T(b)]`, the loads' work by Simpson at
+//! the nodes. Both rules are exact for cubics: order 4 at the nodes (a
+//! Galerkin discretisation of degree 2). Positions follow from the same rule,
+//! `r_b = r_a + h/6 (T(a) + 4 T(m) + T(b))`. `omega0_g` is the curvature the
+//! exact arc of the rest curvature has at the Gauss points, so the rest
+//! shape is exactly the arcs ([`gauss_rest_curvature`]).
 //!
 //! The internal node is condensed out exactly: for given element ends it
 //! minimises the element's potential (a three-unknown Newton iteration), so
@@ -54,8 +57,9 @@ pub(crate) struct Element {
     pub stiffness: Vector3<f64>,
     /// Rest curvature, material frame [1/m].
     pub rest: Vector3<f64>,
-    /// Internal force at the two Gauss points, world frame [N].
-    pub force: [Vector3<f64>; 2],
+    /// Internal force at the element's start, middle and end (`tau = 0,
+    /// 1/2, 1`, just inside the element), world frame [N].
+    pub force: [Vector3<f64>; 3],
 }
 
 /// Gradient and Jacobian of an element in the body-frame rotations of its
@@ -127,18 +131,8 @@ fn right_pure(mu: &Vector3<f64>) -> Matrix4<f64> {
     )
 }
 
-/// `S_F`, symmetric, with `q^T S_F q = F . T(q)` (`T` the third column of `R(q)`).
-fn tangent_form(f: &Vector3<f64>) -> Matrix4<f64> {
-    Matrix4::new(
-        f.z, -f.y, f.x, 0.0, //
-        -f.y, -f.z, 0.0, f.x, //
-        f.x, 0.0, -f.z, f.y, //
-        0.0, f.x, f.y, f.z,
-    )
-}
-
-/// The potential density at one point and its derivatives in `(q, p)`,
-/// the interpolated quaternion and its arc-length derivative.
+/// The elastic energy density at one point and its derivatives in
+/// `(q, p)`, the interpolated quaternion and its arc-length derivative.
 struct PointTerms {
     value: f64,
     grad_q: Vector4<f64>,
@@ -153,24 +147,21 @@ struct PointTerms {
 fn point_terms(
     q: &Vector4<f64>,
     p: &Vector4<f64>,
-    el: &Element,
-    force: &Vector3<f64>,
+    stiffness: &Vector3<f64>,
+    rest: &Vector3<f64>,
     hessian: bool,
 ) -> PointTerms {
     let inv = 1.0 / q.norm_squared();
     let bq = conj_product(q);
     let omega = 2.0 * inv * (bq * p);
-    let delta = omega - el.rest;
-    let mu = el.stiffness.component_mul(&delta);
-    let s = tangent_form(force);
-    let sq = s * q;
-    let phi = inv * q.dot(&sq);
+    let delta = omega - rest;
+    let mu = stiffness.component_mul(&delta);
     let g = mu.dot(&omega);
     let p_mu = times_pure(p, &mu);
     let q_mu = times_pure(q, &mu);
     let mut terms = PointTerms {
-        value: 0.5 * delta.dot(&mu) - phi,
-        grad_q: -2.0 * inv * (p_mu + g * q + sq - phi * q),
+        value: 0.5 * delta.dot(&mu),
+        grad_q: -2.0 * inv * (p_mu + g * q),
         grad_p: 2.0 * inv * q_mu,
         hqq: Matrix4::zeros(),
         hqp: Matrix4::zeros(),
@@ -179,28 +170,64 @@ fn point_terms(
     if !hessian {
         return terms;
     }
-    let k = Matrix3::from_diagonal(&el.stiffness);
+    let k = Matrix3::from_diagonal(stiffness);
     let jq = -2.0 * inv * (conj_product(p) + omega * q.transpose());
     let jp = 2.0 * inv * bq;
     let kjq = k * jq;
     let kjp = k * jp;
     let inv2 = inv * inv;
-    let eye = Matrix4::identity();
     // mu . omega as a function of (q, p) with mu fixed: 2 q^T M p / |q|^2,
     // M = -right_pure(mu), so M p = -p (0, mu) and M^T q = q (0, mu).
     let m = -right_pure(&mu);
     let mp = -p_mu;
     let curvature_qq = -4.0 * inv2 * (mp * q.transpose() + q * mp.transpose())
         + 8.0 * inv2 * g * q * q.transpose()
-        - 2.0 * inv * g * eye;
+        - 2.0 * inv * g * Matrix4::identity();
     let curvature_qp = 2.0 * inv * m - 4.0 * inv2 * q * q_mu.transpose();
-    let load_qq = -2.0 * inv * s + 4.0 * inv2 * (sq * q.transpose() + q * sq.transpose())
-        - 8.0 * inv2 * phi * q * q.transpose()
-        + 2.0 * inv * phi * eye;
-    terms.hqq = jq.transpose() * kjq + curvature_qq + load_qq;
+    terms.hqq = jq.transpose() * kjq + curvature_qq;
     terms.hqp = jq.transpose() * kjp + curvature_qp;
     terms.hpp = jp.transpose() * kjp;
     terms
+}
+
+/// Simpson's weights of the element's nodes `(a, m, b)` in units of `h`.
+const SIMPSON: [f64; 3] = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
+
+/// The load potential `c . T(x)` of a unit node `x` (`c` a world vector
+/// [N m]): its value, gradient in the body-frame rotation and that
+/// gradient's derivative (as `model.rs` does for the second-order scheme).
+#[inline(always)]
+fn node_load(x: Quat, c: &Vector3<f64>) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    let f = x.inverse_rotate(*c);
+    (
+        f.z,
+        Vector3::new(-f.y, f.x, 0.0),
+        f * Vector3::z().transpose() - f.z * Matrix3::identity(),
+    )
+}
+
+/// `-h w_k F_k`: the weight `c` of node `k`'s load potential `c . T(x_k)`.
+#[inline(always)]
+fn load_weight(el: &Element, k: usize) -> Vector3<f64> {
+    (-el.h * SIMPSON[k]) * el.force[k]
+}
+
+/// The rest curvature the fourth-order element is given at its Gauss points
+/// for a rest curvature `kappa0` [1/m] over an element of length `h`: the
+/// curvature that the exact arc of `kappa0` has there in the quadratic
+/// interpolation, so that the arc is an exact zero of the element's energy
+/// (the rest shape is then the exact arcs, not an O(h^4) approximation).
+/// `beta = h |kappa0| / 4`; it is `kappa0 (1 + beta^4 / 45 + ...)`.
+pub(crate) fn gauss_rest_curvature(kappa0: Vector3<f64>, h: f64) -> Vector3<f64> {
+    let size = kappa0.norm();
+    let beta = 0.25 * h * size;
+    if beta < 1e-4 {
+        // The series, to round-off (the closed form cancels here).
+        return kappa0 * (1.0 + beta.powi(4) / 45.0);
+    }
+    let numerator = (8.0 / 3.0) * beta.sin() - (1.0 / 3.0) * (2.0 * beta).sin();
+    let denominator = 2.0 / 3.0 + (4.0 / 9.0) * beta.cos() - (1.0 / 9.0) * (2.0 * beta).cos();
+    (2.0 / (h * size)) * (numerator / denominator) * kappa0
 }
 
 /// The element's nodes on one side of the quaternion sphere: the quadratic
@@ -231,27 +258,25 @@ fn interpolate(
     (q, p, n, dn)
 }
 
-/// The element's potential [J].
+/// The element's potential [J]: the elastic energy by Gauss, the loads'
+/// potential by Simpson at the nodes.
 pub(crate) fn energy(nodes: [Quat; 3], el: &Element) -> f64 {
     let x = aligned(nodes);
-    (0..2)
+    let elastic: f64 = (0..2)
         .map(|g| {
             let (q, p, _, _) = interpolate(&x, el.h, g);
-            0.5 * el.h * point_terms(&q, &p, el, &el.force[g], false).value
+            0.5 * el.h * point_terms(&q, &p, &el.stiffness, &el.rest, false).value
         })
-        .sum()
+        .sum();
+    let loads: f64 = (0..3)
+        .map(|k| load_weight(el, k).dot(&nodes[k].tangent()))
+        .sum();
+    elastic + loads
 }
 
-/// The element's chord `r_b - r_a = h/2 (t_1 + t_2)` [m].
+/// The element's chord `r_b - r_a = h/6 (T(a) + 4 T(m) + T(b))` [m] (Simpson).
 pub(crate) fn chord(nodes: [Quat; 3], h: f64) -> Vector3<f64> {
-    let x = aligned(nodes);
-    (0..2)
-        .map(|g| {
-            let (q, _, _, _) = interpolate(&x, h, g);
-            let t = Quat::new(q[0], q[1], q[2], q[3]).tangent() / q.norm_squared();
-            0.5 * h * t
-        })
-        .sum()
+    (0..3).map(|k| (h * SIMPSON[k]) * nodes[k].tangent()).sum()
 }
 
 /// Gradient of the element in its nodes' rotations; with `jacobian`, the
@@ -271,7 +296,7 @@ pub(crate) fn derivatives(
     let mut hess = [[Matrix4::zeros(); 3]; 3];
     for g in 0..2 {
         let (q, p, n, dn) = interpolate(&x, h, g);
-        let t = point_terms(&q, &p, el, &el.force[g], jacobian);
+        let t = point_terms(&q, &p, &el.stiffness, &el.rest, jacobian);
         let d = [dn[0] / h, dn[1] / h, dn[2] / h];
         for k in 0..3 {
             euclid[k] += weight * (n[k] * t.grad_q + d[k] * t.grad_p);
@@ -324,6 +349,18 @@ pub(crate) fn derivatives(
             out.jac[k][k] += radial * Matrix3::identity() + 0.5 * skew(&out.grad[k]);
         }
     }
+    // The loads, node by node (their exact rule, added after the elastic
+    // part's conversion above).
+    for k in 0..3 {
+        if mid_only && k != 1 {
+            continue;
+        }
+        let (_, grad, jac) = node_load(nodes[k], &load_weight(el, k));
+        out.grad[k] += grad;
+        if jacobian {
+            out.jac[k][k] += jac;
+        }
+    }
     out
 }
 
@@ -334,10 +371,10 @@ fn mid_gradient(nodes: [Quat; 3], el: &Element) -> Vector3<f64> {
     let mut euclid = Vector4::zeros();
     for g in 0..2 {
         let (q, p, n, dn) = interpolate(&x, h, g);
-        let t = point_terms(&q, &p, el, &el.force[g], false);
+        let t = point_terms(&q, &p, &el.stiffness, &el.rest, false);
         euclid += (0.5 * h) * (n[1] * t.grad_q + (dn[1] / h) * t.grad_p);
     }
-    0.5 * conj_product(&x[1]) * euclid
+    0.5 * conj_product(&x[1]) * euclid + node_load(nodes[1], &load_weight(el, 1)).1
 }
 
 /// `q (1, theta / 2)`, normalised: the update of an internal node. It agrees
@@ -614,21 +651,14 @@ pub(crate) fn mid_for(
     }
 }
 
-/// `d chord / d theta` of the element's nodes `(a, m, b)` (3x3 each): the
-/// gradient of `-e_c . chord`, the potential of a unit force along `e_c`.
+/// `d chord / d theta` of the element's nodes `(a, m, b)` (3x3 each):
+/// `T(x exp(theta/2)) = R(x) (e_z + theta x e_z + ...)`, so node `k`'s block
+/// is `h w_k R(x_k) [e_z]x^T` with Simpson's weights `w`.
 pub(crate) fn chord_jacobian(nodes: [Quat; 3], h: f64) -> [Matrix3<f64>; 3] {
+    let turn = -skew(&Vector3::z());
     let mut out = [Matrix3::zeros(); 3];
-    for c in 0..3 {
-        let unit = Element {
-            h,
-            stiffness: Vector3::zeros(),
-            rest: Vector3::zeros(),
-            force: [Vector3::ith(c, 1.0); 2],
-        };
-        let d = derivatives(nodes, &unit, false, false);
-        for (block, grad) in out.iter_mut().zip(d.grad) {
-            block.set_row(c, &(-grad).transpose());
-        }
+    for k in 0..3 {
+        out[k] = (h * SIMPSON[k]) * nodes[k].rotation() * turn;
     }
     out
 }
@@ -717,7 +747,11 @@ mod tests {
             h: 0.13,
             stiffness: Vector3::new(0.9, 1.3, 0.7),
             rest: Vector3::new(1.2, -0.8, 0.0),
-            force: [Vector3::new(0.4, -1.1, 2.0), Vector3::new(0.3, -1.0, 1.7)],
+            force: [
+                Vector3::new(0.4, -1.1, 2.0),
+                Vector3::new(0.35, -1.05, 1.85),
+                Vector3::new(0.3, -1.0, 1.7),
+            ],
         }
     }
 
@@ -823,18 +857,68 @@ mod tests {
     }
 
     #[test]
-    fn a_rest_chain_has_zero_energy_and_follows_the_arc_to_fourth_order() {
+    fn a_rest_chain_is_the_exact_arc() {
         let mut el = element();
-        el.force = [Vector3::zeros(); 2];
-        el.rest = Vector3::new(2.0, -1.0, 0.0);
+        el.force = [Vector3::zeros(); 3];
+        let kappa0 = Vector3::new(2.0, -1.0, 0.0);
+        el.rest = gauss_rest_curvature(kappa0, el.h);
         let chain = rest_chain(Quat::IDENTITY, std::iter::repeat_n(el, 4));
         for w in chain.windows(2) {
             let m = solve_mid(w[0], w[1], &el, None, None);
             assert!(energy([w[0], m, w[1]], &el).abs() < 1e-24);
         }
-        // The exact arc turns by h |kappa| an element.
-        let exact = Quat::from_rotation_vector(4.0 * el.h * el.rest);
+        // The exact arc turns by h |kappa0| an element; uncorrected, the
+        // chain would be off by about 1e-7 here.
+        let exact = Quat::from_rotation_vector(4.0 * el.h * kappa0);
         let rel = exact.conj() * chain[4];
-        assert!(rel.v.norm() < 1e-6, "{}", rel.v.norm());
+        assert!(rel.v.norm() < 1e-14, "{}", rel.v.norm());
+    }
+
+    #[test]
+    fn gauss_rest_curvature_is_the_arc_at_the_gauss_points_and_smooth_at_zero() {
+        let h = 0.3;
+        for kappa0 in [Vector3::new(2.0, -1.0, 0.0), Vector3::new(1e-3, 0.0, 0.0)] {
+            // The arc's nodes, and its curvature in the interpolation at a
+            // Gauss point (by differences of the interpolated quaternion).
+            let arc = |s: f64| Quat::from_rotation_vector(s * kappa0);
+            let x = aligned([arc(0.0), arc(0.5 * h), arc(h)]);
+            let omega = |tau: f64| {
+                let (n, dn) = basis(tau);
+                let q = n[0] * x[0] + n[1] * x[1] + n[2] * x[2];
+                let p = (dn[0] * x[0] + dn[1] * x[1] + dn[2] * x[2]) / h;
+                2.0 * (conj_product(&q) * p) / q.norm_squared()
+            };
+            let corrected = gauss_rest_curvature(kappa0, h);
+            for tau in GAUSS {
+                assert!((omega(tau) - corrected).norm() < 1e-13 * kappa0.norm().max(1.0));
+            }
+        }
+        // Near the switch to the series the correction is below round-off:
+        // the closed form just above it must give kappa0 to round-off too.
+        for beta in [0.999e-4, 1.001e-4, 1e-3] {
+            let k = Vector3::new(0.6, 0.8, 0.0) * (4.0 * beta);
+            let ratio = gauss_rest_curvature(k, 1.0).norm() / k.norm();
+            assert!(
+                (ratio - 1.0 - beta.powi(4) / 45.0).abs() < 1e-14,
+                "{beta}: {ratio}"
+            );
+        }
+    }
+
+    #[test]
+    fn chord_jacobian_matches_central_differences() {
+        let x = nodes();
+        let h = 0.13;
+        let jac = chord_jacobian(x, h);
+        let step = 1e-6;
+        for k in 0..3 {
+            for c in 0..3 {
+                let (mut p, mut m) = (x, x);
+                p[k] = x[k].perturbed(Vector3::ith(c, step));
+                m[k] = x[k].perturbed(Vector3::ith(c, -step));
+                let fd = (chord(p, h) - chord(m, h)) / (2.0 * step);
+                assert!((fd - jac[k].column(c)).norm() < 1e-9, "node {k} column {c}");
+            }
+        }
     }
 }

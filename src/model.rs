@@ -84,8 +84,9 @@ pub enum Scheme {
     #[default]
     Fd2,
     /// Quadratic elements of the rotation (an internal node at each element's
-    /// middle, condensed out) with two-point Gauss quadrature: fourth order
-    /// at the nodes (see `fe4.rs`).
+    /// middle, condensed out), the elastic energy by two-point Gauss
+    /// quadrature and the loads by Simpson: fourth order at the nodes (see
+    /// `fe4.rs`).
     Fe4,
 }
 
@@ -142,6 +143,9 @@ pub struct RodModel {
     pub base_position: Vector3<f64>,
     /// Rest curvature of element `i` (index `i - 1`), material frame [1/m].
     pub rest_curvature: Vec<Vector3<f64>>,
+    /// Fourth-order scheme: the rest curvature each element is given at its
+    /// Gauss points (`fe4::gauss_rest_curvature`; empty with `fd2`).
+    gauss_rest: Vec<Vector3<f64>>,
     /// Mean internal force `Fbar_i` of element `i` (index `i - 1`), world frame [N].
     pub mean_force: Vec<Vector3<f64>>,
     /// `Fbar_j + Fbar_{j+1}` of node `j` (index `j - 1`), the weight of `T(q_j)`.
@@ -258,6 +262,7 @@ impl RodModel {
             base: scene.base_quaternion,
             base_position: scene.base_position,
             rest_curvature,
+            gauss_rest: Vec::new(),
             mean_force,
             node_force_weight,
             node_force,
@@ -299,7 +304,8 @@ impl RodModel {
     /// Element `i`'s data for the fourth-order scheme at load scale `load`.
     /// The reactions of held points act on it as point forces beyond it.
     fn fe4_element(&self, i: usize, load: f64, reactions: &[Vector3<f64>]) -> fe4::Element {
-        let shift = load * self.distributed_force * (self.ds * fe4::GAUSS_OFFSET);
+        // The internal force changes by the distributed force along the element.
+        let half = load * self.distributed_force * (0.5 * self.ds);
         let mut mean = load * self.mean_force[i - 1];
         if !reactions.is_empty() {
             mean += self.reactions_from(reactions, i);
@@ -307,8 +313,8 @@ impl RodModel {
         fe4::Element {
             h: self.ds,
             stiffness: self.stiffness,
-            rest: self.rest_curvature[i - 1],
-            force: [mean + shift, mean - shift],
+            rest: self.gauss_rest[i - 1],
+            force: [mean + half, mean, mean - half],
         }
     }
 
@@ -343,6 +349,14 @@ impl RodModel {
     /// nodes (the load path's start) and its tip orientation (a clamped tip's
     /// start, whose quaternion is taken on the same side of the sphere).
     fn refresh_rest(&mut self) {
+        self.gauss_rest = match self.scheme {
+            Scheme::Fe4 => self
+                .rest_curvature
+                .iter()
+                .map(|k| fe4::gauss_rest_curvature(*k, self.ds))
+                .collect(),
+            Scheme::Fd2 => Vec::new(),
+        };
         let rest = self.compute_rest_shape();
         self.rest_nodes = rest.clone();
         if !self.constraints.is_empty() {
@@ -952,8 +966,8 @@ impl RodModel {
 
     /// Node positions `r_0` (the base position), `r_i = r_{i-1} + ds T_i`
     /// with the exact mean tangent.
-    /// (Fourth-order scheme: by its Gauss quadrature of the tangent, with
-    /// the internal nodes of the full loads.)
+    /// (Fourth-order scheme: by Simpson's rule on each element's tangents,
+    /// with the internal nodes of the full loads.)
     pub fn positions(&self, q: &[Quat], out: &mut [Vector3<f64>]) {
         out[0] = self.base_position;
         if self.scheme == Scheme::Fe4 {
@@ -976,7 +990,7 @@ impl RodModel {
         self.energy_at(q, 1.0)
     }
 
-    /// `Pi` at load scale `lambda` (loads and rest curvature scaled).
+    /// `Pi` at load scale `lambda` (the applied loads scaled).
     pub fn energy_at(&self, q: &[Quat], lambda: f64) -> f64 {
         let mut total = 0.0;
         let load = self.load_scale(lambda);

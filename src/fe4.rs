@@ -11,10 +11,10 @@
 //! omega = 2 vec(conj(q) p) / |q|^2
 //! ```
 //!
-//! and the element's potential is `h/2 sum_g 1/2 (omega - omega0_g)^T K (omega
-//! - omega0_g)` over the Gauss points `tau = 1/2 -+ sqrt(3)/6`, minus `h/6
-//! [F_a . T(a) + 4 F_m . T(m) + F_b . T(b)]`, the loads' work by Simpson at
-//! the nodes. Both rules are exact for cubics: order 4 at the nodes (a
+//! and the element's potential is the elastic energy `h/2 sum_g 1/2 (omega -
+//! omega0_g)^T K (omega - omega0_g)` over the Gauss points `tau = 1/2 -+
+//! sqrt(3)/6` minus the loads' work by Simpson at the nodes,
+//! `h/6 (F_a . T(a) + 4 F_m . T(m) + F_b . T(b))`. Both rules are exact for cubics: order 4 at the nodes (a
 //! Galerkin discretisation of degree 2). Positions follow from the same rule,
 //! `r_b = r_a + h/6 (T(a) + 4 T(m) + T(b))`. `omega0_g` is the curvature the
 //! exact arc of the rest curvature has at the Gauss points, so the rest
@@ -351,11 +351,11 @@ pub(crate) fn derivatives(
     }
     // The loads, node by node (their exact rule, added after the elastic
     // part's conversion above).
-    for k in 0..3 {
+    for (k, node) in nodes.iter().enumerate() {
         if mid_only && k != 1 {
             continue;
         }
-        let (_, grad, jac) = node_load(nodes[k], &load_weight(el, k));
+        let (_, grad, jac) = node_load(*node, &load_weight(el, k));
         out.grad[k] += grad;
         if jacobian {
             out.jac[k][k] += jac;

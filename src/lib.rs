@@ -28,6 +28,7 @@
 //! }
 //! ```
 
+pub mod batch;
 pub mod blocktri;
 pub mod error;
 mod fe4;
@@ -44,6 +45,7 @@ pub mod value;
 #[cfg(feature = "python")]
 mod python;
 
+pub use batch::{solve_batch, BatchControl, BatchSettings, IkSample, Sample};
 pub use error::{Error, Result};
 /// The linear algebra crate of the public types (`Vector3`, `Matrix3xX`): a
 /// user of softspine needs no dependency of their own on it.

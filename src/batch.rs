@@ -1,0 +1,472 @@
+//! Many solves at once, on every core: forward statics of many actuations or
+//! scenes, inverse kinematics of many targets, a robot's workspace.
+//!
+//! The samples are cut into chunks of [`BatchSettings::chunk`]; each chunk is
+//! solved in order by one worker with one reusable solver (its workspace
+//! allocated once), each solve warm-started from the last equilibrium of the
+//! chunk when [`BatchSettings::warm_start`] is set. Chunks run on rayon's
+//! threads. The results depend on the chunking, never on the number of
+//! threads: a batch cut at multiples of `chunk` (a distributed engine's
+//! partitions) gives the same answers to the last bit.
+//!
+//! A caller that can be interrupted (Python's Ctrl-C) or wants progress
+//! passes a [`BatchControl`]: every worker polls its stop flag through
+//! [`crate::interrupt`], and `done` counts the finished samples.
+
+use crate::error::{Error, Result};
+use crate::quat::Quat;
+use crate::robot::{IkEnding, IkOptions, InverseSolver, Robot, Strategy};
+use crate::scene::Scene;
+use crate::solver::{Settings, Solution, Solver, Status};
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
+
+/// How a batch runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BatchSettings {
+    /// Worker threads; `None`: rayon's global pool (every core).
+    pub threads: Option<usize>,
+    /// Samples a worker solves in order with one solver (the unit of work,
+    /// and the run of warm starts).
+    pub chunk: usize,
+    /// Start a solve from the chunk's last equilibrium where its actuation is
+    /// near (every section's rest turn within [`WARM_TURN`]; a warm start that
+    /// does not end converged and stable is redone from the straight rod);
+    /// when false every solve is cold.
+    pub warm_start: bool,
+    /// Keep every equilibrium's node positions and quaternions.
+    pub shapes: bool,
+}
+
+impl Default for BatchSettings {
+    fn default() -> Self {
+        BatchSettings {
+            threads: None,
+            chunk: DEFAULT_CHUNK,
+            warm_start: true,
+            shapes: false,
+        }
+    }
+}
+
+/// Samples a worker takes at a time: large enough that a chunk's set-up (a
+/// solver, its workspace) is amortised and warm starts have a run, small
+/// enough that two cores share a batch of a few hundred evenly.
+pub const DEFAULT_CHUNK: usize = 64;
+
+impl BatchSettings {
+    pub fn validate(&self) -> Result<()> {
+        if self.chunk == 0 {
+            return Err(Error::argument("chunk", "must be at least 1"));
+        }
+        if self.threads == Some(0) {
+            return Err(Error::argument("threads", "must be at least 1 (or None: every core)"));
+        }
+        Ok(())
+    }
+}
+
+/// Progress and interruption of a running batch, shared with its caller.
+#[derive(Debug, Default)]
+pub struct BatchControl {
+    /// Samples finished so far.
+    pub done: AtomicUsize,
+    /// Set by the caller to stop: the workers wind down and the batch
+    /// returns [`Error::Interrupted`] (shared: a solve's interrupt check
+    /// holds it).
+    pub stop: Arc<AtomicBool>,
+}
+
+/// One forward solve of a batch: how it ended and the tip (the shape if asked).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    pub status: Status,
+    pub stable: bool,
+    pub iterations: usize,
+    pub residual_norm: f64,
+    pub tip_position: Vector3<f64>,
+    /// Scalar first.
+    pub tip_quaternion: Quat,
+    /// Node positions and quaternions, with [`BatchSettings::shapes`].
+    pub shape: Option<(Vec<Vector3<f64>>, Vec<Quat>)>,
+}
+
+impl Sample {
+    fn of(sol: &Solution, shapes: bool) -> Sample {
+        Sample {
+            status: sol.status,
+            stable: sol.stable,
+            iterations: sol.iterations,
+            residual_norm: sol.residual_norm,
+            tip_position: sol.tip_position(),
+            tip_quaternion: *sol.quaternions.last().expect("n + 1 nodes"),
+            shape: shapes.then(|| (sol.positions.clone(), sol.quaternions.clone())),
+        }
+    }
+
+    pub fn converged(&self) -> bool {
+        self.status == Status::Converged
+    }
+}
+
+/// One inverse solve of a batch.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IkSample {
+    pub ending: IkEnding,
+    pub reached: bool,
+    pub rest_curvature: Vec<[f64; 2]>,
+    pub tip_position: Vector3<f64>,
+    pub tip_miss: f64,
+    pub iterations: usize,
+}
+
+/// Run `work` over `items` in chunks (see the module's documentation).
+/// `start` makes a chunk's state (its solver); `work` solves one item.
+fn run_chunks<T, S, R>(
+    items: &[T],
+    settings: &BatchSettings,
+    control: &BatchControl,
+    start: impl Fn() -> Result<S> + Sync,
+    work: impl Fn(&mut S, &T) -> Result<R> + Sync,
+) -> Result<Vec<R>>
+where
+    T: Sync,
+    R: Send,
+{
+    settings.validate()?;
+    let chunks = || -> Result<Vec<Vec<R>>> {
+        items
+            .par_chunks(settings.chunk)
+            .map(|chunk| {
+                let stop = Arc::clone(&control.stop);
+                crate::interrupt::with_check(
+                    move || stop.load(Ordering::Relaxed),
+                    || {
+                        let mut state = start()?;
+                        let mut out = Vec::with_capacity(chunk.len());
+                        for item in chunk {
+                            // Between samples directly (the interrupt check
+                            // inside a solve polls only every 20 ms).
+                            if control.stop.load(Ordering::Relaxed) {
+                                return Err(Error::Interrupted);
+                            }
+                            out.push(work(&mut state, item)?);
+                            control.done.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Ok(out)
+                    },
+                )
+            })
+            .collect()
+    };
+    let parts = match settings.threads {
+        None => chunks()?,
+        Some(threads) => rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| Error::argument("threads", format!("no thread pool: {e}")))?
+            .install(chunks)?,
+    };
+    if control.stop.load(Ordering::Relaxed) {
+        return Err(Error::Interrupted);
+    }
+    Ok(parts.into_iter().flatten().collect())
+}
+
+/// Largest change of a section's rest turn (curvature times section length)
+/// [rad] from the last sample for which a warm start pays. Measured on the
+/// default robot (`cargo bench --bench batch`): from a random earlier sample
+/// a warm start cost 1.2 times a cold one; along a slow sweep of the
+/// actuation warm starts within this bound save a fifth of the time.
+pub const WARM_TURN: f64 = 0.5;
+
+/// The last equilibrium of a chunk's solver and the actuation it had.
+#[derive(Default)]
+struct Last {
+    q: Option<Vec<Quat>>,
+    kappa: Vec<[f64; 2]>,
+}
+
+impl Last {
+    /// Whether a warm start from here pays for `kappa` over sections of `length`.
+    fn near(&self, kappa: &[[f64; 2]], length: f64) -> bool {
+        self.q.is_some()
+            && self.kappa.len() == kappa.len()
+            && self.kappa.iter().zip(kappa).all(|(a, b)| {
+                let d = [a[0] - b[0], a[1] - b[1]];
+                length * d[0].hypot(d[1]) < WARM_TURN
+            })
+    }
+}
+
+/// A solve from the chunk's last equilibrium where it is near (and warm
+/// starts are on), redone from the straight rod if that does not end
+/// converged and stable; else from the straight rod.
+fn solve_warm(
+    solver: &mut Solver,
+    last: &mut Last,
+    kappa: &[[f64; 2]],
+    section_length: f64,
+    warm: bool,
+) -> Result<Solution> {
+    let start = if warm && last.near(kappa, section_length) {
+        last.q.as_deref()
+    } else {
+        None
+    };
+    let mut sol = solver.solve(start)?;
+    if start.is_some() && !(sol.converged() && sol.stable) {
+        sol = solver.solve(None)?;
+    }
+    if warm && sol.converged() && sol.stable {
+        last.q = Some(sol.quaternions.clone());
+        last.kappa = kappa.to_vec();
+    }
+    Ok(sol)
+}
+
+impl Robot {
+    /// Forward statics of many actuations under one tip mass [kg]:
+    /// `actuations` holds `[kappa_x, kappa_y]` per section, sample after
+    /// sample (`sections` rows a sample).
+    pub fn forward_batch(
+        &self,
+        actuations: &[[f64; 2]],
+        tip_mass: f64,
+        settings: &BatchSettings,
+        control: &BatchControl,
+    ) -> Result<Vec<Sample>> {
+        let m = self.sections;
+        if actuations.len() % m != 0 {
+            return Err(Error::argument(
+                "actuations",
+                format!("{} rows are not whole samples of {m} sections", actuations.len()),
+            ));
+        }
+        if actuations.iter().flatten().any(|k| !k.is_finite()) {
+            let row = actuations.iter().position(|k| !k.iter().all(|v| v.is_finite()));
+            return Err(Error::argument(
+                "actuations",
+                format!("must be finite (sample {})", row.unwrap_or(0) / m),
+            ));
+        }
+        let first = self.scene(&vec![[0.0; 2]; m], tip_mass)?;
+        let solver_settings = Settings {
+            n_elements: Some(self.n_elements),
+            ..Settings::default()
+        };
+        let samples: Vec<&[[f64; 2]]> = actuations.chunks(m).collect();
+        run_chunks(
+            &samples,
+            settings,
+            control,
+            || Ok((Solver::new(&first, solver_settings.clone())?, Last::default())),
+            |(solver, last), kappa| {
+                solver.set_rest_curvature(kappa)?;
+                let section = self.section_length();
+                let sol = solve_warm(solver, last, kappa, section, settings.warm_start)?;
+                Ok(Sample::of(&sol, settings.shapes))
+            },
+        )
+    }
+
+    /// Inverse kinematics of many targets [m], each on its own (the
+    /// reference, direction and settings of `options` apply to every one);
+    /// a chunk reuses one inverse solver, warm from its last answer.
+    pub fn inverse_batch(
+        &self,
+        targets: &[Vector3<f64>],
+        options: &IkOptions,
+        settings: &BatchSettings,
+        control: &BatchControl,
+    ) -> Result<Vec<IkSample>> {
+        options.settings.validate()?;
+        if let Some(i) = targets.iter().position(|t| !t.iter().all(|v| v.is_finite())) {
+            return Err(Error::argument("targets", format!("must be finite (target {i})")));
+        }
+        let ik = &options.settings;
+        run_chunks(
+            targets,
+            settings,
+            control,
+            || match ik.strategy {
+                Strategy::Equilibrium => Ok(Some(InverseSolver::new(self, options.tip_mass)?)),
+                Strategy::Geometric => Ok(None),
+            },
+            |solver, target| {
+                let r = match solver {
+                    Some(solver) => solver.solve(
+                        *target,
+                        options.direction,
+                        options.reference.as_deref(),
+                        ik.tol,
+                        ik.max_iterations,
+                    )?,
+                    None => self.inverse(*target, options)?,
+                };
+                Ok(IkSample {
+                    ending: r.ending,
+                    reached: r.reached,
+                    rest_curvature: r.rest_curvature,
+                    tip_position: r.tip_position,
+                    tip_miss: r.tip_miss,
+                    iterations: r.iterations,
+                })
+            },
+        )
+    }
+}
+
+impl Robot {
+    /// `samples` actuations drawn uniformly over the muscles' length range
+    /// (every muscle independently, a seeded stream: the same seed gives the
+    /// same samples), as `[kappa_x, kappa_y]` per section, sample after sample.
+    pub fn random_actuations(&self, samples: usize, seed: u64) -> Result<Vec<[f64; 2]>> {
+        use rand::rngs::SmallRng;
+        use rand::{RngExt, SeedableRng};
+        self.validate()?;
+        let [lo, hi] = self.muscle_length_range;
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let mut out = Vec::with_capacity(samples * self.sections);
+        for _ in 0..samples {
+            let lengths: Vec<[f64; 3]> = (0..self.sections)
+                .map(|_| std::array::from_fn(|_| rng.random_range(lo..=hi)))
+                .collect();
+            out.extend(self.rest_curvature(&lengths)?);
+        }
+        Ok(out)
+    }
+
+    /// The workspace: the equilibria of `samples` random actuations
+    /// ([`Robot::random_actuations`]) under a tip mass [kg]; the actuations
+    /// and their samples.
+    pub fn workspace(
+        &self,
+        samples: usize,
+        tip_mass: f64,
+        seed: u64,
+        settings: &BatchSettings,
+        control: &BatchControl,
+    ) -> Result<(Vec<[f64; 2]>, Vec<Sample>)> {
+        let actuations = self.random_actuations(samples, seed)?;
+        let out = self.forward_batch(&actuations, tip_mass, settings, control)?;
+        Ok((actuations, out))
+    }
+}
+
+/// Forward statics of many scenes, each with `solver_settings` (cold
+/// solves: the scenes may differ in anything, their discretisation too).
+pub fn solve_batch(
+    scenes: &[Scene],
+    solver_settings: &Settings,
+    settings: &BatchSettings,
+    control: &BatchControl,
+) -> Result<Vec<Sample>> {
+    solver_settings.validate()?;
+    run_chunks(
+        scenes,
+        settings,
+        control,
+        || Ok(()),
+        |_, scene| {
+            let sol = crate::solve(scene, solver_settings.clone(), None)?;
+            Ok(Sample::of(&sol, settings.shapes))
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn actuations(robot: &Robot, samples: usize) -> Vec<[f64; 2]> {
+        (0..samples * robot.sections)
+            .map(|i| {
+                let phi = 0.37 * i as f64;
+                [2.0 * phi.cos(), 2.0 * (1.3 * phi).sin()]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_forward_batch_is_the_one_by_one_forward_solve() {
+        let robot = Robot::default();
+        let k = actuations(&robot, 10);
+        let cold = BatchSettings {
+            warm_start: false,
+            chunk: 3,
+            ..BatchSettings::default()
+        };
+        let batch = robot
+            .forward_batch(&k, 0.03, &cold, &BatchControl::default())
+            .unwrap();
+        for (sample, kappa) in batch.iter().zip(k.chunks(robot.sections)) {
+            let scene = robot.scene(kappa, 0.03).unwrap();
+            let settings = Settings {
+                n_elements: Some(robot.n_elements),
+                ..Settings::default()
+            };
+            let one = crate::solve(&scene, settings, None).unwrap();
+            assert!(sample.converged() && sample.stable);
+            assert_eq!(sample.tip_position, one.tip_position());
+        }
+        // Warm starts land on the same equilibria within the tolerance.
+        let warm = robot
+            .forward_batch(&k, 0.03, &BatchSettings::default(), &BatchControl::default())
+            .unwrap();
+        for (a, b) in warm.iter().zip(&batch) {
+            assert!((a.tip_position - b.tip_position).norm() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn the_answers_do_not_depend_on_the_number_of_threads() {
+        let robot = Robot::default();
+        let k = actuations(&robot, 40);
+        let run = |threads| {
+            let settings = BatchSettings {
+                threads: Some(threads),
+                chunk: 7,
+                ..BatchSettings::default()
+            };
+            robot
+                .forward_batch(&k, 0.0, &settings, &BatchControl::default())
+                .unwrap()
+        };
+        assert_eq!(run(1), run(2));
+    }
+
+    #[test]
+    fn bad_batches_are_refused_by_name() {
+        let robot = Robot::default();
+        let control = BatchControl::default();
+        let mut k = actuations(&robot, 2);
+        let e = robot
+            .forward_batch(&k[1..], 0.0, &BatchSettings::default(), &control)
+            .unwrap_err();
+        assert!(e.to_string().contains("actuations"), "{e}");
+        k[robot.sections + 1][0] = f64::NAN;
+        let e = robot
+            .forward_batch(&k, 0.0, &BatchSettings::default(), &control)
+            .unwrap_err();
+        assert!(e.to_string().contains("sample 1"), "{e}");
+        let zero = BatchSettings {
+            chunk: 0,
+            ..BatchSettings::default()
+        };
+        let e = robot.forward_batch(&k[..robot.sections], 0.0, &zero, &control);
+        assert!(e.unwrap_err().to_string().contains("chunk"));
+    }
+
+    #[test]
+    fn a_stopped_batch_is_interrupted() {
+        let robot = Robot::default();
+        let k = actuations(&robot, 20);
+        let control = BatchControl::default();
+        control.stop.store(true, Ordering::Relaxed);
+        let e = robot.forward_batch(&k, 0.0, &BatchSettings::default(), &control);
+        assert!(matches!(e, Err(Error::Interrupted)));
+    }
+}

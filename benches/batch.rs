@@ -51,7 +51,10 @@ fn batch(c: &mut Criterion) {
             })
         })
         .collect();
-    for (label, warm_start) in [("path_all_cores_cold", false), ("path_all_cores_warm", true)] {
+    for (label, warm_start) in [
+        ("path_all_cores_cold", false),
+        ("path_all_cores_warm", true),
+    ] {
         let settings = BatchSettings {
             warm_start,
             ..BatchSettings::default()

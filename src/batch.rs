@@ -62,7 +62,10 @@ impl BatchSettings {
             return Err(Error::argument("chunk", "must be at least 1"));
         }
         if self.threads == Some(0) {
-            return Err(Error::argument("threads", "must be at least 1 (or None: every core)"));
+            return Err(Error::argument(
+                "threads",
+                "must be at least 1 (or None: every core)",
+            ));
         }
         Ok(())
     }
@@ -227,7 +230,39 @@ fn solve_warm(
     Ok(sol)
 }
 
+/// A chunk's forward solver and its last equilibrium.
+type ChunkState = (Solver, Last);
+
 impl Robot {
+    /// What makes a chunk's state: a forward solver of this robot (its
+    /// default discretisation) under `tip_mass`.
+    fn chunk_solver(&self, tip_mass: f64) -> Result<impl Fn() -> Result<ChunkState> + Sync> {
+        let scene = self.scene(&vec![[0.0; 2]; self.sections], tip_mass)?;
+        let settings = Settings {
+            n_elements: Some(self.n_elements),
+            ..Settings::default()
+        };
+        Ok(move || Ok((Solver::new(&scene, settings.clone())?, Last::default())))
+    }
+
+    /// One forward sample of a chunk.
+    fn forward_sample(
+        &self,
+        (solver, last): &mut ChunkState,
+        kappa: &[[f64; 2]],
+        settings: &BatchSettings,
+    ) -> Result<Sample> {
+        solver.set_rest_curvature(kappa)?;
+        let sol = solve_warm(
+            solver,
+            last,
+            kappa,
+            self.section_length(),
+            settings.warm_start,
+        )?;
+        Ok(Sample::of(&sol, settings.shapes))
+    }
+
     /// Forward statics of many actuations under one tip mass [kg]:
     /// `actuations` holds `[kappa_x, kappa_y]` per section, sample after
     /// sample (`sections` rows a sample).
@@ -242,34 +277,26 @@ impl Robot {
         if actuations.len() % m != 0 {
             return Err(Error::argument(
                 "actuations",
-                format!("{} rows are not whole samples of {m} sections", actuations.len()),
+                format!(
+                    "{} rows are not whole samples of {m} sections",
+                    actuations.len()
+                ),
             ));
         }
         if actuations.iter().flatten().any(|k| !k.is_finite()) {
-            let row = actuations.iter().position(|k| !k.iter().all(|v| v.is_finite()));
+            let row = actuations
+                .iter()
+                .position(|k| !k.iter().all(|v| v.is_finite()));
             return Err(Error::argument(
                 "actuations",
                 format!("must be finite (sample {})", row.unwrap_or(0) / m),
             ));
         }
-        let first = self.scene(&vec![[0.0; 2]; m], tip_mass)?;
-        let solver_settings = Settings {
-            n_elements: Some(self.n_elements),
-            ..Settings::default()
-        };
         let samples: Vec<&[[f64; 2]]> = actuations.chunks(m).collect();
-        run_chunks(
-            &samples,
-            settings,
-            control,
-            || Ok((Solver::new(&first, solver_settings.clone())?, Last::default())),
-            |(solver, last), kappa| {
-                solver.set_rest_curvature(kappa)?;
-                let section = self.section_length();
-                let sol = solve_warm(solver, last, kappa, section, settings.warm_start)?;
-                Ok(Sample::of(&sol, settings.shapes))
-            },
-        )
+        let start = self.chunk_solver(tip_mass)?;
+        run_chunks(&samples, settings, control, start, |state, kappa| {
+            self.forward_sample(state, kappa, settings)
+        })
     }
 
     /// Inverse kinematics of many targets [m], each on its own (the
@@ -283,8 +310,14 @@ impl Robot {
         control: &BatchControl,
     ) -> Result<Vec<IkSample>> {
         options.settings.validate()?;
-        if let Some(i) = targets.iter().position(|t| !t.iter().all(|v| v.is_finite())) {
-            return Err(Error::argument("targets", format!("must be finite (target {i})")));
+        if let Some(i) = targets
+            .iter()
+            .position(|t| !t.iter().all(|v| v.is_finite()))
+        {
+            return Err(Error::argument(
+                "targets",
+                format!("must be finite (target {i})"),
+            ));
         }
         let ik = &options.settings;
         run_chunks(
@@ -320,28 +353,37 @@ impl Robot {
 }
 
 impl Robot {
-    /// `samples` actuations drawn uniformly over the muscles' length range
-    /// (every muscle independently, a seeded stream: the same seed gives the
-    /// same samples), as `[kappa_x, kappa_y]` per section, sample after sample.
-    pub fn random_actuations(&self, samples: usize, seed: u64) -> Result<Vec<[f64; 2]>> {
+    /// Sample `index` of the seeded random actuations: every muscle's length
+    /// uniform over its range, as `[kappa_x, kappa_y]` per section. Each
+    /// sample has its own stream (from the seed and its index), so a batch
+    /// draws its samples in its workers, in any order, and a part of a batch
+    /// draws the same samples as the whole.
+    pub fn random_actuation(&self, seed: u64, index: u64) -> Result<Vec<[f64; 2]>> {
         use rand::rngs::SmallRng;
         use rand::{RngExt, SeedableRng};
-        self.validate()?;
         let [lo, hi] = self.muscle_length_range;
-        let mut rng = SmallRng::seed_from_u64(seed);
+        // Distinct streams for distinct (seed, index) pairs.
+        let mut rng = SmallRng::seed_from_u64(seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let lengths: Vec<[f64; 3]> = (0..self.sections)
+            .map(|_| std::array::from_fn(|_| rng.random_range(lo..=hi)))
+            .collect();
+        self.rest_curvature(&lengths)
+    }
+
+    /// `samples` random actuations ([`Robot::random_actuation`] of indices
+    /// `0..samples`), sample after sample.
+    pub fn random_actuations(&self, samples: usize, seed: u64) -> Result<Vec<[f64; 2]>> {
+        self.validate()?;
         let mut out = Vec::with_capacity(samples * self.sections);
-        for _ in 0..samples {
-            let lengths: Vec<[f64; 3]> = (0..self.sections)
-                .map(|_| std::array::from_fn(|_| rng.random_range(lo..=hi)))
-                .collect();
-            out.extend(self.rest_curvature(&lengths)?);
+        for i in 0..samples as u64 {
+            out.extend(self.random_actuation(seed, i)?);
         }
         Ok(out)
     }
 
     /// The workspace: the equilibria of `samples` random actuations
-    /// ([`Robot::random_actuations`]) under a tip mass [kg]; the actuations
-    /// and their samples.
+    /// ([`Robot::random_actuation`], drawn by the workers) under a tip mass
+    /// [kg]; the actuations, sample after sample, and their samples.
     pub fn workspace(
         &self,
         samples: usize,
@@ -350,9 +392,20 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<(Vec<[f64; 2]>, Vec<Sample>)> {
-        let actuations = self.random_actuations(samples, seed)?;
-        let out = self.forward_batch(&actuations, tip_mass, settings, control)?;
-        Ok((actuations, out))
+        let indices: Vec<u64> = (0..samples as u64).collect();
+        let start = self.chunk_solver(tip_mass)?;
+        let out = run_chunks(&indices, settings, control, start, |state, index| {
+            let kappa = self.random_actuation(seed, *index)?;
+            let sample = self.forward_sample(state, &kappa, settings)?;
+            Ok((kappa, sample))
+        })?;
+        let mut actuations = Vec::with_capacity(samples * self.sections);
+        let mut results = Vec::with_capacity(samples);
+        for (kappa, sample) in out {
+            actuations.extend(kappa);
+            results.push(sample);
+        }
+        Ok((actuations, results))
     }
 }
 
@@ -414,7 +467,12 @@ mod tests {
         }
         // Warm starts land on the same equilibria within the tolerance.
         let warm = robot
-            .forward_batch(&k, 0.03, &BatchSettings::default(), &BatchControl::default())
+            .forward_batch(
+                &k,
+                0.03,
+                &BatchSettings::default(),
+                &BatchControl::default(),
+            )
             .unwrap();
         for (a, b) in warm.iter().zip(&batch) {
             assert!((a.tip_position - b.tip_position).norm() < 1e-9);

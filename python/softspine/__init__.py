@@ -20,6 +20,7 @@ from typing import Any
 import numpy.typing as npt
 
 from . import trajectories
+from .batch import BatchResult, IkBatchResult
 from ._core import (
     Accuracy,
     IkResult,
@@ -30,8 +31,10 @@ from ._core import (
     Scene,
     Settings,
     Solution,
+    Solver,
     SolverError,
     __version__,
+    solve_batch,
 )
 from ._core import solve as _solve
 from .scenes import load_scene
@@ -39,6 +42,8 @@ from .status import IkEnding, Status
 
 __all__ = [
     "Accuracy",
+    "BatchResult",
+    "IkBatchResult",
     "IkEnding",
     "IkResult",
     "IkSettings",
@@ -48,10 +53,12 @@ __all__ = [
     "Scene",
     "Settings",
     "Solution",
+    "Solver",
     "SolverError",
     "Status",
     "load_scene",
     "solve",
+    "solve_batch",
     "trajectories",
     "__version__",
 ]

@@ -5,11 +5,13 @@ Checked against the built module by ``python -m mypy.stubtest softspine._core``
 """
 
 from os import PathLike
+from collections.abc import Callable, Sequence
 from typing import Any, TypeAlias, final
 
 import numpy as np
 import numpy.typing as npt
 
+from .batch import BatchResult, IkBatchResult
 from .status import IkEnding, Status
 
 __version__: str
@@ -23,6 +25,7 @@ __all__ = [
     "Scene",
     "Settings",
     "Solution",
+    "Solver",
     "SolverError",
     "_IK_ENDING_NAMES",
     "_STATUS_NAMES",
@@ -30,6 +33,7 @@ __all__ = [
     "jacobian",
     "residual",
     "solve",
+    "solve_batch",
     "trajectory_points",
 ]
 _STATUS_NAMES: list[str]
@@ -213,7 +217,65 @@ class Robot:
     def inflation_times(self, muscle_lengths: npt.ArrayLike) -> _Array: ...
     def muscle_lengths_from_times(self, times: npt.ArrayLike) -> _Array: ...
     def within_bounds(self, rest_curvature: npt.ArrayLike) -> bool: ...
-    def forward(self, rest_curvature: npt.ArrayLike, load: float = 0.0) -> Solution: ...
+    def forward(
+        self,
+        rest_curvature: npt.ArrayLike,
+        load: float = 0.0,
+        initial: Solution | npt.ArrayLike | None = None,
+    ) -> Solution:
+        """The loaded equilibrium of an actuation (m, 2) under a tip mass (kg),
+        from the straight rod or warm from ``initial`` (a Solution of this
+        robot or its quaternions (n + 1, 4))."""
+    def forward_batch(
+        self,
+        actuations: npt.ArrayLike,
+        load: float = 0.0,
+        *,
+        shapes: bool | None = None,
+        warm_start: bool | None = None,
+        threads: int | None = None,
+        chunk: int | None = None,
+        progress: bool | Callable[[int, int], object] | None = None,
+    ) -> BatchResult:
+        """Forward statics of many actuations (samples, m, 2) under one tip
+        mass, in Rust on every core without the GIL.
+
+        ``shapes``: keep every node's position and quaternion (default False).
+        ``warm_start``: start a solve from the last equilibrium of its chunk
+        where the actuation is near (default True; random samples are solved
+        cold). ``threads``: worker threads (default every core). ``chunk``:
+        samples a worker solves in order (default 64; the answers depend on
+        it, never on the thread count). ``progress``: None (a bar on a
+        terminal after 2 s), True, False or ``progress(done, total)``.
+        Ctrl-C stops the batch (KeyboardInterrupt)."""
+    def workspace(
+        self,
+        samples: int,
+        load: float = 0.0,
+        *,
+        seed: int = 0,
+        shapes: bool | None = None,
+        threads: int | None = None,
+        chunk: int | None = None,
+        progress: bool | Callable[[int, int], object] | None = None,
+    ) -> BatchResult:
+        """The equilibria of ``samples`` random actuations (each muscle's
+        length uniform over its range, seeded) under a tip mass: a
+        ``BatchResult`` with ``actuations``. Keywords as ``forward_batch``."""
+    def inverse_batch(
+        self,
+        targets: npt.ArrayLike,
+        load: float = 0.0,
+        reference: npt.ArrayLike | None = None,
+        direction: npt.ArrayLike | None = None,
+        settings: IkSettings | dict[str, Any] | None = None,
+        *,
+        threads: int | None = None,
+        chunk: int | None = None,
+        progress: bool | Callable[[int, int], object] | None = None,
+    ) -> IkBatchResult:
+        """Load-aware inverse kinematics of many targets (samples, 3), each on
+        its own (as ``inverse``), on every core. Keywords as ``forward_batch``."""
     def inverse_solver(self, load: float = 0.0) -> InverseSolver: ...
     def inverse(
         self,
@@ -240,6 +302,49 @@ class Robot:
         max_iterations: int | None = None,
     ) -> list[IkResult]: ...
     def __reduce__(self) -> tuple[type[Robot], tuple[dict[str, Any]]]: ...
+
+@final
+class Solver:
+    """A reusable solver of one scene (its workspace allocated once): set the
+    actuation or the tip load, solve warm from the last equilibrium."""
+
+    def __new__(
+        cls,
+        scene: Scene | dict[str, Any],
+        settings: Settings | dict[str, Any] | None = None,
+        *,
+        n_elements: int | None = None,
+        method: str | None = None,
+        scheme: str | None = None,
+        residual_tol: float | None = None,
+        max_iterations: int | None = None,
+    ) -> Solver: ...
+    def solve(
+        self,
+        initial: Solution | npt.ArrayLike | None = None,
+        *,
+        warm: bool = True,
+        check: bool = False,
+    ) -> Solution:
+        """Solve from ``initial`` (a Solution or quaternions (n + 1, 4)) or,
+        without it, from the last converged, stable equilibrium of this solver
+        (``warm=True``; the straight rod before there is one) or the straight
+        rod (``warm=False``). ``check=True`` raises ``SolverError`` unless the
+        solve converged."""
+    def set_rest_curvature(self, rest_curvature: npt.ArrayLike) -> None:
+        """The actuation, ``[kappa_x, kappa_y]`` per section (m, 2), 1/m."""
+    def set_tip_force(self, force: npt.ArrayLike) -> None:
+        """The dead force at the tip, world frame, N."""
+    def set_tip_moment(self, moment: npt.ArrayLike) -> None:
+        """The dead moment at the tip, world frame, N m."""
+    def reset(self) -> None:
+        """Forget the last equilibrium (the next solve starts straight)."""
+    @property
+    def scene(self) -> Scene: ...
+    @property
+    def n_elements(self) -> int: ...
+    @property
+    def tip_force(self) -> _Array: ...
 
 @final
 class PaperSettings:
@@ -324,6 +429,23 @@ def solve(
     check: bool = False,
     paper: PaperSettings | dict[str, Any] | None = None,
 ) -> Solution: ...
+def solve_batch(
+    scenes: Sequence[Scene | dict[str, Any]],
+    settings: Settings | dict[str, Any] | None = None,
+    *,
+    n_elements: int | None = None,
+    method: str | None = None,
+    scheme: str | None = None,
+    residual_tol: float | None = None,
+    max_iterations: int | None = None,
+    shapes: bool | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: bool | Callable[[int, int], object] | None = None,
+) -> BatchResult:
+    """Solve many scenes (cold, each with ``settings``) in Rust on every core.
+    Keywords as ``Robot.forward_batch``; ``shapes`` only when every scene has
+    the same number of nodes."""
 def residual(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def jacobian(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def trajectory_points(name: str, points: int = 60) -> _Array: ...

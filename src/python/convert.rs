@@ -517,3 +517,31 @@ pub(super) fn load_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
 pub(super) fn points_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
     int_arg("points", obj)
 }
+
+pub(super) fn samples_count(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    int_arg("samples", obj)
+}
+
+/// A batch of samples, each `per` rows of `N` numbers: an array-like of
+/// shape (count, per, N), as the rows of all samples, one after the other.
+pub(super) fn samples_arg<const N: usize>(
+    name: &str,
+    obj: &Bound<'_, PyAny>,
+    per: usize,
+) -> PyResult<Vec<[f64; N]>> {
+    let py = obj.py();
+    let np = py.import("numpy")?;
+    let array = np.call_method1("asarray", (obj, "float64")).map_err(|e| {
+        PyValueError::new_err(format!("{name}: not an array of numbers ({})", e.value(py)))
+    })?;
+    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    if shape.len() != 3 || shape[1] != per || shape[2] != N {
+        return Err(PyValueError::new_err(format!(
+            "{name}: expected shape (samples, {per}, {N}), got {shape:?}"
+        )));
+    }
+    rows_of::<N>(
+        name,
+        &array.call_method1("reshape", ((shape[0] * per) as i64, N as i64))?,
+    )
+}

@@ -73,3 +73,69 @@ pub(super) fn raise_interrupt<T>(result: crate::Result<T>, pending: &PendingSign
         other => other.map_err(PyErr::from),
     }
 }
+
+/// Run a batch without the GIL on a scoped worker (which spreads it over
+/// rayon's threads) while this thread, every [`interrupt::POLL_INTERVAL`],
+/// checks Python's signals (a handler's exception stops the batch through
+/// `control.stop` and is raised) and reports `control.done` of `total` to
+/// `progress`, once more at the end. An exception in `progress` stops the
+/// batch and is raised.
+pub(super) fn detach_batch<T: Send>(
+    py: Python<'_>,
+    control: &crate::BatchControl,
+    total: usize,
+    progress: Option<&Bound<'_, PyAny>>,
+    work: impl FnOnce() -> crate::Result<T> + Send,
+) -> PyResult<T> {
+    use std::sync::atomic::Ordering;
+    let progress = progress.map(|p| p.clone().unbind());
+    let mut raised: Option<PyErr> = None;
+    let report = |done: usize, raised: &mut Option<PyErr>| {
+        Python::attach(|py| {
+            let outcome = py.check_signals().and_then(|()| match &progress {
+                Some(p) => p.call1(py, (done, total)).map(|_| ()),
+                None => Ok(()),
+            });
+            if let Err(e) = outcome {
+                raised.get_or_insert(e);
+                control.stop.store(true, Ordering::Relaxed);
+            }
+        })
+    };
+    let result = py.detach(|| {
+        std::thread::scope(|scope| {
+            let (sender, receiver) = std::sync::mpsc::channel();
+            scope.spawn(move || {
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+                let _ = sender.send(result);
+            });
+            loop {
+                match receiver.recv_timeout(interrupt::POLL_INTERVAL) {
+                    Ok(result) => return result,
+                    Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                        if raised.is_none() {
+                            report(control.done.load(Ordering::Relaxed), &mut raised);
+                        }
+                    }
+                    Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                        unreachable!("the worker sends before it ends, even after a panic")
+                    }
+                }
+            }
+        })
+    });
+    let result = match result {
+        Ok(result) => result,
+        Err(panic) => std::panic::resume_unwind(panic),
+    };
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    if result.is_ok() {
+        report(total, &mut raised);
+        if let Some(e) = raised {
+            return Err(e);
+        }
+    }
+    result.map_err(PyErr::from)
+}

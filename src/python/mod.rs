@@ -6,6 +6,7 @@
 //! readers every argument goes through and `detach` the GIL-free, interruptible
 //! run of Rust work.
 
+mod batch;
 mod convert;
 mod detach;
 mod robot;
@@ -13,6 +14,7 @@ mod scene;
 mod settings;
 mod solution;
 mod solve;
+mod solver;
 
 use crate::Error;
 use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyMemoryError, PyValueError};
@@ -48,7 +50,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<settings::PyAccuracy>()?;
     m.add_class::<settings::PyIkSettings>()?;
     m.add_class::<solution::PySolution>()?;
+    m.add_class::<solver::PySolver>()?;
     m.add_function(wrap_pyfunction!(solve::solve, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::solve_batch, m)?)?;
     m.add_function(wrap_pyfunction!(solve::residual, m)?)?;
     m.add_function(wrap_pyfunction!(solve::jacobian, m)?)?;
     m.add("SolverError", m.py().get_type::<SolverError>())?;

@@ -1,10 +1,11 @@
 //! `Robot`, its inverse kinematics (`InverseSolver`, `IkResult`) and the seed's trajectories.
 
+use super::batch::{batch_result, batch_settings, ik_batch_result, run_batch};
 use super::convert::*;
 use super::detach::detach_solve;
 use super::scene::PyScene;
 use super::settings::ik_settings_arg;
-use super::solution::PySolution;
+use super::solution::{quaternions_arg, PySolution};
 use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot};
 use crate::{Scene, Settings};
 use nalgebra::Vector3;
@@ -386,13 +387,16 @@ impl PyRobot {
             .within_bounds(&rows_arg::<2>("rest_curvature", rest_curvature)?))
     }
 
-    /// Forward statics: the loaded equilibrium of an actuation.
-    #[pyo3(signature = (rest_curvature, load=0.0))]
+    /// Forward statics: the loaded equilibrium of an actuation, from the
+    /// straight rod or from ``initial`` (a Solution of this robot, or its
+    /// quaternions (n + 1, 4)): a warm start.
+    #[pyo3(signature = (rest_curvature, load=0.0, initial=None))]
     fn forward(
         &self,
         py: Python<'_>,
         rest_curvature: &Bound<'_, PyAny>,
         #[pyo3(from_py_with = load_arg)] load: f64,
+        initial: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PySolution> {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
         let scene = self.inner.scene(&k, load)?;
@@ -400,9 +404,101 @@ impl PyRobot {
             n_elements: Some(self.inner.n_elements),
             ..Settings::default()
         };
+        let initial = given(initial)
+            .map(|q| quaternions_arg("initial", &q))
+            .transpose()?;
         let long = self.inner.has_long_passes();
-        let sol = detach_solve(py, long, move || crate::solve(&scene, settings, None))?;
+        let sol = detach_solve(py, long, move || {
+            crate::solve(&scene, settings, initial.as_deref())
+        })?;
         Ok(PySolution { inner: sol })
+    }
+
+    /// Forward statics of many actuations (samples, m, 2) under one tip
+    /// mass, on every core. See the Python documentation of
+    /// ``Robot.forward_batch``.
+    #[pyo3(signature = (actuations, load=0.0, *, shapes=None, warm_start=None, threads=None, chunk=None, progress=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn forward_batch<'py>(
+        &self,
+        py: Python<'py>,
+        actuations: &Bound<'py, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+        shapes: Option<&Bound<'py, PyAny>>,
+        warm_start: Option<&Bound<'py, PyAny>>,
+        threads: Option<&Bound<'py, PyAny>>,
+        chunk: Option<&Bound<'py, PyAny>>,
+        progress: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let m = self.inner.sections;
+        let k = samples_arg::<2>("actuations", actuations, m)?;
+        let settings = batch_settings(threads, chunk, warm_start, shapes)?;
+        let robot = &self.inner;
+        let samples = run_batch(py, k.len() / m, progress, |control| {
+            robot.forward_batch(&k, load, &settings, control)
+        })?;
+        batch_result(py, &samples, Some((&k, m)))
+    }
+
+    /// The equilibria of ``samples`` random actuations (muscle lengths
+    /// uniform over their range, seeded) under one tip mass, on every core.
+    #[pyo3(signature = (samples, load=0.0, *, seed=0, shapes=None, threads=None, chunk=None, progress=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn workspace<'py>(
+        &self,
+        py: Python<'py>,
+        #[pyo3(from_py_with = samples_count)] samples: usize,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+        seed: u64,
+        shapes: Option<&Bound<'py, PyAny>>,
+        threads: Option<&Bound<'py, PyAny>>,
+        chunk: Option<&Bound<'py, PyAny>>,
+        progress: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let settings = batch_settings(threads, chunk, None, shapes)?;
+        let robot = &self.inner;
+        let (k, out) = run_batch(py, samples, progress, |control| {
+            robot.workspace(samples, load, seed, &settings, control)
+        })?;
+        batch_result(py, &out, Some((&k, robot.sections)))
+    }
+
+    /// Load-aware inverse kinematics of many targets (samples, 3), each on
+    /// its own, on every core. See ``Robot.inverse_batch``.
+    #[pyo3(signature = (targets, load=0.0, reference=None, direction=None, settings=None, *, threads=None, chunk=None, progress=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_batch<'py>(
+        &self,
+        py: Python<'py>,
+        targets: &Bound<'py, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+        reference: Option<&Bound<'py, PyAny>>,
+        direction: Option<&Bound<'py, PyAny>>,
+        settings: Option<&Bound<'py, PyAny>>,
+        threads: Option<&Bound<'py, PyAny>>,
+        chunk: Option<&Bound<'py, PyAny>>,
+        progress: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let targets: Vec<Vector3<f64>> = rows_of::<3>("targets", targets)?
+            .into_iter()
+            .map(Vector3::from)
+            .collect();
+        let options = IkOptions {
+            tip_mass: load,
+            reference: given(reference)
+                .map(|r| rows_arg::<2>("reference", &r))
+                .transpose()?,
+            direction: given(direction)
+                .map(|d| vec3_arg("direction", &d))
+                .transpose()?,
+            settings: ik_settings_arg(settings, &[])?,
+        };
+        let batch = batch_settings(threads, chunk, None, None)?;
+        let robot = &self.inner;
+        let samples = run_batch(py, targets.len(), progress, |control| {
+            robot.inverse_batch(&targets, &options, &batch, control)
+        })?;
+        ik_batch_result(py, &samples, robot.sections)
     }
 
     /// A reusable inverse solver for one tip mass (warm starts between calls).

@@ -36,29 +36,18 @@ pub(super) fn solve(
     paper: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PySolution> {
     let scene = scene_arg(scene)?;
-    let mut settings = settings_arg(py, settings)?;
-    // The keywords override the settings, read by the core's `Settings::set`.
-    let keywords = PyDict::new(py);
-    for (key, value) in [
-        ("n_elements", n_elements),
-        ("method", method),
-        ("scheme", scheme),
-        ("residual_tol", residual_tol),
-        ("max_iterations", max_iterations),
-        ("paper", paper),
-    ] {
-        match given(value) {
-            Some(p) if key == "paper" && p.is_instance_of::<PyPaperSettings>() => {
-                settings.paper = p.cast::<PyPaperSettings>()?.borrow().inner.clone();
-            }
-            Some(v) => keywords.set_item(key, v)?,
-            None => {}
-        }
-    }
-    for (key, value) in entries(&to_value(keywords.as_any(), &Path::input("settings"))?) {
-        settings.set(key, value)?;
-    }
-    settings.validate()?;
+    let settings = settings_with(
+        py,
+        settings,
+        &[
+            ("n_elements", n_elements),
+            ("method", method),
+            ("scheme", scheme),
+            ("residual_tol", residual_tol),
+            ("max_iterations", max_iterations),
+            ("paper", paper),
+        ],
+    )?;
     let accuracy = accuracy_arg(accuracy, tol, refine)?;
     let solution = match accuracy {
         None => {
@@ -86,6 +75,31 @@ pub(super) fn solve(
     };
     let solution = if check { solution.check()? } else { solution };
     Ok(PySolution { inner: solution })
+}
+
+/// The `settings` argument with keywords over its fields (read by the core's
+/// `Settings::set`), validated.
+pub(super) fn settings_with(
+    py: Python<'_>,
+    settings: Option<&Bound<'_, PyAny>>,
+    overrides: &[(&str, Option<&Bound<'_, PyAny>>)],
+) -> PyResult<Settings> {
+    let mut settings = settings_arg(py, settings)?;
+    let keywords = PyDict::new(py);
+    for (key, value) in overrides {
+        match given(*value) {
+            Some(p) if *key == "paper" && p.is_instance_of::<PyPaperSettings>() => {
+                settings.paper = p.cast::<PyPaperSettings>()?.borrow().inner.clone();
+            }
+            Some(v) => keywords.set_item(key, v)?,
+            None => {}
+        }
+    }
+    for (key, value) in entries(&to_value(keywords.as_any(), &Path::input("settings"))?) {
+        settings.set(key, value)?;
+    }
+    settings.validate()?;
+    Ok(settings)
 }
 
 /// The `settings` argument: a `Settings`, a dict of its fields or None (the defaults).

@@ -123,6 +123,32 @@ impl Solver {
         Ok(())
     }
 
+    /// Change the dead load at the tip (force [N] and moment [N m], world
+    /// frame) keeping the workspace: the next `solve` starts wherever it is
+    /// told. The discretised loads are rebuilt (O(n)).
+    pub fn set_tip_load(&mut self, force: Vector3<f64>, moment: Vector3<f64>) -> Result<()> {
+        for (name, v) in [("tip_force", force), ("tip_moment", moment)] {
+            if let Some(c) = v.iter().position(|x| !x.is_finite()) {
+                return Err(Error::argument(
+                    &format!("{name}[{c}]"),
+                    format!("must be finite, got {}", v[c]),
+                ));
+            }
+        }
+        let mut scene = self.scene.clone();
+        scene.tip_force = force;
+        scene.tip_moment = moment;
+        scene.check_derived()?;
+        self.model = RodModel::new(&scene, self.model.n).with_scheme(self.model.scheme);
+        self.scene = scene;
+        Ok(())
+    }
+
+    /// The scene as the solver holds it (with the last actuation and tip load).
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
     /// Solve from `initial` (node quaternions `q_0..q_n`; `q_0` is replaced by the
     /// base) or from the straight rod (a clamped tip: the rod turning uniformly to
     /// the tip orientation). Errors only on invalid `initial`; otherwise the

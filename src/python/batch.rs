@@ -1,0 +1,199 @@
+//! Batches: `solve_batch` here, `Robot.forward_batch`, `inverse_batch` and
+//! `workspace` in `robot.rs`. The results become the dataclasses of
+//! `softspine.batch` (arrays, one row a sample).
+
+use super::convert::*;
+use super::detach::detach_batch;
+use super::scene::scene_arg;
+use super::solve::settings_with;
+use crate::{BatchControl, BatchSettings, IkSample, Sample, Status};
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::IntoPyArray;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+/// The batch keywords every batch call takes, read into the core's settings.
+pub(super) fn batch_settings(
+    threads: Option<&Bound<'_, PyAny>>,
+    chunk: Option<&Bound<'_, PyAny>>,
+    warm_start: Option<&Bound<'_, PyAny>>,
+    shapes: Option<&Bound<'_, PyAny>>,
+) -> PyResult<BatchSettings> {
+    let mut s = BatchSettings::default();
+    if let Some(t) = given(threads) {
+        s.threads = Some(int_arg("threads", &t)?);
+    }
+    if let Some(c) = given(chunk) {
+        s.chunk = int_arg("chunk", &c)?;
+    }
+    if let Some(w) = given(warm_start) {
+        s.warm_start = bool_arg("warm_start", &w)?;
+    }
+    if let Some(x) = given(shapes) {
+        s.shapes = bool_arg("shapes", &x)?;
+    }
+    s.validate()?;
+    Ok(s)
+}
+
+/// `progress`: None (a bar on a terminal once the batch has run 2 s), True
+/// (a bar from the start), False (none) or a callable `progress(done, total)`.
+pub(super) fn progress_arg<'py>(
+    py: Python<'py>,
+    progress: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    let bar = || py.import("softspine.batch")?.getattr("TextProgress");
+    match progress {
+        None => Ok(Some(bar()?.call0()?)),
+        Some(p) if p.is_none() => Ok(Some(bar()?.call0()?)),
+        Some(p) if p.is_callable() => Ok(Some(p.clone())),
+        Some(p) => {
+            if bool_arg("progress", p)? {
+                let kwargs = PyDict::new(py);
+                kwargs.set_item("after", 0.0)?;
+                kwargs.set_item("always", true)?;
+                Ok(Some(bar()?.call((), Some(&kwargs))?))
+            } else {
+                Ok(None)
+            }
+        }
+    }
+}
+
+/// Run `work` with a fresh [`BatchControl`] (see `detach_batch`).
+pub(super) fn run_batch<T: Send>(
+    py: Python<'_>,
+    total: usize,
+    progress: Option<&Bound<'_, PyAny>>,
+    work: impl FnOnce(&BatchControl) -> crate::Result<T> + Send,
+) -> PyResult<T> {
+    let progress = progress_arg(py, progress)?;
+    let control = BatchControl::default();
+    detach_batch(py, &control, total, progress.as_ref(), || work(&control))
+}
+
+/// An array of names (`numpy.str_`) from the core's names.
+fn names<'py>(py: Python<'py>, names: Vec<&'static str>) -> PyResult<Bound<'py, PyAny>> {
+    py.import("numpy")?
+        .call_method1("asarray", (PyList::new(py, names)?, "U"))
+}
+
+/// The `softspine.batch.BatchResult` of forward samples; `actuations` the
+/// rest curvature of a robot's samples, `sections` rows each.
+pub(super) fn batch_result<'py>(
+    py: Python<'py>,
+    samples: &[Sample],
+    actuations: Option<(&[[f64; 2]], usize)>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let count = samples.len();
+    let d = PyDict::new(py);
+    let tips = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].tip_position[c]);
+    let quats = Array2::from_shape_fn((count, 4), |(i, c)| samples[i].tip_quaternion.to_array()[c]);
+    d.set_item("tip_positions", tips.into_pyarray(py))?;
+    d.set_item("tip_quaternions", quats.into_pyarray(py))?;
+    let status: Vec<&'static str> = samples.iter().map(|s| Status::name(s.status)).collect();
+    d.set_item("status", names(py, status)?)?;
+    let stable = Array1::from_iter(samples.iter().map(|s| s.stable));
+    d.set_item("stable", stable.into_pyarray(py))?;
+    let iterations = Array1::from_iter(samples.iter().map(|s| s.iterations as i64));
+    d.set_item("iterations", iterations.into_pyarray(py))?;
+    let residuals = Array1::from_iter(samples.iter().map(|s| s.residual_norm));
+    d.set_item("residual_norms", residuals.into_pyarray(py))?;
+    let shapes: Option<Vec<&(Vec<_>, Vec<_>)>> = samples.iter().map(|s| s.shape.as_ref()).collect();
+    // Every sample's shape, if they all have the same number of nodes.
+    if let Some(shapes) = shapes.filter(|s| !s.is_empty()) {
+        let nodes = shapes[0].0.len();
+        if shapes.iter().all(|s| s.0.len() == nodes) {
+            let p = Array3::from_shape_fn((count, nodes, 3), |(i, j, c)| shapes[i].0[j][c]);
+            let q =
+                Array3::from_shape_fn((count, nodes, 4), |(i, j, c)| shapes[i].1[j].to_array()[c]);
+            d.set_item("positions", p.into_pyarray(py))?;
+            d.set_item("quaternions", q.into_pyarray(py))?;
+        }
+    }
+    if let Some((k, m)) = actuations {
+        let a = Array3::from_shape_fn((count, m, 2), |(i, s, c)| k[i * m + s][c]);
+        d.set_item("actuations", a.into_pyarray(py))?;
+    }
+    py.import("softspine.batch")?
+        .getattr("BatchResult")?
+        .call((), Some(&d))
+}
+
+/// The `softspine.batch.IkBatchResult` of inverse samples of `sections` sections.
+pub(super) fn ik_batch_result<'py>(
+    py: Python<'py>,
+    samples: &[IkSample],
+    sections: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let count = samples.len();
+    let d = PyDict::new(py);
+    let k = Array3::from_shape_fn((count, sections, 2), |(i, s, c)| {
+        samples[i].rest_curvature[s][c]
+    });
+    d.set_item("rest_curvature", k.into_pyarray(py))?;
+    let tips = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].tip_position[c]);
+    d.set_item("tip_positions", tips.into_pyarray(py))?;
+    let miss = Array1::from_iter(samples.iter().map(|s| s.tip_miss));
+    d.set_item("tip_miss", miss.into_pyarray(py))?;
+    let reached = Array1::from_iter(samples.iter().map(|s| s.reached));
+    d.set_item("reached", reached.into_pyarray(py))?;
+    let endings: Vec<&'static str> = samples.iter().map(|s| s.ending.name()).collect();
+    d.set_item("ending", names(py, endings)?)?;
+    let iterations = Array1::from_iter(samples.iter().map(|s| s.iterations as i64));
+    d.set_item("iterations", iterations.into_pyarray(py))?;
+    py.import("softspine.batch")?
+        .getattr("IkBatchResult")?
+        .call((), Some(&d))
+}
+
+/// Solve many scenes on every core. See ``softspine.solve_batch``.
+#[pyfunction]
+#[pyo3(signature = (scenes, settings=None, *, n_elements=None, method=None, scheme=None, residual_tol=None, max_iterations=None, shapes=None, threads=None, chunk=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve_batch<'py>(
+    py: Python<'py>,
+    scenes: &Bound<'py, PyAny>,
+    settings: Option<&Bound<'py, PyAny>>,
+    n_elements: Option<&Bound<'py, PyAny>>,
+    method: Option<&Bound<'py, PyAny>>,
+    scheme: Option<&Bound<'py, PyAny>>,
+    residual_tol: Option<&Bound<'py, PyAny>>,
+    max_iterations: Option<&Bound<'py, PyAny>>,
+    shapes: Option<&Bound<'py, PyAny>>,
+    threads: Option<&Bound<'py, PyAny>>,
+    chunk: Option<&Bound<'py, PyAny>>,
+    progress: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let scenes: Vec<crate::Scene> = scenes
+        .try_iter()
+        .map_err(|_| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "scenes: expected a sequence of Scene or dict, got {}",
+                type_name(scenes)
+            ))
+        })?
+        .enumerate()
+        .map(|(i, s)| {
+            scene_arg(&s?).map_err(|e| {
+                pyo3::exceptions::PyValueError::new_err(format!("scenes[{i}]: {}", e.value(py)))
+            })
+        })
+        .collect::<PyResult<_>>()?;
+    let solver_settings = settings_with(
+        py,
+        settings,
+        &[
+            ("n_elements", n_elements),
+            ("method", method),
+            ("scheme", scheme),
+            ("residual_tol", residual_tol),
+            ("max_iterations", max_iterations),
+        ],
+    )?;
+    let batch = batch_settings(threads, chunk, None, shapes)?;
+    let samples = run_batch(py, scenes.len(), progress, |control| {
+        crate::solve_batch(&scenes, &solver_settings, &batch, control)
+    })?;
+    batch_result(py, &samples, None)
+}

@@ -1,0 +1,193 @@
+//! `Solver`: one scene's reusable solver (its workspace allocated once), for
+//! control loops: set the actuation or the tip load, solve warm.
+
+use super::convert::*;
+use super::detach::detach_solve;
+use super::scene::{scene_arg, PyScene};
+use super::solution::{quaternions_arg, PySolution};
+use super::solve::settings_with;
+use crate::{Quat, Solver};
+use nalgebra::Vector3;
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use std::sync::{Arc, Mutex};
+
+/// The solver and the warm start it keeps.
+pub(super) struct Held {
+    solver: Solver,
+    /// The last converged and stable equilibrium (`initial="last"`).
+    last: Option<Vec<Quat>>,
+}
+
+/// A reusable solver of one scene: build once, then ``set_rest_curvature``,
+/// ``set_tip_force``, ``set_tip_moment`` and ``solve``, warm from the last
+/// equilibrium by default.
+///
+/// Safe to share between threads: one solve runs at a time, and a thread
+/// waiting for its turn does not hold the GIL.
+#[pyclass(name = "Solver", module = "softspine._core", frozen)]
+pub struct PySolver {
+    inner: Arc<Mutex<Held>>,
+    long_passes: bool,
+}
+
+impl PySolver {
+    fn held(&self) -> PyResult<std::sync::MutexGuard<'_, Held>> {
+        self.inner.lock().map_err(|_| poisoned())
+    }
+}
+
+fn poisoned() -> PyErr {
+    PyRuntimeError::new_err(
+        "Solver: an earlier solve failed with a panic and left this solver unusable; make a new one",
+    )
+}
+
+#[pymethods]
+impl PySolver {
+    /// ``Solver(scene, settings=None, *, n_elements, method, scheme,
+    /// residual_tol, max_iterations)``: the keywords override the settings'
+    /// fields, as in ``softspine.solve``.
+    #[new]
+    #[pyo3(signature = (scene, settings=None, *, n_elements=None, method=None, scheme=None, residual_tol=None, max_iterations=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        scene: &Bound<'_, PyAny>,
+        settings: Option<&Bound<'_, PyAny>>,
+        n_elements: Option<&Bound<'_, PyAny>>,
+        method: Option<&Bound<'_, PyAny>>,
+        scheme: Option<&Bound<'_, PyAny>>,
+        residual_tol: Option<&Bound<'_, PyAny>>,
+        max_iterations: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let scene = scene_arg(scene)?;
+        let settings = settings_with(
+            py,
+            settings,
+            &[
+                ("n_elements", n_elements),
+                ("method", method),
+                ("scheme", scheme),
+                ("residual_tol", residual_tol),
+                ("max_iterations", max_iterations),
+            ],
+        )?;
+        let long_passes = settings.resolved(&scene).has_long_passes();
+        let solver = py.detach(|| Solver::new(&scene, settings))?;
+        Ok(PySolver {
+            inner: Arc::new(Mutex::new(Held { solver, last: None })),
+            long_passes,
+        })
+    }
+
+    /// Solve from ``initial`` (a Solution or quaternions (n + 1, 4)) or,
+    /// without it, from the last converged and stable equilibrium of this
+    /// solver (``warm=True``, the default; the straight rod before there is
+    /// one) or the straight rod (``warm=False``). ``check=True`` raises
+    /// ``SolverError`` unless the solve converged.
+    #[pyo3(signature = (initial=None, *, warm=true, check=false))]
+    fn solve(
+        &self,
+        py: Python<'_>,
+        initial: Option<&Bound<'_, PyAny>>,
+        warm: bool,
+        check: bool,
+    ) -> PyResult<PySolution> {
+        let start = match (initial, warm) {
+            (Some(x), _) => Start::Given(quaternions_arg("initial", x)?),
+            (None, true) => Start::Last,
+            (None, false) => Start::Straight,
+        };
+        let inner = Arc::clone(&self.inner);
+        let sol = detach_solve(py, self.long_passes, move || {
+            let Ok(mut held) = inner.lock() else {
+                return Ok(None);
+            };
+            let held = &mut *held;
+            let initial = match &start {
+                Start::Last => held.last.as_deref(),
+                Start::Straight => None,
+                Start::Given(q) => Some(q.as_slice()),
+            };
+            let sol = held.solver.solve(initial)?;
+            if sol.converged() && sol.stable {
+                match held.last.as_mut() {
+                    // In place: a control loop allocates nothing here.
+                    Some(last) => last.copy_from_slice(&sol.quaternions),
+                    None => held.last = Some(sol.quaternions.clone()),
+                }
+            }
+            Ok(Some(sol))
+        })?
+        .ok_or_else(poisoned)?;
+        let sol = if check { sol.check()? } else { sol };
+        Ok(PySolution { inner: sol })
+    }
+
+    /// Set the actuation: rest curvature ``[kappa_x, kappa_y]`` per section
+    /// (m, 2), 1/m; the number of sections must divide ``n_elements``.
+    fn set_rest_curvature(&self, rest_curvature: &Bound<'_, PyAny>) -> PyResult<()> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        Ok(self.held()?.solver.set_rest_curvature(&k)?)
+    }
+
+    /// Set the dead force at the tip, world frame, N.
+    fn set_tip_force(&self, force: &Bound<'_, PyAny>) -> PyResult<()> {
+        let f = vec3_arg("force", force)?;
+        let mut held = self.held()?;
+        let moment = held.solver.scene().tip_moment;
+        Ok(held.solver.set_tip_load(f, moment)?)
+    }
+
+    /// Set the dead moment at the tip, world frame, N m.
+    fn set_tip_moment(&self, moment: &Bound<'_, PyAny>) -> PyResult<()> {
+        let m = vec3_arg("moment", moment)?;
+        let mut held = self.held()?;
+        let force = held.solver.scene().tip_force;
+        Ok(held.solver.set_tip_load(force, m)?)
+    }
+
+    /// Forget the last equilibrium: the next ``solve()`` starts from the straight rod.
+    fn reset(&self) -> PyResult<()> {
+        self.held()?.last = None;
+        Ok(())
+    }
+
+    /// The scene as the solver holds it (its actuation and tip load included).
+    #[getter]
+    fn scene(&self) -> PyResult<PyScene> {
+        Ok(PyScene {
+            inner: self.held()?.solver.scene().clone(),
+        })
+    }
+
+    /// Elements of the discretisation.
+    #[getter]
+    fn n_elements(&self) -> PyResult<usize> {
+        Ok(self.held()?.solver.model().n)
+    }
+
+    /// The dead force at the tip, world frame, N.
+    #[getter]
+    fn tip_force<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray1<f64>>> {
+        let f: Vector3<f64> = self.held()?.solver.scene().tip_force;
+        Ok(vec3_array(py, &f))
+    }
+
+    fn __repr__(&self) -> PyResult<String> {
+        let held = self.held()?;
+        Ok(format!(
+            "Solver(n_elements={}, warm={})",
+            held.solver.model().n,
+            python_bool(held.last.is_some())
+        ))
+    }
+}
+
+/// Where a solve starts.
+enum Start {
+    Last,
+    Straight,
+    Given(Vec<Quat>),
+}

@@ -20,7 +20,6 @@ from typing import Any
 import numpy.typing as npt
 
 from . import trajectories
-from .batch import BatchResult, IkBatchResult
 from ._core import (
     Accuracy,
     IkResult,
@@ -37,6 +36,7 @@ from ._core import (
     solve_batch,
 )
 from ._core import solve as _solve
+from .batch import BatchResult, IkBatchResult
 from .scenes import load_scene
 from .status import IkEnding, Status
 

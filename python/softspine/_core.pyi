@@ -4,8 +4,8 @@ Checked against the built module by ``python -m mypy.stubtest softspine._core``
 (``make test``). _Arrays are float64; quaternions are scalar-first ``[w, x, y, z]``.
 """
 
-from os import PathLike
 from collections.abc import Callable, Sequence
+from os import PathLike
 from typing import Any, TypeAlias, final
 
 import numpy as np

@@ -130,7 +130,7 @@ impl Solver {
         for (name, v) in [("tip_force", force), ("tip_moment", moment)] {
             if let Some(c) = v.iter().position(|x| !x.is_finite()) {
                 return Err(Error::argument(
-                    &format!("{name}[{c}]"),
+                    format!("{name}[{c}]"),
                     format!("must be finite, got {}", v[c]),
                 ));
             }

@@ -57,10 +57,13 @@ pub use nalgebra;
 pub struct ReadmeDoctests;
 pub use model::{RodModel, Scheme};
 pub use quat::Quat;
-pub use robot::{IkEnding, IkOptions, IkResult, IkSettings, InverseSolver, Robot, Strategy};
+pub use robot::{
+    Calibration, CalibrationSettings, IkEnding, IkOptions, IkResult, IkSettings, InverseSolver,
+    Robot, Strategy,
+};
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
 pub use solver::{
-    default_elements, solve, solve_to_accuracy, Accuracy, Method, Settings, Solution, Solver,
-    Status, TipSensitivity, DEFAULT_ELEMENTS,
+    default_elements, solve, solve_to_accuracy, Accuracy, Method, Sensitivity, Settings, Solution,
+    Solver, Status, TipSensitivity, DEFAULT_ELEMENTS,
 };
 pub use value::Value;

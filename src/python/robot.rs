@@ -7,7 +7,7 @@ use super::scene::PyScene;
 use super::settings::ik_settings_arg;
 use super::solution::{quaternions_arg, PySolution};
 use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot};
-use crate::{Scene, Settings};
+use crate::Settings;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -299,32 +299,11 @@ impl PyRobot {
 
     /// Every field as a dict (``Robot(robot.to_dict())`` is the same robot).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let r = &self.inner;
-        let d = PyDict::new(py);
-        d.set_item("length", r.length)?;
-        let stiffness = from_value(
-            py,
-            &Scene {
-                stiffness_spec: r.stiffness.clone(),
-                ..Scene::new(1.0, 1.0, 1.0, 1.0)
-            }
-            .to_value(),
-        )?;
-        d.set_item("stiffness", stiffness.get_item("stiffness")?)?;
-        d.set_item("linear_density", r.linear_density)?;
-        d.set_item("sections", r.sections)?;
-        d.set_item("muscle_radius", r.muscle_radius)?;
-        d.set_item("muscle_angles", r.muscle_angles.to_vec())?;
-        d.set_item("disk_mass", r.disk_mass)?;
-        d.set_item("gravity", vec![r.gravity.x, r.gravity.y, r.gravity.z])?;
-        d.set_item("base_quaternion", r.base_quaternion.to_array().to_vec())?;
-        let p = r.base_position;
-        d.set_item("base_position", vec![p.x, p.y, p.z])?;
-        d.set_item("muscle_rest_length", r.muscle_rest_length)?;
-        d.set_item("inflation_rate", r.inflation_rate)?;
-        d.set_item("muscle_length_range", r.muscle_length_range.to_vec())?;
-        d.set_item("n_elements", r.n_elements)?;
-        Ok(d.into_any())
+        let d = from_value(py, &self.inner.to_value())?;
+        // Counts as Python ints (a value tree holds numbers as floats).
+        d.set_item("sections", self.inner.sections)?;
+        d.set_item("n_elements", self.inner.n_elements)?;
+        Ok(d)
     }
 
     /// The Scene of this robot with an actuation (m, 2) and a tip mass (kg).

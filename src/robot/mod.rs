@@ -16,9 +16,11 @@
 //! muscles' range, which leaves the most room for the next move.
 
 mod bounds;
+mod calibrate;
 mod ik;
 pub mod trajectory;
 
+pub use calibrate::{Calibration, CalibrationSettings};
 pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, InverseSolver, Strategy};
 
 use crate::error::{Error, Result};
@@ -489,6 +491,47 @@ impl Robot {
     }
 
     /// Read a robot from a value tree: every field optional, defaults as `Robot::default()`.
+    /// Every field as a value tree (`Robot::from_value` of it is the same robot).
+    pub fn to_value(&self) -> Value {
+        let num = Value::Number;
+        let list = |xs: &[f64]| Value::List(xs.iter().map(|x| num(*x)).collect());
+        let stiffness = Scene {
+            stiffness_spec: self.stiffness.clone(),
+            ..Scene::new(1.0, 1.0, 1.0, 1.0)
+        }
+        .to_value();
+        let stiffness = match stiffness {
+            Value::Map(entries) => entries
+                .into_iter()
+                .find(|(k, _)| k == "stiffness")
+                .map(|(_, v)| v)
+                .expect("a scene has a stiffness"),
+            _ => unreachable!("a scene is a table"),
+        };
+        Value::Map(vec![
+            ("length".into(), num(self.length)),
+            ("stiffness".into(), stiffness),
+            ("linear_density".into(), num(self.linear_density)),
+            ("sections".into(), num(self.sections as f64)),
+            ("muscle_radius".into(), num(self.muscle_radius)),
+            ("muscle_angles".into(), list(&self.muscle_angles)),
+            ("disk_mass".into(), num(self.disk_mass)),
+            ("gravity".into(), list(self.gravity.as_slice())),
+            (
+                "base_quaternion".into(),
+                list(&self.base_quaternion.to_array()),
+            ),
+            ("base_position".into(), list(self.base_position.as_slice())),
+            ("muscle_rest_length".into(), num(self.muscle_rest_length)),
+            ("inflation_rate".into(), num(self.inflation_rate)),
+            (
+                "muscle_length_range".into(),
+                list(&self.muscle_length_range),
+            ),
+            ("n_elements".into(), num(self.n_elements as f64)),
+        ])
+    }
+
     pub fn from_value(v: &Value) -> Result<Self> {
         let entries = match v {
             Value::Map(entries) => entries,

@@ -146,6 +146,15 @@ fn d_times(d: &[Matrix3<f64>], e: usize, x: &[Vector3<f64>]) -> f64 {
 
 /// Solve the KKT system at the current state (Jacobian and `D` loaded, `lu`
 /// factored): the rotation step goes to `w.step`, the reaction step to `w.kkt.rhs`.
+/// [`kkt_step`] with `w.lu` factored, for the sensitivities: `w.step` and
+/// `w.kkt.rhs` (the reactions' step) from `w.g` and `w.kkt.h`.
+pub(crate) fn kkt_solve(w: &mut Workspace) -> bool {
+    let lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
+    let ok = kkt_step(&lu, w);
+    w.lu = lu;
+    ok
+}
+
 fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     let m = w.kkt.d.len();
     // y = A^{-1} g  (in w.scratch)

@@ -32,7 +32,7 @@ mod solution;
 mod workspace;
 
 pub use adaptive::{solve_to_accuracy, Accuracy};
-pub use sensitivity::TipSensitivity;
+pub use sensitivity::{Sensitivity, TipSensitivity};
 pub(crate) use settings::check_tolerance;
 pub use settings::{
     default_elements, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS, MAX_ELEMENTS,

@@ -3,6 +3,8 @@
 
 use super::{Solver, Status};
 use crate::error::{Error, Result};
+use crate::model::RodModel;
+use crate::scene::Scene;
 use nalgebra::Vector3;
 
 /// Derivatives of the tip of an equilibrium with respect to the actuation.
@@ -65,6 +67,263 @@ impl Solver {
                 let dt = -(d_tangent * w.step[n - 1]);
                 out.position.set_column(2 * s + c, &dr);
                 out.tangent.set_column(2 * s + c, &dt);
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Derivatives of the tip of an equilibrium with respect to named
+/// parameters (one column each), by the implicit function theorem.
+#[derive(Debug, Clone)]
+pub struct Sensitivity {
+    /// The parameters, one a column.
+    pub parameters: Vec<String>,
+    /// `d r_tip / d p` [m per unit of p].
+    pub tip_position: nalgebra::Matrix3xX<f64>,
+    /// `d phi_tip / d p`: the tip frame's turn, a rotation vector in the
+    /// world frame [rad per unit of p].
+    pub tip_rotation: nalgebra::Matrix3xX<f64>,
+    /// `d (tip reaction force) / d p` of a pinned or clamped tip [N per unit].
+    pub tip_reaction_force: Option<nalgebra::Matrix3xX<f64>>,
+    /// `d (tip reaction moment) / d p` of a clamped tip [N m per unit].
+    pub tip_reaction_moment: Option<nalgebra::Matrix3xX<f64>>,
+}
+
+/// Largest node turn [rad] of the state's move along a sensitivity column in
+/// the directional differences of the tip's outputs: their truncation error
+/// is about its square (1e-10 relative), their round-off 1e-16 over it.
+const OUTPUT_TURN: f64 = 1e-5;
+
+/// What the tip reports at a state, as a `Solution` does.
+struct TipReport {
+    position: Vector3<f64>,
+    orientation: crate::quat::Quat,
+    reaction_force: Option<Vector3<f64>>,
+    reaction_moment: Option<Vector3<f64>>,
+}
+
+/// The residual of `model` at `q` with `reactions`, its Jacobian in
+/// `scratch`: with the fourth-order scheme the evaluation with the Jacobian
+/// leaves the internal nodes (loaded by the reactions) in the model's cache,
+/// where the positions and the held points' rows then find them.
+fn evaluate_at(
+    model: &RodModel,
+    q: &[crate::quat::Quat],
+    reactions: &[Vector3<f64>],
+    g: &mut [Vector3<f64>],
+    scratch: &mut crate::blocktri::BlockTridiagonal,
+) {
+    model.residual_with_reactions(q, 1.0, reactions, g, Some(scratch));
+}
+
+fn tip_report(model: &RodModel, q: &[crate::quat::Quat], reactions: &[Vector3<f64>]) -> TipReport {
+    let n = model.n;
+    let mut g = vec![Vector3::zeros(); n];
+    evaluate_at(
+        model,
+        q,
+        reactions,
+        &mut g,
+        &mut crate::blocktri::BlockTridiagonal::zeros(n),
+    );
+    let mut positions = vec![Vector3::zeros(); n + 1];
+    model.positions(q, &mut positions);
+    let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
+    let reaction_moment = model.clamped_tip.map(|_| q[n].rotate(g[n - 1]));
+    TipReport {
+        position: positions[n],
+        orientation: q[n],
+        reaction_force: tip_held.then(|| reactions[reactions.len() - 1]),
+        reaction_moment,
+    }
+}
+
+impl Solver {
+    /// Sensitivity of the last solve's equilibrium to numeric fields of the
+    /// scene, named by their path in the scene's dict (`"tip_force[0]"`,
+    /// `"stiffness.kx"`, `"rest_curvature[2][1]"`, `"gravity.linear_density"`);
+    /// `"rest_curvature"` stands for every section's two components and
+    /// `"tip_wrench"` for the tip force and moment (the columns of the 6x6
+    /// tip compliance).
+    pub fn sensitivity(&mut self, parameters: &[&str]) -> Result<Sensitivity> {
+        let base = self.scene.to_value();
+        let mut names = Vec::new();
+        for p in parameters {
+            match *p {
+                "rest_curvature" => {
+                    for s in 0..self.scene.rest_curvature.len() {
+                        names.extend([0, 1].map(|c| format!("rest_curvature[{s}][{c}]")));
+                    }
+                }
+                "tip_wrench" => {
+                    names.extend((0..3).map(|c| format!("tip_force[{c}]")));
+                    names.extend((0..3).map(|c| format!("tip_moment[{c}]")));
+                }
+                other => names.push(other.to_string()),
+            }
+        }
+        let mut values = Vec::with_capacity(names.len());
+        for name in &names {
+            values.push(*base.clone().number_at_mut(name)?);
+        }
+        self.sensitivity_with(names.clone(), &values, |j, delta| {
+            let mut v = base.clone();
+            *v.number_at_mut(&names[j])? += delta;
+            Scene::from_value(&v)
+        })
+    }
+
+    /// Sensitivity of the last solve's equilibrium to parameters given by
+    /// the scene they make: `scene_at(j, delta)` is the scene with parameter
+    /// `j` (now `values[j]`) moved by `delta`. `dF/dp` comes from central
+    /// differences of the discrete equations at the fixed equilibrium (exact
+    /// for the parameters the equations are linear in: loads, stiffness, rest
+    /// curvature); one O(n) solve with the factored Jacobian a column.
+    pub fn sensitivity_with(
+        &mut self,
+        parameters: Vec<String>,
+        values: &[f64],
+        scene_at: impl Fn(usize, f64) -> Result<Scene>,
+    ) -> Result<Sensitivity> {
+        use super::constrained;
+        if !matches!(
+            self.settings.method,
+            super::Method::Newton | super::Method::LevenbergMarquardt
+        ) {
+            return Err(Error::argument(
+                "sensitivity",
+                "needs the equilibrium of method 'newton' or 'lm'",
+            ));
+        }
+        let (model, w) = (&self.model, &mut self.work);
+        let (n, scheme) = (model.n, model.scheme);
+        let held = model.is_constrained();
+        if held {
+            constrained::evaluate(model, w, 1.0, true);
+            constrained::load_constraint_jacobian(model, w);
+        } else {
+            model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+        }
+        let residual = super::residual_norm(model, w);
+        let tol = model.effective_tol(self.settings.residual_tol);
+        // NaN fails too.
+        if residual.is_nan() || residual > 1e3 * tol.max(1e-12) {
+            return Err(Error::argument(
+                "sensitivity",
+                format!("needs a converged equilibrium: solve first (residual {residual:.1e})"),
+            ));
+        }
+        if w.lu.factor(&w.jac, 0.0).is_err() {
+            return Err(Error::NotConverged {
+                status: Status::NotConverged,
+                iterations: 0,
+                residual,
+                reason: "singular Jacobian: the equilibrium is at a bifurcation".into(),
+            });
+        }
+        let q0 = w.q.clone();
+        let r0 = w.kkt.reactions.clone();
+        let clamped = model.clamped_tip.is_some();
+        let k = parameters.len();
+        let mut out = Sensitivity {
+            parameters,
+            tip_position: nalgebra::Matrix3xX::zeros(k),
+            tip_rotation: nalgebra::Matrix3xX::zeros(k),
+            tip_reaction_force: (held
+                && !model.constraints.is_empty()
+                && model.constraints.last().is_some_and(|c| c.node == n))
+            .then(|| nalgebra::Matrix3xX::zeros(k)),
+            tip_reaction_moment: clamped.then(|| nalgebra::Matrix3xX::zeros(k)),
+        };
+        let mut g_plus = vec![Vector3::zeros(); n];
+        let mut g_minus = vec![Vector3::zeros(); n];
+        let m = r0.len();
+        let mut h_plus = vec![Vector3::zeros(); m];
+        let mut h_minus = vec![Vector3::zeros(); m];
+        let mut positions = vec![Vector3::zeros(); n + 1];
+        let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
+        let model_at = |j: usize, delta: f64| -> Result<RodModel> {
+            let scene = scene_at(j, delta)?;
+            scene.check_derived()?;
+            Ok(RodModel::new(&scene, n).with_scheme(scheme))
+        };
+        for (j, &value) in values.iter().enumerate() {
+            // dF/dp at the fixed state (rotations and reactions).
+            let step = 1e-6 * value.abs().max(1e-3);
+            let (plus, minus) = (model_at(j, step)?, model_at(j, -step)?);
+            evaluate_at(&plus, &q0, &r0, &mut g_plus, &mut scratch);
+            evaluate_at(&minus, &q0, &r0, &mut g_minus, &mut scratch);
+            for (g, (a, b)) in w.g.iter_mut().zip(g_plus.iter().zip(&g_minus)) {
+                *g = (a - b) / (2.0 * step);
+            }
+            if held {
+                plus.constraint_residual(&q0, 1.0, &mut positions, &mut h_plus);
+                minus.constraint_residual(&q0, 1.0, &mut positions, &mut h_minus);
+                for (h, (a, b)) in w.kkt.h.iter_mut().zip(h_plus.iter().zip(&h_minus)) {
+                    *h = (a - b) / (2.0 * step);
+                }
+                if clamped {
+                    w.g[n - 1] = Vector3::zeros();
+                }
+                if !constrained::kkt_solve(w) {
+                    return Err(Error::argument("sensitivity", "singular KKT system"));
+                }
+            } else {
+                w.step.copy_from_slice(&w.g);
+                w.lu.solve_in_place(&mut w.step);
+                w.step.iter_mut().for_each(|x| *x = -*x);
+            }
+            // The state's tangent: d theta / dp = w.step (node i at index i - 1),
+            // d R / dp = w.kkt.rhs. The outputs by central differences along it.
+            let turn = w.step.iter().map(|x| x.amax()).fold(0.0, f64::max);
+            let eps = if turn > 0.0 {
+                (OUTPUT_TURN / turn).min(step)
+            } else {
+                step
+            };
+            let (plus, minus) = (model_at(j, eps)?, model_at(j, -eps)?);
+            let moved = |sign: f64| -> (Vec<crate::quat::Quat>, Vec<Vector3<f64>>) {
+                let mut q = q0.clone();
+                for (i, x) in w.step.iter().enumerate() {
+                    q[i + 1] = q0[i + 1].perturbed(sign * eps * x);
+                }
+                let r = (0..m)
+                    .map(|c| {
+                        let d = Vector3::new(
+                            w.kkt.rhs[3 * c],
+                            w.kkt.rhs[3 * c + 1],
+                            w.kkt.rhs[3 * c + 2],
+                        );
+                        r0[c] + sign * eps * d
+                    })
+                    .collect();
+                (q, r)
+            };
+            let (qp, rp) = moved(1.0);
+            let (qm, rm) = moved(-1.0);
+            let (a, b) = (tip_report(&plus, &qp, &rp), tip_report(&minus, &qm, &rm));
+            let diff = |x: Vector3<f64>, y: Vector3<f64>| (x - y) / (2.0 * eps);
+            out.tip_position
+                .set_column(j, &diff(a.position, b.position));
+            // The world-frame turn from the minus to the plus orientation.
+            let turn = a.orientation * b.orientation.conj();
+            let turn = if turn.w < 0.0 { -turn } else { turn };
+            out.tip_rotation
+                .set_column(j, &(turn.v * (2.0 / (2.0 * eps))));
+            if let (Some(col), Some(x), Some(y)) = (
+                out.tip_reaction_force.as_mut(),
+                a.reaction_force,
+                b.reaction_force,
+            ) {
+                col.set_column(j, &diff(x, y));
+            }
+            if let (Some(col), Some(x), Some(y)) = (
+                out.tip_reaction_moment.as_mut(),
+                a.reaction_moment,
+                b.reaction_moment,
+            ) {
+                col.set_column(j, &diff(x, y));
             }
         }
         Ok(out)

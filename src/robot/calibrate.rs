@@ -1,0 +1,448 @@
+//! The robot's sensitivities to its actuation, load and fields, and the
+//! calibration of its fields to measured tip positions.
+
+use super::Robot;
+use crate::batch::BatchSettings;
+use crate::error::{Error, Result};
+use crate::quat::Quat;
+use crate::scene::Scene;
+use crate::solver::{Sensitivity, Settings, Solution, Solver};
+use nalgebra::{DMatrix, DVector, Vector3};
+use rayon::prelude::*;
+
+/// A parameter of the robot's forward map, by name.
+enum Parameter {
+    /// `rest_curvature[s][c]`.
+    Curvature(usize, usize),
+    /// `muscle_lengths[s][k]`.
+    Length(usize, usize),
+    /// `load`: the tip mass [kg].
+    Load,
+    /// A numeric field of `Robot::to_value` (`"stiffness.E"`, `"linear_density"`).
+    Field(String),
+}
+
+impl Robot {
+    /// The parameters named, `"rest_curvature"` and `"muscle_lengths"`
+    /// standing for all of a section's components.
+    fn parameters(&self, names: &[&str]) -> Result<Vec<(String, Parameter)>> {
+        let mut out = Vec::new();
+        let index = |name: &str, prefix: &str, columns: usize| -> Result<Option<(usize, usize)>> {
+            let Some(rest) = name.strip_prefix(prefix) else {
+                return Ok(None);
+            };
+            let parsed: Vec<usize> = rest
+                .split(']')
+                .filter(|s| !s.is_empty())
+                .map(|s| s.strip_prefix('[').and_then(|x| x.parse().ok()))
+                .collect::<Option<_>>()
+                .unwrap_or_default();
+            match parsed[..] {
+                [s, c] if s < self.sections && c < columns => Ok(Some((s, c))),
+                _ => Err(Error::argument(
+                    name.to_string(),
+                    format!(
+                        "expected {prefix}[section][0..{columns}] with fewer than {} sections",
+                        self.sections
+                    ),
+                )),
+            }
+        };
+        for &name in names {
+            match name {
+                "rest_curvature" | "muscle_lengths" => {
+                    let columns = if name == "rest_curvature" { 2 } else { 3 };
+                    for s in 0..self.sections {
+                        for c in 0..columns {
+                            let p = if columns == 2 {
+                                Parameter::Curvature(s, c)
+                            } else {
+                                Parameter::Length(s, c)
+                            };
+                            out.push((format!("{name}[{s}][{c}]"), p));
+                        }
+                    }
+                }
+                "load" => out.push((name.into(), Parameter::Load)),
+                _ => {
+                    if let Some((s, c)) = index(name, "rest_curvature", 2)? {
+                        out.push((name.into(), Parameter::Curvature(s, c)));
+                    } else if let Some((s, c)) = index(name, "muscle_lengths", 3)? {
+                        out.push((name.into(), Parameter::Length(s, c)));
+                    } else {
+                        if matches!(name, "sections" | "n_elements") {
+                            return Err(Error::argument(name, "a count, not a parameter"));
+                        }
+                        self.to_value().number_at_mut(name)?;
+                        out.push((name.into(), Parameter::Field(name.into())));
+                    }
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The value of a parameter at an actuation and a tip mass.
+    fn parameter_value(&self, p: &Parameter, kappa: &[[f64; 2]], tip_mass: f64) -> Result<f64> {
+        Ok(match p {
+            Parameter::Curvature(s, c) => kappa[*s][*c],
+            Parameter::Length(s, c) => self.muscle_lengths(kappa)[*s][*c],
+            Parameter::Load => tip_mass,
+            Parameter::Field(path) => *self.to_value().number_at_mut(path)?,
+        })
+    }
+
+    /// The scene with a parameter moved by `delta`.
+    fn scene_moved(
+        &self,
+        p: &Parameter,
+        kappa: &[[f64; 2]],
+        tip_mass: f64,
+        delta: f64,
+    ) -> Result<Scene> {
+        match p {
+            Parameter::Curvature(s, c) => {
+                let mut k = kappa.to_vec();
+                k[*s][*c] += delta;
+                self.scene(&k, tip_mass)
+            }
+            Parameter::Length(s, c) => {
+                let mut lengths = self.muscle_lengths(kappa);
+                lengths[*s][*c] += delta;
+                self.scene(&self.rest_curvature(&lengths)?, tip_mass)
+            }
+            Parameter::Load => self.scene(kappa, tip_mass + delta),
+            Parameter::Field(path) => {
+                let mut v = self.to_value();
+                *v.number_at_mut(path)? += delta;
+                Robot::from_value(&v)?.scene(kappa, tip_mass)
+            }
+        }
+    }
+
+    /// The forward solver of this robot (its default discretisation).
+    fn forward_solver(&self, kappa: &[[f64; 2]], tip_mass: f64) -> Result<Solver> {
+        let settings = Settings {
+            n_elements: Some(self.n_elements),
+            ..Settings::default()
+        };
+        Solver::new(&self.scene(kappa, tip_mass)?, settings)
+    }
+
+    /// The loaded equilibrium of an actuation and its tip's sensitivity to
+    /// the named parameters: `"rest_curvature"`, `"muscle_lengths"` (or one
+    /// component, `"muscle_lengths[2][0]"`), `"load"` (the tip mass) and any
+    /// numeric field of the robot (`"stiffness.E"`, `"linear_density"`,
+    /// `"disk_mass"`, `"inflation_rate"` has no effect on statics).
+    pub fn sensitivity(
+        &self,
+        kappa: &[[f64; 2]],
+        tip_mass: f64,
+        names: &[&str],
+        initial: Option<&[Quat]>,
+    ) -> Result<(Solution, Sensitivity)> {
+        let parameters = self.parameters(names)?;
+        let mut solver = self.forward_solver(kappa, tip_mass)?;
+        let mut sol = solver.solve(initial)?;
+        if initial.is_some() && !(sol.converged() && sol.stable) {
+            sol = solver.solve(None)?;
+        }
+        if !sol.converged() {
+            return Err(Error::NotConverged {
+                status: sol.status,
+                iterations: sol.iterations,
+                residual: sol.residual_norm,
+                reason: format!("the forward solve: {}", sol.message),
+            });
+        }
+        let values = parameters
+            .iter()
+            .map(|(_, p)| self.parameter_value(p, kappa, tip_mass))
+            .collect::<Result<Vec<_>>>()?;
+        let names = parameters.iter().map(|(n, _)| n.clone()).collect();
+        let sens = solver.sensitivity_with(names, &values, |j, delta| {
+            self.scene_moved(&parameters[j].1, kappa, tip_mass, delta)
+        })?;
+        Ok((sol, sens))
+    }
+}
+
+/// How a calibration iterates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationSettings {
+    /// Gauss-Newton iterations at most.
+    pub max_iterations: usize,
+    /// Converged when no parameter moves by more than this fraction of its
+    /// scale (the magnitude of its starting value).
+    pub step_tol: f64,
+    /// How the forward solves of an iteration are spread over the cores.
+    pub batch: BatchSettings,
+}
+
+impl Default for CalibrationSettings {
+    fn default() -> Self {
+        CalibrationSettings {
+            max_iterations: 30,
+            step_tol: 1e-9,
+            batch: BatchSettings::default(),
+        }
+    }
+}
+
+/// Fitted robot parameters.
+#[derive(Debug, Clone)]
+pub struct Calibration {
+    pub parameters: Vec<String>,
+    /// Least-squares estimates.
+    pub estimates: Vec<f64>,
+    /// Their standard errors, from the residual variance and `(J^T J)^-1`.
+    pub standard_errors: Vec<f64>,
+    /// Covariance of the estimates, row-major `k x k`.
+    pub covariance: Vec<f64>,
+    /// `measured - model` tip per sample at the estimates [m].
+    pub residuals: Vec<Vector3<f64>>,
+    /// Root mean square of the residual components [m].
+    pub rms: f64,
+    pub iterations: usize,
+    pub converged: bool,
+    /// The robot with the estimates.
+    pub robot: Robot,
+    pub message: String,
+}
+
+impl Robot {
+    /// With the fields named set to `values`.
+    fn with_fields(&self, names: &[String], values: &[f64]) -> Result<Robot> {
+        let mut v = self.to_value();
+        for (name, x) in names.iter().zip(values) {
+            *v.number_at_mut(name)? = *x;
+        }
+        Robot::from_value(&v)
+    }
+
+    /// Fit the named fields of the robot (any numeric field of
+    /// [`Robot::to_value`], e.g. `"stiffness.E"`, `"linear_density"`,
+    /// `"disk_mass"`, `"muscle_radius"`; `"load"` is the tip mass, the same
+    /// for every sample) to tip positions measured at known actuations
+    /// (`actuations`: `sections` rows a sample), by Gauss-Newton with the
+    /// sensitivities of every sample (on every core) and a step halved
+    /// until the squared residual drops.
+    pub fn calibrate(
+        &self,
+        actuations: &[[f64; 2]],
+        measured: &[Vector3<f64>],
+        tip_mass: f64,
+        names: &[&str],
+        settings: &CalibrationSettings,
+    ) -> Result<Calibration> {
+        settings.batch.validate()?;
+        let m = self.sections;
+        if actuations.len() != measured.len() * m {
+            return Err(Error::argument(
+                "actuations",
+                format!(
+                    "{} samples of actuation for {} measured tips",
+                    actuations.len() / m.max(1),
+                    measured.len()
+                ),
+            ));
+        }
+        if let Some(i) = measured
+            .iter()
+            .position(|t| !t.iter().all(|x| x.is_finite()))
+        {
+            return Err(Error::argument(
+                "measured",
+                format!("must be finite (sample {i})"),
+            ));
+        }
+        let parameters = self.parameters(names)?;
+        let fields: Vec<String> = parameters
+            .iter()
+            .map(|(name, p)| match p {
+                Parameter::Field(_) | Parameter::Load => Ok(name.clone()),
+                _ => Err(Error::argument(
+                    name.clone(),
+                    "the actuation is known: fit robot fields or the load",
+                )),
+            })
+            .collect::<Result<_>>()?;
+        let k = fields.len();
+        if k == 0 || 3 * measured.len() <= k {
+            return Err(Error::argument(
+                "parameters",
+                format!("{k} parameters need more than {k} / 3 measured tips"),
+            ));
+        }
+        let start: Vec<f64> = parameters
+            .iter()
+            .map(|(_, p)| self.parameter_value(p, &actuations[..m], tip_mass))
+            .collect::<Result<_>>()?;
+        let scale: Vec<f64> = start.iter().map(|x| x.abs().max(1e-12)).collect();
+        // The robot and tip mass of a parameter vector.
+        let split = |p: &[f64]| -> Result<(Robot, f64)> {
+            let mut mass = tip_mass;
+            let mut field_names = Vec::new();
+            let mut field_values = Vec::new();
+            for ((name, kind), x) in parameters.iter().zip(p) {
+                match kind {
+                    Parameter::Load => mass = *x,
+                    _ => {
+                        field_names.push(name.clone());
+                        field_values.push(*x);
+                    }
+                }
+            }
+            Ok((self.with_fields(&field_names, &field_values)?, mass))
+        };
+        let samples: Vec<&[[f64; 2]]> = actuations.chunks(m).collect();
+        let mut warm: Vec<Option<Vec<Quat>>> = vec![None; samples.len()];
+        // Residuals (measured - model) and the Jacobian of the model's tips.
+        let evaluate = |p: &[f64],
+                        warm: &mut Vec<Option<Vec<Quat>>>,
+                        jacobian: bool|
+         -> Result<(DVector<f64>, Option<DMatrix<f64>>)> {
+            let (robot, mass) = split(p)?;
+            let names: Vec<&str> = fields.iter().map(|s| s.as_str()).collect();
+            let pool = match settings.batch.threads {
+                Some(t) => Some(
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(t)
+                        .build()
+                        .map_err(|e| Error::argument("threads", e.to_string()))?,
+                ),
+                None => None,
+            };
+            let work = |warm: &mut Vec<Option<Vec<Quat>>>| {
+                samples
+                    .par_iter()
+                    .zip(warm.par_iter_mut())
+                    .map(
+                        |(kappa, q)| -> Result<(Vector3<f64>, Option<Sensitivity>)> {
+                            let (sol, sens) = if jacobian {
+                                let (sol, sens) =
+                                    robot.sensitivity(kappa, mass, &names, q.as_deref())?;
+                                (sol, Some(sens))
+                            } else {
+                                let mut solver = robot.forward_solver(kappa, mass)?;
+                                let mut sol = solver.solve(q.as_deref())?;
+                                if q.is_some() && !(sol.converged() && sol.stable) {
+                                    sol = solver.solve(None)?;
+                                }
+                                (sol, None)
+                            };
+                            if !sol.converged() {
+                                return Err(Error::NotConverged {
+                                    status: sol.status,
+                                    iterations: sol.iterations,
+                                    residual: sol.residual_norm,
+                                    reason: format!("a forward solve: {}", sol.message),
+                                });
+                            }
+                            *q = Some(sol.quaternions.clone());
+                            Ok((sol.tip_position(), sens))
+                        },
+                    )
+                    .collect::<Result<Vec<_>>>()
+            };
+            let results = match pool {
+                Some(pool) => pool.install(|| work(warm))?,
+                None => work(warm)?,
+            };
+            let mut r = DVector::zeros(3 * samples.len());
+            let mut jac = jacobian.then(|| DMatrix::zeros(3 * samples.len(), k));
+            for (i, (tip, sens)) in results.iter().enumerate() {
+                for c in 0..3 {
+                    r[3 * i + c] = measured[i][c] - tip[c];
+                }
+                if let (Some(j), Some(s)) = (jac.as_mut(), sens) {
+                    for c in 0..3 {
+                        for col in 0..k {
+                            // d(model tip)/dp in scaled parameters.
+                            j[(3 * i + c, col)] = s.tip_position[(c, col)] * scale[col];
+                        }
+                    }
+                }
+            }
+            Ok((r, jac))
+        };
+        let mut p = start.clone();
+        let (mut r, mut jac) = evaluate(&p, &mut warm, true)?;
+        let mut cost = r.norm_squared();
+        let mut converged = false;
+        let mut iterations = 0;
+        let mut message = String::from("iteration limit reached");
+        while iterations < settings.max_iterations {
+            iterations += 1;
+            let j = jac.as_ref().expect("evaluated with the Jacobian");
+            // Gauss-Newton in scaled parameters: J dx = r (the model moves
+            // towards the measurements), by SVD for rank-deficient fits.
+            let Ok(svd) = j.clone().svd(true, true).solve(&r, 1e-12) else {
+                message = "the least-squares step failed".into();
+                break;
+            };
+            let mut t = 1.0;
+            let mut accepted = false;
+            for _ in 0..30 {
+                let trial: Vec<f64> = (0..k).map(|c| p[c] + t * svd[c] * scale[c]).collect();
+                match evaluate(&trial, &mut warm, false) {
+                    Ok((r_trial, _)) if r_trial.norm_squared() <= cost => {
+                        p = trial;
+                        accepted = true;
+                        break;
+                    }
+                    _ => t *= 0.5,
+                }
+            }
+            let moved = t * svd.amax();
+            if !accepted {
+                // No step lowers the residual: at the minimum to round-off.
+                converged = moved < 1e-6;
+                message = if converged {
+                    "converged (no step lowers the residual)".into()
+                } else {
+                    "the line search failed".into()
+                };
+                break;
+            }
+            (r, jac) = evaluate(&p, &mut warm, true)?;
+            cost = r.norm_squared();
+            if moved < settings.step_tol {
+                converged = true;
+                message = "converged".into();
+                break;
+            }
+        }
+        let j = jac.expect("evaluated with the Jacobian");
+        let dof = (r.len() - k) as f64;
+        let variance = cost / dof;
+        let jtj = j.transpose() * &j;
+        let covariance_scaled = jtj
+            .clone()
+            .pseudo_inverse(1e-14 * jtj.norm())
+            .map_err(|e| Error::argument("parameters", e.to_string()))?;
+        let mut covariance = vec![0.0; k * k];
+        for a in 0..k {
+            for b in 0..k {
+                covariance[a * k + b] = variance * covariance_scaled[(a, b)] * scale[a] * scale[b];
+            }
+        }
+        let standard_errors = (0..k).map(|a| covariance[a * k + a].sqrt()).collect();
+        let residuals = (0..measured.len())
+            .map(|i| Vector3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]))
+            .collect();
+        let (robot, _) = split(&p)?;
+        Ok(Calibration {
+            parameters: fields,
+            estimates: p,
+            standard_errors,
+            covariance,
+            residuals,
+            rms: (cost / r.len() as f64).sqrt(),
+            iterations,
+            converged,
+            robot,
+            message,
+        })
+    }
+}

@@ -1,0 +1,295 @@
+//! Sensitivities by the implicit function theorem against central
+//! differences of whole solves (tight tolerance), for free, pinned and
+//! clamped tips and both schemes.
+
+use nalgebra::Vector3;
+use softspine::{Gravity, Quat, Scene, Scheme, Settings, Solution, Solver, TipCondition};
+
+fn scene() -> Scene {
+    let mut s = Scene::new(0.8, 0.9, 1.1, 0.7);
+    s.rest_curvature = vec![[1.2, -0.4], [-0.6, 0.9]];
+    s.gravity = Some(Gravity {
+        linear_density: 0.6,
+        vector: Vector3::new(0.0, 0.5, -9.81),
+    });
+    s.tip_force = Vector3::new(0.8, -0.3, -0.5);
+    s.tip_moment = Vector3::new(0.05, 0.1, -0.02);
+    s
+}
+
+fn settings(scheme: Scheme) -> Settings {
+    Settings {
+        n_elements: Some(20),
+        scheme: Some(scheme),
+        residual_tol: 1e-13,
+        ..Settings::default()
+    }
+}
+
+fn solve(scene: &Scene, scheme: Scheme) -> Solution {
+    let sol = softspine::solve(scene, settings(scheme), None).unwrap();
+    assert!(sol.converged() && sol.stable, "{}", sol.message);
+    sol
+}
+
+/// The tip's outputs of a solve, stacked: position, orientation (as the
+/// quaternion, turned into a rotation vector against `reference`), reactions.
+fn outputs(sol: &Solution, reference: Quat) -> Vec<f64> {
+    let mut out: Vec<f64> = sol.tip_position().iter().copied().collect();
+    let q = sol.tip_quaternion();
+    let turn = q * reference.conj();
+    let turn = if turn.w < 0.0 { -turn } else { turn };
+    out.extend((2.0 * turn.v).iter());
+    out.extend(sol.tip_reaction_force.unwrap_or_default().iter());
+    out.extend(sol.tip_reaction_moment.unwrap_or_default().iter());
+    out
+}
+
+fn check(scene: &Scene, scheme: Scheme, parameters: &[&str]) {
+    let mut solver = Solver::new(scene, settings(scheme)).unwrap();
+    let sol = solver.solve(None).unwrap();
+    assert!(sol.converged(), "{}", sol.message);
+    let sens = solver.sensitivity(parameters).unwrap();
+    let reference = sol.tip_quaternion();
+    let base = scene.to_value();
+    for (j, name) in sens.parameters.iter().enumerate() {
+        let value = *base.clone().number_at_mut(name).unwrap();
+        let h = 1e-4 * value.abs().max(0.1);
+        let at = |delta: f64| {
+            let mut v = base.clone();
+            *v.number_at_mut(name).unwrap() += delta;
+            let s = Scene::from_value(&v).unwrap();
+            outputs(&solve(&s, scheme), reference)
+        };
+        let (plus, minus) = (at(h), at(-h));
+        let fd: Vec<f64> = plus
+            .iter()
+            .zip(&minus)
+            .map(|(a, b)| (a - b) / (2.0 * h))
+            .collect();
+        let mut ift: Vec<f64> = sens.tip_position.column(j).iter().copied().collect();
+        ift.extend(sens.tip_rotation.column(j).iter());
+        let zero = nalgebra::Matrix3xX::zeros(sens.parameters.len());
+        ift.extend(
+            sens.tip_reaction_force
+                .as_ref()
+                .unwrap_or(&zero)
+                .column(j)
+                .iter(),
+        );
+        ift.extend(
+            sens.tip_reaction_moment
+                .as_ref()
+                .unwrap_or(&zero)
+                .column(j)
+                .iter(),
+        );
+        let scale = fd.iter().map(|x| x.abs()).fold(1.0, f64::max);
+        for (row, (a, b)) in ift.iter().zip(&fd).enumerate() {
+            assert!(
+                (a - b).abs() < 1e-6 * scale,
+                "{scheme:?} {name} row {row}: ift {a} vs differences {b}"
+            );
+        }
+    }
+}
+
+const PARAMETERS: [&str; 4] = [
+    "rest_curvature",
+    "tip_wrench",
+    "stiffness.kx",
+    "gravity.linear_density",
+];
+
+#[test]
+fn a_free_tip_matches_differences_of_solves() {
+    for scheme in [Scheme::Fd2, Scheme::Fe4] {
+        check(&scene(), scheme, &PARAMETERS);
+    }
+}
+
+#[test]
+fn held_tips_match_differences_of_solves() {
+    for scheme in [Scheme::Fd2, Scheme::Fe4] {
+        let free = solve(&scene(), scheme);
+        let mut pinned = scene();
+        pinned.tip = TipCondition::Pinned {
+            position: free.tip_position() + Vector3::new(0.02, 0.0, -0.01),
+        };
+        check(&pinned, scheme, &PARAMETERS);
+        // A clamped tip's wrench is the reaction: no tip loads.
+        let mut clamped = scene();
+        clamped.tip_force = Vector3::zeros();
+        clamped.tip_moment = Vector3::zeros();
+        clamped.tip = TipCondition::Clamped {
+            position: free.tip_position() + Vector3::new(0.0, 0.02, 0.01),
+            quaternion: free.tip_quaternion(),
+        };
+        check(
+            &clamped,
+            scheme,
+            &[
+                "rest_curvature",
+                "stiffness.ky",
+                "gravity.linear_density",
+                "tip.position[0]",
+            ],
+        );
+    }
+}
+
+#[test]
+fn unknown_parameters_and_unsolved_states_are_refused_by_name() {
+    let mut solver = Solver::new(&scene(), settings(Scheme::Fd2)).unwrap();
+    let e = solver.sensitivity(&["tip_force[0]"]).unwrap_err();
+    assert!(e.to_string().contains("solve first"), "{e}");
+    solver.solve(None).unwrap();
+    for (name, reason) in [
+        ("tip_force[3]", "out of range"),
+        ("stiffnes.kx", "no field"),
+        ("name", "no field"),
+    ] {
+        let e = solver.sensitivity(&[name]).unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains(reason), "{e}");
+    }
+}
+
+#[test]
+fn the_robot_sensitivity_matches_differences_of_forward_solves() {
+    use softspine::Robot;
+    let robot = Robot::default();
+    let kappa = robot.random_actuations(1, 5).unwrap();
+    let names = [
+        "muscle_lengths[1][2]",
+        "stiffness.E",
+        "load",
+        "disk_mass",
+        "rest_curvature[9][0]",
+    ];
+    let (sol, sens) = robot.sensitivity(&kappa, 0.03, &names, None).unwrap();
+    assert!(sol.converged());
+    let base = robot.to_value();
+    for (j, name) in names.iter().enumerate() {
+        let tip = |delta: f64| -> Vector3<f64> {
+            let (mut r, mut k, mut mass) = (robot.clone(), kappa.clone(), 0.03);
+            match *name {
+                "load" => mass += delta,
+                "rest_curvature[9][0]" => k[9][0] += delta,
+                "muscle_lengths[1][2]" => {
+                    let mut l = robot.muscle_lengths(&kappa);
+                    l[1][2] += delta;
+                    k = robot.rest_curvature(&l).unwrap();
+                }
+                field => {
+                    let mut v = base.clone();
+                    *v.number_at_mut(field).unwrap() += delta;
+                    r = Robot::from_value(&v).unwrap();
+                }
+            }
+            let scene = r.scene(&k, mass).unwrap();
+            let settings = Settings {
+                n_elements: Some(robot.n_elements),
+                residual_tol: 1e-13,
+                ..Settings::default()
+            };
+            softspine::solve(&scene, settings, None)
+                .unwrap()
+                .tip_position()
+        };
+        let value = match *name {
+            "stiffness.E" => 2e11,
+            _ => 0.01,
+        };
+        let h = 1e-4 * value;
+        let fd = (tip(h) - tip(-h)) / (2.0 * h);
+        let ift = sens.tip_position.column(j);
+        assert!(
+            (ift - fd).norm() < 1e-6 * fd.norm().max(1e-12),
+            "{name}: {ift} vs {fd}"
+        );
+    }
+}
+
+#[test]
+fn calibration_recovers_known_parameters_within_their_uncertainty() {
+    use softspine::{CalibrationSettings, Robot};
+    let truth = Robot::default();
+    let fields = ["stiffness.E", "linear_density", "disk_mass"];
+    let samples = 24;
+    let actuations = truth.random_actuations(samples, 11).unwrap();
+    let settings = Settings {
+        n_elements: Some(truth.n_elements),
+        ..Settings::default()
+    };
+    let exact: Vec<Vector3<f64>> = actuations
+        .chunks(truth.sections)
+        .map(|k| {
+            let scene = truth.scene(k, 0.03).unwrap();
+            softspine::solve(&scene, settings.clone(), None)
+                .unwrap()
+                .tip_position()
+        })
+        .collect();
+    let true_values: Vec<f64> = fields
+        .iter()
+        .map(|f| *truth.to_value().number_at_mut(f).unwrap())
+        .collect();
+    // A start 15 to 25 % off.
+    let mut v = truth.to_value();
+    for (f, factor) in fields.iter().zip([1.25, 0.8, 1.15]) {
+        *v.number_at_mut(f).unwrap() *= factor;
+    }
+    let start = Robot::from_value(&v).unwrap();
+    // Without noise: the truth, to the solver's tolerance.
+    let fit = start
+        .calibrate(
+            &actuations,
+            &exact,
+            0.03,
+            &fields,
+            &CalibrationSettings::default(),
+        )
+        .unwrap();
+    assert!(fit.converged, "{}", fit.message);
+    for (e, t) in fit.estimates.iter().zip(&true_values) {
+        assert!((e / t - 1.0).abs() < 1e-7, "{e} vs {t}");
+    }
+    // With 0.5 mm of noise (a deterministic sequence): within 3 standard
+    // errors, and the residual rms near the noise.
+    let sigma = 5e-4;
+    let noisy: Vec<Vector3<f64>> = exact
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let u = |k: usize| ((i * 3 + k) as f64 * 2.399_963).sin() * 3f64.sqrt();
+            t + sigma * Vector3::new(u(0), u(1), u(2))
+        })
+        .collect();
+    let fit = start
+        .calibrate(
+            &actuations,
+            &noisy,
+            0.03,
+            &fields,
+            &CalibrationSettings::default(),
+        )
+        .unwrap();
+    assert!(fit.converged, "{}", fit.message);
+    for ((e, se), t) in fit
+        .estimates
+        .iter()
+        .zip(&fit.standard_errors)
+        .zip(&true_values)
+    {
+        assert!((e - t).abs() < 3.0 * se, "{e} +- {se} vs {t}");
+        assert!(
+            *se < 0.2 * t.abs(),
+            "{se} of {t}: the fit should resolve it"
+        );
+    }
+    assert!(
+        fit.rms > 0.5 * sigma && fit.rms < 1.5 * sigma,
+        "{}",
+        fit.rms
+    );
+}

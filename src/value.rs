@@ -214,6 +214,56 @@ impl From<&toml::Value> for Value {
     }
 }
 
+impl Value {
+    /// The number at `path` in a value tree: keys joined by dots, list
+    /// indices in brackets (`"stiffness.E"`, `"tip_force[2]"`,
+    /// `"rest_curvature[3][1]"`). The error names the path and what it found.
+    pub fn number_at_mut(&mut self, path: &str) -> Result<&mut f64> {
+        let bad = |reason: String| Error::argument(path.to_string(), reason);
+        let mut node = self;
+        for part in path.split('.') {
+            let (key, indices) = match part.find('[') {
+                Some(i) => (&part[..i], &part[i..]),
+                None => (part, ""),
+            };
+            if !key.is_empty() {
+                node = match node {
+                    Value::Map(entries) => entries
+                        .iter_mut()
+                        .find(|(k, _)| k == key)
+                        .map(|(_, v)| v)
+                        .ok_or_else(|| bad(format!("no field {key:?} here")))?,
+                    other => {
+                        return Err(bad(format!(
+                            "{key:?}: expected a table, got {}",
+                            other.kind()
+                        )))
+                    }
+                };
+            }
+            for index in indices.split(']').filter(|s| !s.is_empty()) {
+                let i: usize = index
+                    .strip_prefix('[')
+                    .and_then(|s| s.parse().ok())
+                    .ok_or_else(|| bad(format!("{index}]: not an index")))?;
+                node = match node {
+                    Value::List(items) => {
+                        let len = items.len();
+                        items
+                            .get_mut(i)
+                            .ok_or_else(|| bad(format!("index {i} out of range (length {len})")))?
+                    }
+                    other => return Err(bad(format!("expected a list, got {}", other.kind()))),
+                };
+            }
+        }
+        match node {
+            Value::Number(x) => Ok(x),
+            other => Err(bad(format!("expected a number, got {}", other.kind()))),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,55 +342,5 @@ mod tests {
         let message = e.to_string();
         assert!(!message.contains('\n'), "{message}");
         assert!(message.contains("line 2"), "{message}");
-    }
-}
-
-impl Value {
-    /// The number at `path` in a value tree: keys joined by dots, list
-    /// indices in brackets (`"stiffness.E"`, `"tip_force[2]"`,
-    /// `"rest_curvature[3][1]"`). The error names the path and what it found.
-    pub fn number_at_mut(&mut self, path: &str) -> Result<&mut f64> {
-        let bad = |reason: String| Error::argument(path.to_string(), reason);
-        let mut node = self;
-        for part in path.split('.') {
-            let (key, indices) = match part.find('[') {
-                Some(i) => (&part[..i], &part[i..]),
-                None => (part, ""),
-            };
-            if !key.is_empty() {
-                node = match node {
-                    Value::Map(entries) => entries
-                        .iter_mut()
-                        .find(|(k, _)| k == key)
-                        .map(|(_, v)| v)
-                        .ok_or_else(|| bad(format!("no field {key:?} here")))?,
-                    other => {
-                        return Err(bad(format!(
-                            "{key:?}: expected a table, got {}",
-                            other.kind()
-                        )))
-                    }
-                };
-            }
-            for index in indices.split(']').filter(|s| !s.is_empty()) {
-                let i: usize = index
-                    .strip_prefix('[')
-                    .and_then(|s| s.parse().ok())
-                    .ok_or_else(|| bad(format!("{index}]: not an index")))?;
-                node = match node {
-                    Value::List(items) => {
-                        let len = items.len();
-                        items
-                            .get_mut(i)
-                            .ok_or_else(|| bad(format!("index {i} out of range (length {len})")))?
-                    }
-                    other => return Err(bad(format!("expected a list, got {}", other.kind()))),
-                };
-            }
-        }
-        match node {
-            Value::Number(x) => Ok(x),
-            other => Err(bad(format!("expected a number, got {}", other.kind()))),
-        }
     }
 }

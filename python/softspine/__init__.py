@@ -33,16 +33,19 @@ from ._core import (
     Solver,
     SolverError,
     __version__,
+    calibrate,
     solve_batch,
 )
 from ._core import solve as _solve
 from .batch import BatchResult, IkBatchResult
 from .scenes import load_scene
+from .sensitivity import Calibration, Sensitivity
 from .status import IkEnding, Status
 
 __all__ = [
     "Accuracy",
     "BatchResult",
+    "Calibration",
     "IkBatchResult",
     "IkEnding",
     "IkResult",
@@ -51,11 +54,13 @@ __all__ = [
     "PaperSettings",
     "Robot",
     "Scene",
+    "Sensitivity",
     "Settings",
     "Solution",
     "Solver",
     "SolverError",
     "Status",
+    "calibrate",
     "load_scene",
     "solve",
     "solve_batch",

@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .batch import BatchResult, IkBatchResult
+from .sensitivity import Calibration, Sensitivity
 from .status import IkEnding, Status
 
 __version__: str
@@ -30,6 +31,7 @@ __all__ = [
     "_IK_ENDING_NAMES",
     "_STATUS_NAMES",
     "__version__",
+    "calibrate",
     "jacobian",
     "residual",
     "solve",
@@ -226,6 +228,18 @@ class Robot:
         """The loaded equilibrium of an actuation (m, 2) under a tip mass (kg),
         from the straight rod or warm from ``initial`` (a Solution of this
         robot or its quaternions (n + 1, 4))."""
+    def sensitivity(
+        self,
+        rest_curvature: npt.ArrayLike,
+        load: float = 0.0,
+        parameters: str | Sequence[str] | None = None,
+        initial: Solution | npt.ArrayLike | None = None,
+    ) -> Sensitivity:
+        """The loaded equilibrium of an actuation (``.solution``) and its tip's
+        sensitivity to the named parameters: ``"rest_curvature"`` (default),
+        ``"muscle_lengths"`` (or one component, ``"muscle_lengths[2][0]"``),
+        ``"load"`` (the tip mass) and any numeric field of ``to_dict()``
+        (``"stiffness.E"``, ``"linear_density"``, ``"disk_mass"``)."""
     def forward_batch(
         self,
         actuations: npt.ArrayLike,
@@ -337,6 +351,14 @@ class Solver:
         """The dead force at the tip, world frame, N."""
     def set_tip_moment(self, moment: npt.ArrayLike) -> None:
         """The dead moment at the tip, world frame, N m."""
+    def sensitivity(self, parameters: str | Sequence[str]) -> Sensitivity:
+        """Sensitivity of the last solve's equilibrium (solve first) to named
+        parameters: paths in the scene's dict (``"tip_force[0]"``,
+        ``"stiffness.kx"``, ``"gravity.linear_density"``,
+        ``"rest_curvature[2][1]"``), ``"rest_curvature"`` (every section) or
+        ``"tip_wrench"`` (the tip force and moment: the 6x6 tip compliance is
+        ``.pose``). Free, pinned and clamped tips; by the implicit function
+        theorem on the factored equilibrium system."""
     def reset(self) -> None:
         """Forget the last equilibrium (the next solve starts straight)."""
     @property
@@ -446,6 +468,21 @@ def solve_batch(
     """Solve many scenes (cold, each with ``settings``) in Rust on every core.
     Keywords as ``Robot.forward_batch``; ``shapes`` only when every scene has
     the same number of nodes."""
+def calibrate(
+    robot: Robot,
+    actuations: npt.ArrayLike,
+    measured_tips: npt.ArrayLike,
+    parameters: str | Sequence[str],
+    load: float = 0.0,
+    *,
+    max_iterations: int | None = None,
+    threads: int | None = None,
+) -> Calibration:
+    """Fit numeric fields of ``robot`` (``"stiffness.E"``, ``"linear_density"``,
+    ``"disk_mass"``, ``"muscle_radius"``, ...; ``"load"`` the tip mass) to tip
+    positions (N, 3) measured at known actuations (N, m, 2), by Gauss-Newton
+    with the sensitivities of every sample (on every core). Returns the
+    estimates, their standard errors and the residuals."""
 def residual(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def jacobian(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def trajectory_points(name: str, points: int = 60) -> _Array: ...

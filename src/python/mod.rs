@@ -9,6 +9,7 @@
 mod batch;
 mod convert;
 mod detach;
+mod fitting;
 mod robot;
 mod scene;
 mod settings;
@@ -53,6 +54,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<solver::PySolver>()?;
     m.add_function(wrap_pyfunction!(solve::solve, m)?)?;
     m.add_function(wrap_pyfunction!(batch::solve_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(fitting::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(solve::residual, m)?)?;
     m.add_function(wrap_pyfunction!(solve::jacobian, m)?)?;
     m.add("SolverError", m.py().get_type::<SolverError>())?;

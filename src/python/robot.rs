@@ -393,6 +393,34 @@ impl PyRobot {
         Ok(PySolution { inner: sol })
     }
 
+    /// The loaded equilibrium of an actuation and its tip's sensitivity to
+    /// the named parameters (see the Python documentation of
+    /// ``Robot.sensitivity``).
+    #[pyo3(signature = (rest_curvature, load=0.0, parameters=None, initial=None))]
+    fn sensitivity<'py>(
+        &self,
+        py: Python<'py>,
+        rest_curvature: &Bound<'py, PyAny>,
+        #[pyo3(from_py_with = load_arg)] load: f64,
+        parameters: Option<&Bound<'py, PyAny>>,
+        initial: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        let names = match given(parameters) {
+            Some(p) => super::fitting::parameter_names(&p)?,
+            None => vec!["rest_curvature".to_string()],
+        };
+        let initial = given(initial)
+            .map(|q| quaternions_arg("initial", &q))
+            .transpose()?;
+        let robot = self.inner.clone();
+        let (sol, sens) = detach_solve(py, self.inner.has_long_passes(), move || {
+            let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
+            robot.sensitivity(&k, load, &names, initial.as_deref())
+        })?;
+        super::fitting::sensitivity_result(py, &sens, Some(sol))
+    }
+
     /// Forward statics of many actuations (samples, m, 2) under one tip
     /// mass, on every core. See the Python documentation of
     /// ``Robot.forward_batch``.

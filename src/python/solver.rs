@@ -148,6 +148,30 @@ impl PySolver {
         Ok(held.solver.set_tip_load(force, m)?)
     }
 
+    /// Sensitivity of the last solve's equilibrium (solve first) to the
+    /// named parameters: paths in the scene's dict (``"tip_force[0]"``,
+    /// ``"stiffness.kx"``, ``"gravity.linear_density"``,
+    /// ``"rest_curvature[2][1]"``), ``"rest_curvature"`` (every section) or
+    /// ``"tip_wrench"`` (tip force and moment: the 6x6 tip compliance).
+    /// A ``softspine.sensitivity.Sensitivity``.
+    fn sensitivity<'py>(
+        &self,
+        py: Python<'py>,
+        parameters: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let names = super::fitting::parameter_names(parameters)?;
+        let inner = Arc::clone(&self.inner);
+        let s = detach_solve(py, self.long_passes, move || {
+            let Ok(mut held) = inner.lock() else {
+                return Ok(None);
+            };
+            let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
+            held.solver.sensitivity(&names).map(Some)
+        })?
+        .ok_or_else(poisoned)?;
+        super::fitting::sensitivity_result(py, &s, None)
+    }
+
     /// Forget the last equilibrium: the next ``solve()`` starts from the straight rod.
     fn reset(&self) -> PyResult<()> {
         self.held()?.last = None;

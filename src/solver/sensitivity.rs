@@ -282,7 +282,13 @@ impl Solver {
             } else {
                 step
             };
-            let (plus, minus) = (model_at(j, eps)?, model_at(j, -eps)?);
+            // The models of the residual's differences serve when the step
+            // keeps the state's move small enough (the common case).
+            let (plus, minus) = if eps == step {
+                (plus, minus)
+            } else {
+                (model_at(j, eps)?, model_at(j, -eps)?)
+            };
             let moved = |sign: f64| -> (Vec<crate::quat::Quat>, Vec<Vector3<f64>>) {
                 let mut q = q0.clone();
                 for (i, x) in w.step.iter().enumerate() {

@@ -384,15 +384,21 @@ impl Robot {
     /// The workspace: the equilibria of `samples` random actuations
     /// ([`Robot::random_actuation`], drawn by the workers) under a tip mass
     /// [kg]; the actuations, sample after sample, and their samples.
+    ///
+    /// `first` is the index of the first sample: a part of a larger
+    /// workspace (a distributed engine's task) draws the samples the whole
+    /// would have drawn there.
+    #[allow(clippy::too_many_arguments)]
     pub fn workspace(
         &self,
         samples: usize,
+        first: u64,
         tip_mass: f64,
         seed: u64,
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<(Vec<[f64; 2]>, Vec<Sample>)> {
-        let indices: Vec<u64> = (0..samples as u64).collect();
+        let indices: Vec<u64> = (first..first + samples as u64).collect();
         let start = self.chunk_solver(tip_mass)?;
         let out = run_chunks(&indices, settings, control, start, |state, index| {
             let kappa = self.random_actuation(seed, *index)?;

@@ -250,6 +250,8 @@ class Robot:
         threads: int | None = None,
         chunk: int | None = None,
         progress: bool | Callable[[int, int], object] | None = None,
+        executor: Any = None,
+        part: int | None = None,
     ) -> BatchResult:
         """Forward statics of many actuations (samples, m, 2) under one tip
         mass, in Rust on every core without the GIL.
@@ -261,21 +263,30 @@ class Robot:
         samples a worker solves in order (default 64; the answers depend on
         it, never on the thread count). ``progress``: None (a bar on a
         terminal after 2 s), True, False or ``progress(done, total)``.
-        Ctrl-C stops the batch (KeyboardInterrupt)."""
+        Ctrl-C stops the batch (KeyboardInterrupt). ``executor``: a Dask
+        ``Client``, the ``ray`` module or a ``concurrent.futures`` executor
+        runs the batch in tasks of ``part`` samples (a multiple of ``chunk``;
+        default 32 chunks), with the results of a local run (see
+        ``softspine.distributed``)."""
     def workspace(
         self,
         samples: int,
         load: float = 0.0,
         *,
         seed: int = 0,
+        first: int = 0,
         shapes: bool | None = None,
         threads: int | None = None,
         chunk: int | None = None,
         progress: bool | Callable[[int, int], object] | None = None,
+        executor: Any = None,
+        part: int | None = None,
     ) -> BatchResult:
         """The equilibria of ``samples`` random actuations (each muscle's
         length uniform over its range, seeded) under a tip mass: a
-        ``BatchResult`` with ``actuations``. Keywords as ``forward_batch``."""
+        ``BatchResult`` with ``actuations``. Sample ``i`` is drawn from the
+        seed and ``first + i`` (a part of a larger workspace draws what the
+        whole would). Keywords as ``forward_batch``."""
     def inverse_batch(
         self,
         targets: npt.ArrayLike,
@@ -287,6 +298,8 @@ class Robot:
         threads: int | None = None,
         chunk: int | None = None,
         progress: bool | Callable[[int, int], object] | None = None,
+        executor: Any = None,
+        part: int | None = None,
     ) -> IkBatchResult:
         """Load-aware inverse kinematics of many targets (samples, 3), each on
         its own (as ``inverse``), on every core. Keywords as ``forward_batch``."""
@@ -464,6 +477,8 @@ def solve_batch(
     threads: int | None = None,
     chunk: int | None = None,
     progress: bool | Callable[[int, int], object] | None = None,
+    executor: Any = None,
+    part: int | None = None,
 ) -> BatchResult:
     """Solve many scenes (cold, each with ``settings``) in Rust on every core.
     Keywords as ``Robot.forward_batch``; ``shapes`` only when every scene has

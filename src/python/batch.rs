@@ -60,6 +60,25 @@ pub(super) fn progress_arg<'py>(
     }
 }
 
+/// A batch on a cluster: `softspine.distributed.<function>(*args, **given
+/// keywords)`, which cuts the batch into parts and runs them on the executor.
+pub(super) fn distributed<'py>(
+    py: Python<'py>,
+    function: &str,
+    args: impl pyo3::call::PyCallArgs<'py>,
+    keywords: &[(&str, Option<&Bound<'py, PyAny>>)],
+) -> PyResult<Bound<'py, PyAny>> {
+    let kwargs = PyDict::new(py);
+    for (key, value) in keywords {
+        if let Some(v) = given(*value) {
+            kwargs.set_item(key, v)?;
+        }
+    }
+    py.import("softspine.distributed")?
+        .getattr(function)?
+        .call(args, Some(&kwargs))
+}
+
 /// Run `work` with a fresh [`BatchControl`] (see `detach_batch`).
 pub(super) fn run_batch<T: Send>(
     py: Python<'_>,
@@ -149,7 +168,7 @@ pub(super) fn ik_batch_result<'py>(
 
 /// Solve many scenes on every core. See ``softspine.solve_batch``.
 #[pyfunction]
-#[pyo3(signature = (scenes, settings=None, *, n_elements=None, method=None, scheme=None, residual_tol=None, max_iterations=None, shapes=None, threads=None, chunk=None, progress=None))]
+#[pyo3(signature = (scenes, settings=None, *, n_elements=None, method=None, scheme=None, residual_tol=None, max_iterations=None, shapes=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve_batch<'py>(
     py: Python<'py>,
@@ -164,7 +183,29 @@ pub(super) fn solve_batch<'py>(
     threads: Option<&Bound<'py, PyAny>>,
     chunk: Option<&Bound<'py, PyAny>>,
     progress: Option<&Bound<'py, PyAny>>,
+    executor: Option<&Bound<'py, PyAny>>,
+    part: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    if let Some(executor) = given(executor) {
+        return distributed(
+            py,
+            "solve_batch",
+            (scenes, settings),
+            &[
+                ("n_elements", n_elements),
+                ("method", method),
+                ("scheme", scheme),
+                ("residual_tol", residual_tol),
+                ("max_iterations", max_iterations),
+                ("shapes", shapes),
+                ("threads", threads),
+                ("chunk", chunk),
+                ("progress", progress),
+                ("executor", Some(&executor)),
+                ("part", part),
+            ],
+        );
+    }
     let scenes: Vec<crate::Scene> = scenes
         .try_iter()
         .map_err(|_| {

@@ -1,6 +1,6 @@
 //! `Robot`, its inverse kinematics (`InverseSolver`, `IkResult`) and the seed's trajectories.
 
-use super::batch::{batch_result, batch_settings, ik_batch_result, run_batch};
+use super::batch::{batch_result, batch_settings, distributed, ik_batch_result, run_batch};
 use super::convert::*;
 use super::detach::detach_solve;
 use super::scene::PyScene;
@@ -424,10 +424,10 @@ impl PyRobot {
     /// Forward statics of many actuations (samples, m, 2) under one tip
     /// mass, on every core. See the Python documentation of
     /// ``Robot.forward_batch``.
-    #[pyo3(signature = (actuations, load=0.0, *, shapes=None, warm_start=None, threads=None, chunk=None, progress=None))]
+    #[pyo3(signature = (actuations, load=0.0, *, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn forward_batch<'py>(
-        &self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         actuations: &Bound<'py, PyAny>,
         #[pyo3(from_py_with = load_arg)] load: f64,
@@ -436,11 +436,30 @@ impl PyRobot {
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
+        executor: Option<&Bound<'py, PyAny>>,
+        part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let m = self.inner.sections;
+        if let Some(executor) = given(executor) {
+            return distributed(
+                py,
+                "forward_batch",
+                (slf, actuations, load),
+                &[
+                    ("shapes", shapes),
+                    ("warm_start", warm_start),
+                    ("threads", threads),
+                    ("chunk", chunk),
+                    ("progress", progress),
+                    ("executor", Some(&executor)),
+                    ("part", part),
+                ],
+            );
+        }
+        let this = slf.get();
+        let m = this.inner.sections;
         let k = samples_arg::<2>("actuations", actuations, m)?;
         let settings = batch_settings(threads, chunk, warm_start, shapes)?;
-        let robot = &self.inner;
+        let robot = &this.inner;
         let samples = run_batch(py, k.len() / m, progress, |control| {
             robot.forward_batch(&k, load, &settings, control)
         })?;
@@ -449,33 +468,54 @@ impl PyRobot {
 
     /// The equilibria of ``samples`` random actuations (muscle lengths
     /// uniform over their range, seeded) under one tip mass, on every core.
-    #[pyo3(signature = (samples, load=0.0, *, seed=0, shapes=None, threads=None, chunk=None, progress=None))]
+    #[pyo3(signature = (samples, load=0.0, *, seed=0, first=0, shapes=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn workspace<'py>(
-        &self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         #[pyo3(from_py_with = samples_count)] samples: usize,
         #[pyo3(from_py_with = load_arg)] load: f64,
         seed: u64,
+        first: u64,
         shapes: Option<&Bound<'py, PyAny>>,
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
+        executor: Option<&Bound<'py, PyAny>>,
+        part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        if let Some(executor) = given(executor) {
+            let (seed, first) = (seed.into_pyobject(py)?, first.into_pyobject(py)?);
+            return distributed(
+                py,
+                "workspace",
+                (slf, samples, load),
+                &[
+                    ("seed", Some(seed.as_any())),
+                    ("first", Some(first.as_any())),
+                    ("shapes", shapes),
+                    ("threads", threads),
+                    ("chunk", chunk),
+                    ("progress", progress),
+                    ("executor", Some(&executor)),
+                    ("part", part),
+                ],
+            );
+        }
         let settings = batch_settings(threads, chunk, None, shapes)?;
-        let robot = &self.inner;
+        let robot = &slf.get().inner;
         let (k, out) = run_batch(py, samples, progress, |control| {
-            robot.workspace(samples, load, seed, &settings, control)
+            robot.workspace(samples, first, load, seed, &settings, control)
         })?;
         batch_result(py, &out, Some((&k, robot.sections)))
     }
 
     /// Load-aware inverse kinematics of many targets (samples, 3), each on
     /// its own, on every core. See ``Robot.inverse_batch``.
-    #[pyo3(signature = (targets, load=0.0, reference=None, direction=None, settings=None, *, threads=None, chunk=None, progress=None))]
+    #[pyo3(signature = (targets, load=0.0, reference=None, direction=None, settings=None, *, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse_batch<'py>(
-        &self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         targets: &Bound<'py, PyAny>,
         #[pyo3(from_py_with = load_arg)] load: f64,
@@ -485,7 +525,27 @@ impl PyRobot {
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
+        executor: Option<&Bound<'py, PyAny>>,
+        part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        if let Some(executor) = given(executor) {
+            return distributed(
+                py,
+                "inverse_batch",
+                (slf, targets, load),
+                &[
+                    ("reference", reference),
+                    ("direction", direction),
+                    ("settings", settings),
+                    ("threads", threads),
+                    ("chunk", chunk),
+                    ("progress", progress),
+                    ("executor", Some(&executor)),
+                    ("part", part),
+                ],
+            );
+        }
+        let this = slf.get();
         let targets: Vec<Vector3<f64>> = rows_of::<3>("targets", targets)?
             .into_iter()
             .map(Vector3::from)
@@ -501,7 +561,7 @@ impl PyRobot {
             settings: ik_settings_arg(settings, &[])?,
         };
         let batch = batch_settings(threads, chunk, None, None)?;
-        let robot = &self.inner;
+        let robot = &this.inner;
         let samples = run_batch(py, targets.len(), progress, |control| {
             robot.inverse_batch(&targets, &options, &batch, control)
         })?;

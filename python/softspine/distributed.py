@@ -1,0 +1,261 @@
+"""The batch calls on a cluster: Ray, Dask, or any ``concurrent.futures``
+executor.
+
+``robot.forward_batch(..., executor=client)`` (and ``workspace``,
+``inverse_batch``, ``softspine.solve_batch``) lands here. The batch is cut into
+parts of ``part`` samples (a multiple of ``chunk``, so every part is solved
+exactly as the same samples of a local batch: the results are identical to a
+local run's), each part is one task that runs the local batch on its worker's
+cores, and the parts are joined in order. ``executor`` is
+
+* a Dask ``distributed.Client`` (or anything with ``submit`` returning futures
+  with ``result()``, such as a ``concurrent.futures.ProcessPoolExecutor``);
+* the ``ray`` module (after ``ray.init(...)``), or the context ``ray.init``
+  returns.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ._core import Robot, Scene
+from .batch import BatchResult, IkBatchResult, TextProgress, concatenate
+
+__all__ = ["forward_batch", "inverse_batch", "solve_batch", "workspace"]
+
+#: Chunks a task takes by default: a few thousand samples of the robot, about
+#: 0.1 s of work, large against a task's overhead on Ray or Dask (milliseconds).
+PART_CHUNKS = 32
+#: The local batch's chunk (the core's default).
+CHUNK = 64
+
+
+def _part_size(chunk: int | None, part: int | None) -> tuple[int, int]:
+    chunk = CHUNK if chunk is None else int(chunk)
+    if chunk < 1:
+        raise ValueError(f"chunk: must be at least 1, got {chunk}")
+    if part is None:
+        return chunk, chunk * PART_CHUNKS
+    part = int(part)
+    if part < 1 or part % chunk:
+        raise ValueError(
+            f"part: must be a positive multiple of chunk ({chunk}) for the results "
+            f"to be those of a local batch, got {part}"
+        )
+    return chunk, part
+
+
+def _is_ray(executor: Any) -> bool:
+    if getattr(executor, "__name__", None) == "ray":
+        return True
+    return type(executor).__module__.startswith("ray.")
+
+
+def _run(
+    executor: Any,
+    task: Callable[..., Any],
+    calls: list[tuple[Any, ...]],
+    sizes: list[int],
+    progress: Any,
+) -> list[Any]:
+    """Run ``task(*call)`` for every call on the executor; the results in
+    order, reporting the samples of the finished tasks to ``progress``."""
+    total = sum(sizes)
+    report = _progress(progress)
+    if _is_ray(executor):
+        import ray
+
+        remote = ray.remote(task)
+        refs = [remote.remote(*call) for call in calls]
+        size_of = {ref: size for ref, size in zip(refs, sizes, strict=True)}
+        pending, done = list(refs), 0
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1, timeout=0.2)
+            done += sum(size_of[r] for r in ready)
+            if report:
+                report(done, total)
+        return list(ray.get(refs))
+    if not callable(getattr(executor, "submit", None)):
+        raise ValueError(
+            "executor: expected a Dask Client, the ray module or a concurrent.futures "
+            f"executor, got {type(executor).__name__}"
+        )
+    futures = [executor.submit(task, *call) for call in calls]
+    while True:
+        finished = [f.done() for f in futures]
+        if report:
+            report(sum(s for s, d in zip(sizes, finished, strict=True) if d), total)
+        if all(finished):
+            break
+        time.sleep(0.05)
+    return [f.result() for f in futures]
+
+
+def _progress(progress: Any) -> Callable[[int, int], object] | None:
+    if progress is None:
+        return TextProgress()
+    if progress is True:
+        return TextProgress(after=0.0, always=True)
+    if progress is False:
+        return None
+    if callable(progress):
+        return progress
+    raise ValueError(
+        f"progress: expected None, a bool or a callable, got {type(progress).__name__}"
+    )
+
+
+def _cuts(count: int, part: int) -> list[tuple[int, int]]:
+    return [(start, min(start + part, count)) for start in range(0, count, part)] or [(0, 0)]
+
+
+# The tasks: top-level functions (picklable), each a local batch on its worker.
+
+
+def _forward_task(
+    robot: Robot, actuations: Any, load: float, options: dict[str, Any]
+) -> BatchResult:
+    return robot.forward_batch(actuations, load, progress=False, **options)
+
+
+def _workspace_task(
+    robot: Robot, count: int, load: float, first: int, options: dict[str, Any]
+) -> BatchResult:
+    return robot.workspace(count, load, first=first, progress=False, **options)
+
+
+def _inverse_task(
+    robot: Robot, targets: Any, load: float, options: dict[str, Any]
+) -> IkBatchResult:
+    return robot.inverse_batch(targets, load, progress=False, **options)
+
+
+def _solve_task(scenes: list[Scene], settings: Any, options: dict[str, Any]) -> BatchResult:
+    from ._core import solve_batch as local
+
+    return local(scenes, settings, progress=False, **options)
+
+
+def _options(**values: Any) -> dict[str, Any]:
+    return {k: v for k, v in values.items() if v is not None}
+
+
+def forward_batch(
+    robot: Robot,
+    actuations: npt.ArrayLike,
+    load: float = 0.0,
+    *,
+    executor: Any,
+    shapes: bool | None = None,
+    warm_start: bool | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Any = None,
+    part: int | None = None,
+) -> BatchResult:
+    """``Robot.forward_batch`` on ``executor`` (see the module's documentation)."""
+    k = np.asarray(actuations, dtype=np.float64)
+    if k.ndim != 3:
+        raise ValueError(
+            f"actuations: expected shape (samples, {robot.sections}, 2), got {k.shape}"
+        )
+    chunk, part = _part_size(chunk, part)
+    options = _options(shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk)
+    cuts = _cuts(len(k), part)
+    calls = [(robot, k[a:b], load, options) for a, b in cuts]
+    parts = _run(executor, _forward_task, calls, [b - a for a, b in cuts], progress)
+    return concatenate(parts)
+
+
+def workspace(
+    robot: Robot,
+    samples: int,
+    load: float = 0.0,
+    *,
+    executor: Any,
+    seed: int = 0,
+    first: int = 0,
+    shapes: bool | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Any = None,
+    part: int | None = None,
+) -> BatchResult:
+    """``Robot.workspace`` on ``executor``: each task draws its own samples
+    (sample ``i`` from the seed and ``i``), the same as a local run's."""
+    if int(samples) < 0:
+        raise ValueError(f"samples: must be >= 0, got {samples}")
+    chunk, part = _part_size(chunk, part)
+    options = _options(seed=seed, shapes=shapes, threads=threads, chunk=chunk)
+    cuts = _cuts(int(samples), part)
+    calls = [(robot, b - a, load, int(first) + a, options) for a, b in cuts]
+    parts = _run(executor, _workspace_task, calls, [b - a for a, b in cuts], progress)
+    return concatenate(parts)
+
+
+def inverse_batch(
+    robot: Robot,
+    targets: npt.ArrayLike,
+    load: float = 0.0,
+    *,
+    executor: Any,
+    reference: npt.ArrayLike | None = None,
+    direction: npt.ArrayLike | None = None,
+    settings: Any = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Any = None,
+    part: int | None = None,
+) -> IkBatchResult:
+    """``Robot.inverse_batch`` on ``executor``."""
+    t = np.asarray(targets, dtype=np.float64)
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise ValueError(f"targets: expected shape (samples, 3), got {t.shape}")
+    chunk, part = _part_size(chunk, part)
+    options = _options(
+        reference=reference, direction=direction, settings=settings, threads=threads, chunk=chunk
+    )
+    cuts = _cuts(len(t), part)
+    calls = [(robot, t[a:b], load, options) for a, b in cuts]
+    parts = _run(executor, _inverse_task, calls, [b - a for a, b in cuts], progress)
+    return concatenate(parts)
+
+
+def solve_batch(
+    scenes: Sequence[Scene | dict[str, Any]],
+    settings: Any = None,
+    *,
+    executor: Any,
+    n_elements: int | None = None,
+    method: str | None = None,
+    scheme: str | None = None,
+    residual_tol: float | None = None,
+    max_iterations: int | None = None,
+    shapes: bool | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Any = None,
+    part: int | None = None,
+) -> BatchResult:
+    """``softspine.solve_batch`` on ``executor``."""
+    scenes = [s if isinstance(s, Scene) else Scene(s) for s in scenes]
+    chunk, part = _part_size(chunk, part)
+    options = _options(
+        n_elements=n_elements,
+        method=method,
+        scheme=scheme,
+        residual_tol=residual_tol,
+        max_iterations=max_iterations,
+        shapes=shapes,
+        threads=threads,
+        chunk=chunk,
+    )
+    cuts = _cuts(len(scenes), part)
+    calls = [(scenes[a:b], settings, options) for a, b in cuts]
+    parts = _run(executor, _solve_task, calls, [b - a for a, b in cuts], progress)
+    return concatenate(parts)

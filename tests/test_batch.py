@@ -250,3 +250,19 @@ def test_robot_forward_takes_a_warm_start(robot, actuations):
     again = robot.forward(nearby, LOAD, initial=cold.quaternions)
     assert warm.iterations < robot.forward(nearby, LOAD).iterations
     np.testing.assert_array_equal(warm.positions, again.positions)
+
+
+def test_robot_inverse_takes_a_warm_start(robot, actuations):
+    targets = [robot.forward(k, LOAD).tip_position for k in (actuations[3], actuations[3] * 1.01)]
+    first = robot.inverse(targets[0], LOAD)
+    cold = robot.inverse(targets[1], LOAD)
+    warm = robot.inverse(targets[1], LOAD, initial=first)
+    assert first.reached and cold.reached and warm.reached
+    assert warm.iterations < cold.iterations
+    # From the equilibrium alone (quaternions), with the reference given.
+    again = robot.inverse(
+        targets[1], LOAD, reference=first.rest_curvature, initial=first.solution.quaternions
+    )
+    assert again.reached
+    with pytest.raises(ValueError, match="initial: has 5 nodes"):
+        robot.inverse(targets[1], LOAD, initial=np.tile([1.0, 0, 0, 0], (5, 1)))

@@ -315,7 +315,11 @@ class Robot:
         strategy: str | None = None,
         tol: float | None = None,
         max_iterations: int | None = None,
-    ) -> IkResult: ...
+        initial: IkResult | Solution | npt.ArrayLike | None = None,
+    ) -> IkResult:
+        """Load-aware inverse kinematics of one target. ``initial``: a warm
+        start, an earlier IkResult or Solution (its equilibrium; its actuation
+        is the reference unless one is given) or quaternions (n + 1, 4)."""
     def track(
         self,
         points: npt.ArrayLike,

@@ -6,7 +6,7 @@ use super::detach::detach_solve;
 use super::scene::PyScene;
 use super::settings::ik_settings_arg;
 use super::solution::{quaternions_arg, PySolution};
-use crate::robot::{trajectory, IkOptions, IkResult, InverseSolver, Robot};
+use crate::robot::{trajectory, IkOptions, IkResult, IkStart, InverseSolver, Robot};
 use crate::Settings;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
@@ -559,6 +559,7 @@ impl PyRobot {
                 .map(|d| vec3_arg("direction", &d))
                 .transpose()?,
             settings: ik_settings_arg(settings, &[])?,
+            initial: None,
         };
         let batch = batch_settings(threads, chunk, None, None)?;
         let robot = &this.inner;
@@ -586,7 +587,7 @@ impl PyRobot {
     /// optionally with the tip along ``direction``. ``settings`` an
     /// ``IkSettings`` or a dict; ``strategy``, ``tol`` and ``max_iterations``
     /// override its fields.
-    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None))]
+    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse(
         &self,
@@ -599,6 +600,7 @@ impl PyRobot {
         strategy: Option<&Bound<'_, PyAny>>,
         tol: Option<&Bound<'_, PyAny>>,
         max_iterations: Option<&Bound<'_, PyAny>>,
+        initial: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
         let target = vec3_arg("target", target)?;
         let keywords = [
@@ -606,7 +608,8 @@ impl PyRobot {
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let options = self.ik_options(load, reference, direction, settings, &keywords)?;
+        let mut options = self.ik_options(load, reference, direction, settings, &keywords)?;
+        options.initial = given(initial).map(|x| ik_start(&x)).transpose()?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
         let r = detach_solve(py, long, move || robot.inverse(target, &options))?;
@@ -653,6 +656,29 @@ impl PyRobot {
     }
 }
 
+/// A warm start of an inverse solve: an IkResult (its equilibrium and
+/// actuation), a Solution (its quaternions and rest curvature) or quaternions.
+fn ik_start(x: &Bound<'_, PyAny>) -> PyResult<IkStart> {
+    if let Ok(r) = x.cast::<PyIkResult>() {
+        let r = &r.get().inner;
+        return Ok(IkStart {
+            quaternions: r.solution.quaternions.clone(),
+            rest_curvature: Some(r.rest_curvature.clone()),
+        });
+    }
+    if let Ok(s) = x.cast::<PySolution>() {
+        let s = &s.get().inner;
+        return Ok(IkStart {
+            quaternions: s.quaternions.clone(),
+            rest_curvature: Some(s.rest_curvature.clone()),
+        });
+    }
+    Ok(IkStart {
+        quaternions: quaternions_arg("initial", x)?,
+        rest_curvature: None,
+    })
+}
+
 impl PyRobot {
     fn ik_options(
         &self,
@@ -669,6 +695,7 @@ impl PyRobot {
                 .transpose()?,
             direction: direction.map(|d| vec3_arg("direction", d)).transpose()?,
             settings: ik_settings_arg(settings, keywords)?,
+            initial: None,
         })
     }
 }

@@ -184,6 +184,18 @@ pub struct IkOptions {
     /// Also reach this tip direction (unit vector, world frame).
     pub direction: Option<Vector3<f64>>,
     pub settings: IkSettings,
+    /// A warm start: an earlier answer's equilibrium (node quaternions) and
+    /// actuation. The forward solves start from the equilibrium, and the
+    /// actuation is the reference when none is given (the search starts at
+    /// the reference).
+    pub initial: Option<IkStart>,
+}
+
+/// A warm start of an inverse solve (see [`IkOptions::initial`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct IkStart {
+    pub quaternions: Vec<Quat>,
+    pub rest_curvature: Option<Vec<[f64; 2]>>,
 }
 
 /// Why an inverse solve ended.
@@ -1111,6 +1123,32 @@ impl Robot {
             Strategy::Geometric => Some(InverseSolver::new(&self.weightless(), 0.0)?),
         };
         let mut reference = options.reference.clone();
+        if let Some(start) = &options.initial {
+            if start.quaternions.len() != self.n_elements + 1 {
+                return Err(Error::argument(
+                    "initial",
+                    format!(
+                        "has {} nodes, the robot's discretisation {}",
+                        start.quaternions.len(),
+                        self.n_elements + 1
+                    ),
+                ));
+            }
+            if start
+                .quaternions
+                .iter()
+                .any(|q| !q.to_array().iter().all(|x| x.is_finite()) || q.norm() < 1e-6)
+            {
+                return Err(Error::argument(
+                    "initial",
+                    "quaternions must be finite and non-zero",
+                ));
+            }
+            loaded.q = Some(start.quaternions.clone());
+            if reference.is_none() {
+                reference.clone_from(&start.rest_curvature);
+            }
+        }
         let mut out = Vec::with_capacity(targets.len());
         for target in targets {
             let result = match weightless.as_mut() {

@@ -21,7 +21,7 @@ mod ik;
 pub mod trajectory;
 
 pub use calibrate::{Calibration, CalibrationSettings};
-pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, InverseSolver, Strategy};
+pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, Strategy};
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;

@@ -50,7 +50,7 @@ const CHORD_CONTRACTION: f64 = 0.01;
 
 /// What one element needs besides its nodes.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Element {
+pub(crate) struct Element<'a> {
     /// Length [m].
     pub h: f64,
     /// Diagonal stiffness [N m^2].
@@ -60,6 +60,12 @@ pub(crate) struct Element {
     /// Internal force at the element's start, middle and end (`tau = 0,
     /// 1/2, 1`, just inside the element), world frame [N].
     pub force: [Vector3<f64>; 3],
+    /// The tendons that run through the element (`crate::tendon`).
+    pub tendons: &'a [crate::scene::Tendon],
+    /// Arc length of the element's start [m] (where the tendons' routing is).
+    pub start: f64,
+    /// The tendons' tensions are scaled by this (the load scale).
+    pub tension_scale: f64,
 }
 
 /// Gradient and Jacobian of an element in the body-frame rotations of its
@@ -147,20 +153,32 @@ struct PointTerms {
 fn point_terms(
     q: &Vector4<f64>,
     p: &Vector4<f64>,
-    stiffness: &Vector3<f64>,
-    rest: &Vector3<f64>,
+    el: &Element,
+    tau: f64,
     hessian: bool,
 ) -> PointTerms {
     let inv = 1.0 / q.norm_squared();
     let bq = conj_product(q);
     let omega = 2.0 * inv * (bq * p);
-    let delta = omega - rest;
-    let mu = stiffness.component_mul(&delta);
+    let delta = omega - el.rest;
+    let mut mu = el.stiffness.component_mul(&delta);
+    let mut k = Matrix3::from_diagonal(&el.stiffness);
+    let mut value = 0.5 * delta.dot(&mu);
+    if !el.tendons.is_empty() {
+        // The tendons' density adds to the elastic one: its gradient to the
+        // moment, its Hessian to the stiffness.
+        let s = el.start + tau * el.h;
+        let (v, moment, stiffness) =
+            crate::tendon::density(el.tendons, el.tension_scale, s, &omega);
+        value += v;
+        mu += moment;
+        k += stiffness;
+    }
     let g = mu.dot(&omega);
     let p_mu = times_pure(p, &mu);
     let q_mu = times_pure(q, &mu);
     let mut terms = PointTerms {
-        value: 0.5 * delta.dot(&mu),
+        value,
         grad_q: -2.0 * inv * (p_mu + g * q),
         grad_p: 2.0 * inv * q_mu,
         hqq: Matrix4::zeros(),
@@ -170,7 +188,6 @@ fn point_terms(
     if !hessian {
         return terms;
     }
-    let k = Matrix3::from_diagonal(stiffness);
     let jq = -2.0 * inv * (conj_product(p) + omega * q.transpose());
     let jp = 2.0 * inv * bq;
     let kjq = k * jq;
@@ -265,7 +282,7 @@ pub(crate) fn energy(nodes: [Quat; 3], el: &Element) -> f64 {
     let elastic: f64 = (0..2)
         .map(|g| {
             let (q, p, _, _) = interpolate(&x, el.h, g);
-            0.5 * el.h * point_terms(&q, &p, &el.stiffness, &el.rest, false).value
+            0.5 * el.h * point_terms(&q, &p, el, GAUSS[g], false).value
         })
         .sum();
     let loads: f64 = (0..3)
@@ -294,9 +311,9 @@ pub(crate) fn derivatives(
     let weight = 0.5 * h;
     let mut euclid = [Vector4::zeros(); 3];
     let mut hess = [[Matrix4::zeros(); 3]; 3];
-    for g in 0..2 {
+    for (g, tau) in GAUSS.iter().enumerate() {
         let (q, p, n, dn) = interpolate(&x, h, g);
-        let t = point_terms(&q, &p, &el.stiffness, &el.rest, jacobian);
+        let t = point_terms(&q, &p, el, *tau, jacobian);
         let d = [dn[0] / h, dn[1] / h, dn[2] / h];
         for k in 0..3 {
             euclid[k] += weight * (n[k] * t.grad_q + d[k] * t.grad_p);
@@ -369,9 +386,9 @@ fn mid_gradient(nodes: [Quat; 3], el: &Element) -> Vector3<f64> {
     let x = aligned(nodes);
     let h = el.h;
     let mut euclid = Vector4::zeros();
-    for g in 0..2 {
+    for (g, tau) in GAUSS.iter().enumerate() {
         let (q, p, n, dn) = interpolate(&x, h, g);
-        let t = point_terms(&q, &p, &el.stiffness, &el.rest, false);
+        let t = point_terms(&q, &p, el, *tau, false);
         euclid += (0.5 * h) * (n[1] * t.grad_q + (dn[1] / h) * t.grad_p);
     }
     0.5 * conj_product(&x[1]) * euclid + node_load(nodes[1], &load_weight(el, 1)).1
@@ -506,9 +523,9 @@ pub(crate) fn condensed(
 /// index `j - 1`; both cleared first). `element(i)` gives element `i = 1..=n`;
 /// `mids` holds each element's state of the last evaluation (the start of
 /// its internal node's Newton iteration) and receives the new ones.
-pub(crate) fn assemble(
+pub(crate) fn assemble<'a>(
     q: &[Quat],
-    element: impl Fn(usize) -> Element,
+    element: impl Fn(usize) -> Element<'a>,
     mids: &mut [Option<MidState>],
     g: &mut [Vector3<f64>],
     mut jac: Option<&mut BlockTridiagonal>,
@@ -693,7 +710,7 @@ pub(crate) fn cached_mid(
 /// An unloaded element's potential depends only on its nodes' relative
 /// rotations, so an element at rest turns by the same `conj(a) b` wherever it
 /// is: solved once for each run of equal elements (a section).
-pub(crate) fn rest_chain(base: Quat, elements: impl Iterator<Item = Element>) -> Vec<Quat> {
+pub(crate) fn rest_chain<'a>(base: Quat, elements: impl Iterator<Item = Element<'a>>) -> Vec<Quat> {
     let mut out = vec![base];
     let mut last: Option<(Vector3<f64>, Quat)> = None;
     for el in elements {
@@ -742,7 +759,7 @@ fn rest_element(a: Quat, el: &Element) -> Quat {
 mod tests {
     use super::*;
 
-    fn element() -> Element {
+    fn element() -> Element<'static> {
         Element {
             h: 0.13,
             stiffness: Vector3::new(0.9, 1.3, 0.7),
@@ -752,6 +769,9 @@ mod tests {
                 Vector3::new(0.35, -1.05, 1.85),
                 Vector3::new(0.3, -1.0, 1.7),
             ],
+            tendons: &[],
+            start: 0.0,
+            tension_scale: 1.0,
         }
     }
 

@@ -40,6 +40,7 @@ mod read;
 pub mod robot;
 pub mod scene;
 pub mod solver;
+mod tendon;
 pub mod value;
 
 #[cfg(feature = "python")]
@@ -61,7 +62,7 @@ pub use robot::{
     Calibration, CalibrationSettings, IkEnding, IkOptions, IkResult, IkSettings, InverseSolver,
     Robot, Strategy,
 };
-pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, TipCondition};
+pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, Tendon, TipCondition};
 pub use solver::{
     default_elements, solve, solve_to_accuracy, Accuracy, Method, Sensitivity, Settings, Solution,
     Solver, Status, TipSensitivity, DEFAULT_ELEMENTS,

@@ -143,6 +143,11 @@ pub struct RodModel {
     pub base_position: Vector3<f64>,
     /// Rest curvature of element `i` (index `i - 1`), material frame [1/m].
     pub rest_curvature: Vec<Vector3<f64>>,
+    /// Tendons, longest first (an element's tendons are a prefix).
+    tendons: Vec<crate::scene::Tendon>,
+    /// How many tendons (a prefix of `tendons`) run through element `i`
+    /// (index `i - 1`).
+    tendons_through: Vec<usize>,
     /// Fourth-order scheme: the rest curvature each element is given at its
     /// Gauss points (`fe4::gauss_rest_curvature`; empty with `fd2`).
     gauss_rest: Vec<Vector3<f64>>,
@@ -222,6 +227,12 @@ impl RodModel {
             .map(|j| mean_force[j - 1] + mean_force.get(j).copied().unwrap_or_else(Vector3::zeros))
             .collect();
         let stiffness = scene.stiffness();
+        let mut tendons = scene.tendons.clone();
+        tendons.sort_by(|a, b| b.end.total_cmp(&a.end));
+        let last_element = |t: &crate::scene::Tendon| ((t.end / ds).round() as usize).min(n);
+        let tendons_through = (1..=n)
+            .map(|i| tendons.iter().take_while(|t| last_element(t) >= i).count())
+            .collect();
         let base = scene.base_quaternion;
         let mut constraints: Vec<PointConstraint> = scene
             .guides
@@ -262,6 +273,8 @@ impl RodModel {
             base: scene.base_quaternion,
             base_position: scene.base_position,
             rest_curvature,
+            tendons,
+            tendons_through,
             gauss_rest: Vec::new(),
             mean_force,
             node_force_weight,
@@ -275,10 +288,16 @@ impl RodModel {
             load_parameter: 0.0,
         };
         let point_moment: f64 = scene.point_loads.iter().map(|p| p.force.norm() * p.s).sum();
+        let tendon_moment: f64 = scene
+            .tendons
+            .iter()
+            .map(|t| t.tension * t.offset[0].hypot(t.offset[1]))
+            .sum();
         let moment = scene.tip_moment.norm()
             + length * scene.tip_force.norm()
             + 0.5 * length * length * f.norm()
-            + point_moment;
+            + point_moment
+            + tendon_moment;
         model.load_parameter = moment * length / stiffness.min();
         model.refresh_rest();
         model
@@ -301,9 +320,14 @@ impl RodModel {
         self
     }
 
+    /// The tendons that run through element `i` (from 1).
+    fn element_tendons(&self, i: usize) -> &[crate::scene::Tendon] {
+        &self.tendons[..self.tendons_through[i - 1]]
+    }
+
     /// Element `i`'s data for the fourth-order scheme at load scale `load`.
     /// The reactions of held points act on it as point forces beyond it.
-    fn fe4_element(&self, i: usize, load: f64, reactions: &[Vector3<f64>]) -> fe4::Element {
+    fn fe4_element(&self, i: usize, load: f64, reactions: &[Vector3<f64>]) -> fe4::Element<'_> {
         // The internal force changes by the distributed force along the element.
         let half = load * self.distributed_force * (0.5 * self.ds);
         let mut mean = load * self.mean_force[i - 1];
@@ -315,6 +339,9 @@ impl RodModel {
             stiffness: self.stiffness,
             rest: self.gauss_rest[i - 1],
             force: [mean + half, mean, mean - half],
+            tendons: self.element_tendons(i),
+            start: (i - 1) as f64 * self.ds,
+            tension_scale: load,
         }
     }
 
@@ -427,6 +454,7 @@ impl RodModel {
     /// True when nothing loads the rod: the rest shape is the exact equilibrium.
     pub fn is_trivial(&self) -> bool {
         self.mean_force.iter().all(|f| f.norm() == 0.0)
+            && self.tendons.iter().all(|t| t.tension == 0.0)
             && self.tip_moment.norm() == 0.0
             && self.constraints.iter().all(|c| c.target == c.rest)
             && self.clamped_tip.is_none_or(|q| q == self.rest_tip)
@@ -566,7 +594,18 @@ impl RodModel {
         let c = a.conj() * b;
         let (c0, cv) = (c.w, c.v);
         let e = (2.0 / ds) * cv - self.rest_curvature[i - 1];
-        let w = k.component_mul(&e); // bending/twisting moment, body frame
+        // Bending/twisting moment, body frame, and its derivative in the
+        // curvature: the elastic law, plus the tendons' (at the midpoint).
+        let mut w = k.component_mul(&e);
+        let mut kmat = Matrix3::from_diagonal(&k);
+        let tendons = self.element_tendons(i);
+        if !tendons.is_empty() {
+            let omega = (2.0 / ds) * cv;
+            let (_, moment, stiffness) =
+                crate::tendon::density(tendons, load, (i as f64 - 0.5) * ds, &omega);
+            w += moment;
+            kmat += stiffness;
+        }
         let amat = Matrix3::identity() * c0 + skew(&cv);
         let ga = -(amat * w);
         let gb = amat.transpose() * w;
@@ -590,7 +629,6 @@ impl RodModel {
         if !with_jacobian {
             return terms;
         }
-        let kmat = Matrix3::from_diagonal(&k);
         let cw = cv.dot(&w);
         let psi = kappa * a.dot(sb);
         let radial = (-0.5 * cw - 0.25 * psi) * Matrix3::identity();
@@ -1006,8 +1044,15 @@ impl RodModel {
         }
         for i in 1..=self.n {
             let (a, b) = (q[i - 1], q[i]);
-            let e = (2.0 / self.ds) * (a.conj() * b).v - self.rest_curvature[i - 1];
-            let elastic = 0.5 * e.dot(&self.stiffness.component_mul(&e));
+            let cv = (a.conj() * b).v;
+            let e = (2.0 / self.ds) * cv - self.rest_curvature[i - 1];
+            let mut elastic = 0.5 * e.dot(&self.stiffness.component_mul(&e));
+            let tendons = self.element_tendons(i);
+            if !tendons.is_empty() {
+                let omega = (2.0 / self.ds) * cv;
+                let s = (i as f64 - 0.5) * self.ds;
+                elastic += crate::tendon::density(tendons, load, s, &omega).0;
+            }
             let work = load * self.mean_force[i - 1].dot(&mean_tangent(a, b));
             total += self.ds * (elastic - work);
         }

@@ -80,6 +80,34 @@ pub struct PointLoad {
     pub force: Vector3<f64>,
 }
 
+/// A frictionless tendon: pulled at the base with a constant tension, routed
+/// at an offset from the backbone in the cross-section (the routing angle
+/// may turn linearly along the rod: a helix), anchored at arc length `end`.
+/// Its potential is the tension times its path length.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tendon {
+    /// Tension [N], >= 0 (zero: slack).
+    pub tension: f64,
+    /// Offset `[x, y]` from the backbone at the base, material frame [m].
+    pub offset: [f64; 2],
+    /// Rate at which the routing angle turns about the backbone [rad/m]
+    /// (0: straight routing).
+    pub twist: f64,
+    /// Arc length of the anchor [m], in `(0, L]`; must fall on a node.
+    pub end: f64,
+}
+
+impl Tendon {
+    /// The routing offset `rho(s)` and its derivative `rho'(s)`, material frame.
+    pub fn routing(&self, s: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let (sin, cos) = (self.twist * s).sin_cos();
+        let [x, y] = self.offset;
+        let rho = Vector3::new(cos * x - sin * y, sin * x + cos * y, 0.0);
+        let drho = Vector3::new(-rho.y, rho.x, 0.0) * self.twist;
+        (rho, drho)
+    }
+}
+
 /// A point of the backbone held at a position (a port or a ring the robot
 /// passes through); the guide's force on the rod is an unknown reaction.
 #[derive(Debug, Clone, PartialEq)]
@@ -114,6 +142,9 @@ pub struct Scene {
     pub guides: Vec<Guide>,
     /// Dead forces at nodes, in addition to the distributed and tip loads.
     pub point_loads: Vec<PointLoad>,
+    /// Tendons, each with its tension (an actuation, scaled with the loads
+    /// along a load path).
+    pub tendons: Vec<Tendon>,
 }
 
 impl Scene {
@@ -133,6 +164,7 @@ impl Scene {
             tip: TipCondition::Free,
             guides: Vec::new(),
             point_loads: Vec::new(),
+            tendons: Vec::new(),
         }
     }
 
@@ -186,6 +218,7 @@ impl Scene {
             "tip",
             "guides",
             "point_loads",
+            "tendons",
         ])?;
         let name = match top.get("name") {
             None => None,
@@ -224,6 +257,10 @@ impl Scene {
             None => Vec::new(),
             Some(v) => point_loads(v)?,
         };
+        let tendons = match top.get("tendons") {
+            None => Vec::new(),
+            Some(v) => tendons(v, length)?,
+        };
         let scene = Scene {
             name,
             length,
@@ -238,6 +275,7 @@ impl Scene {
             tip,
             guides,
             point_loads,
+            tendons,
         };
         scene.check_derived()?;
         Ok(scene)
@@ -297,6 +335,15 @@ impl Scene {
         for (i, kappa) in self.rest_curvature.iter().enumerate() {
             let key = format!("rest_curvature[{i}]");
             check(&key, "L |kappa0|", kappa[0].hypot(kappa[1]) * l)?;
+        }
+        for (i, t) in self.tendons.iter().enumerate() {
+            let key = format!("tendons[{i}].tension");
+            let arm = t.offset[0].hypot(t.offset[1]);
+            check(
+                &key,
+                "|tension| |offset| L / k",
+                t.tension * arm * l / k_min,
+            )?;
         }
         Ok(())
     }
@@ -383,6 +430,24 @@ impl Scene {
                 .collect();
             m.push(("guides".into(), Value::List(g)));
         }
+        if !self.tendons.is_empty() {
+            let t = self
+                .tendons
+                .iter()
+                .map(|t| {
+                    Value::Map(vec![
+                        ("tension".into(), num(t.tension)),
+                        (
+                            "offset".into(),
+                            Value::List(vec![num(t.offset[0]), num(t.offset[1])]),
+                        ),
+                        ("twist".into(), num(t.twist)),
+                        ("end".into(), num(t.end)),
+                    ])
+                })
+                .collect();
+            m.push(("tendons".into(), Value::List(t)));
+        }
         if !self.point_loads.is_empty() {
             let p = self
                 .point_loads
@@ -413,6 +478,9 @@ impl Scene {
                 ));
             }
             check_on_node(&key, p.s, ds)?;
+        }
+        for (i, t) in self.tendons.iter().enumerate() {
+            check_on_node(&format!("tendons[{i}].end"), t.end, ds)?;
         }
         Ok(())
     }
@@ -810,6 +878,55 @@ fn point_loads(v: &Value) -> Result<Vec<PointLoad>> {
         .into_iter()
         .map(|(s, force)| PointLoad { s, force })
         .collect())
+}
+
+fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
+    let Value::List(items) = v else {
+        return Err(Error::scene(
+            "tendons",
+            format!(
+                "expected a list of {{tension, offset, twist, end}} tables, got {}",
+                v.kind()
+            ),
+        ));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| {
+            let path = format!("tendons[{i}]");
+            let t = Table::new(item, &path)?;
+            t.only(&["tension", "offset", "twist", "end"])?;
+            let tension = finite(t.require("tension")?, &t.key("tension"))?;
+            if tension < 0.0 {
+                return Err(Error::scene(
+                    t.key("tension"),
+                    format!("a tendon pulls, it cannot push: must be >= 0 N, got {tension}"),
+                ));
+            }
+            let offset = numbers::<2>(t.require("offset")?, &t.key("offset"))?;
+            let twist = match t.get("twist") {
+                None => 0.0,
+                Some(v) => finite(v, &t.key("twist"))?,
+            };
+            let end = match t.get("end") {
+                None => length,
+                Some(v) => finite(v, &t.key("end"))?,
+            };
+            if !(end > 0.0 && end <= length) {
+                return Err(Error::scene(
+                    t.key("end"),
+                    format!("must lie in (0, L] = (0, {length}], got {end}"),
+                ));
+            }
+            Ok(Tendon {
+                tension,
+                offset,
+                twist,
+                end,
+            })
+        })
+        .collect()
 }
 
 fn guides(v: &Value) -> Result<Vec<Guide>> {

@@ -75,6 +75,20 @@ impl Solver {
         scene.check_derived()?;
         scene.check_elements(n)?;
         let reach_limit = scene.check_constraints(n)?;
+        if !scene.tendons.is_empty()
+            && matches!(
+                settings.method,
+                Method::Shooting | Method::Paper | Method::PaperLiteral
+            )
+        {
+            return Err(Error::argument(
+                "method",
+                format!(
+                    "{} does not model tendons; use 'newton' or 'lm'",
+                    settings.method.name()
+                ),
+            ));
+        }
         if settings.method == Method::Shooting && !scene.guides.is_empty() {
             return Err(Error::argument(
                 "method",

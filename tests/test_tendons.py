@@ -1,0 +1,103 @@
+"""Tendon-driven rods against an independent reference: shooting on the
+Cosserat rod with the Rucker-Webster tendon loads (tests/tendon_reference.py),
+and the scene's tendon input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from tendon_reference import solve_reference
+
+import softspine
+
+from closed_forms import observed_orders
+
+L = 1.0
+SCENE = {
+    "length": L,
+    "stiffness": {"kx": 0.5, "ky": 0.6, "kz": 0.4},
+    "rest_curvature": [[0.5, -0.3], [-0.4, 0.8]],
+    "gravity": {"linear_density": 0.3, "vector": [0.0, 0.2, -9.81]},
+    "tip_force": [0.2, -0.1, 0.0],
+    "tendons": [
+        {"tension": 6.0, "offset": [0.012, 0.0], "end": 0.5},
+        {"tension": 4.0, "offset": [0.0, 0.01], "twist": 3.0},
+        {"tension": 2.5, "offset": [-0.008, -0.006], "twist": -1.5, "end": 0.75},
+    ],
+}
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """Node positions at s = i L / 32 (a helix, an anchor inside a section
+    and one at a section end, rest curvature, gravity, a tip force)."""
+    return solve_reference(SCENE, list(np.linspace(0, L, 33)), rtol=1e-10)
+
+
+def errors(scheme, sizes, reference):
+    out = []
+    for n in sizes:
+        sol = softspine.solve(SCENE, n_elements=n, scheme=scheme, residual_tol=1e-13)
+        assert sol.converged and sol.stable, sol.message
+        out.append(np.abs(sol.positions - reference[:: 32 // n]).max() / L)
+    return out
+
+
+def test_both_schemes_converge_to_the_rucker_webster_rod_at_their_orders(reference):
+    fd2 = errors("fd2", [8, 16, 32], reference)
+    fe4 = errors("fe4", [4, 8, 16], reference)
+    assert all(1.8 < p < 2.2 for p in observed_orders(fd2)), fd2
+    assert all(3.6 < p < 4.4 for p in observed_orders(fe4)), fe4
+    assert fe4[-1] < 1e-6, fe4
+
+
+def test_tendon_sensitivities_match_differences_of_solves():
+    solver = softspine.Solver(SCENE, n_elements=16, residual_tol=1e-13)
+    solver.solve(check=True)
+    sens = solver.sensitivity(["tendons[0].tension", "tendons[1].tension"])
+    h = 1e-4
+    for j in range(2):
+        tips = []
+        for sign in (1, -1):
+            data = softspine.Scene(SCENE).to_dict()
+            data["tendons"][j]["tension"] += sign * h
+            tips.append(softspine.solve(data, n_elements=16, residual_tol=1e-13).tip_position)
+        fd = (tips[0] - tips[1]) / (2 * h)
+        np.testing.assert_allclose(sens.tip_position[:, j], fd, atol=1e-7)
+
+
+def test_tendons_round_trip_through_the_scene_dict():
+    data = softspine.Scene(SCENE).to_dict()
+    assert data["tendons"][1] == {"tension": 4.0, "offset": [0.0, 0.01], "twist": 3.0, "end": 1.0}
+    assert softspine.Scene(data).to_dict() == data
+
+
+@pytest.mark.parametrize(
+    ("tendon", "message"),
+    [
+        ({"tension": -1.0, "offset": [0.01, 0]}, r"tendons\[0\].tension: .*cannot push"),
+        ({"tension": float("nan"), "offset": [0.01, 0]}, r"tendons\[0\].tension"),
+        ({"tension": 1.0, "offset": [0.01]}, r"tendons\[0\].offset"),
+        ({"tension": 1.0, "offset": [0.01, 0], "end": 1.5}, r"tendons\[0\].end: must lie in"),
+        ({"tension": 1.0, "offset": [0.01, 0], "pull": 2}, r"tendons\[0\]"),
+        ({"offset": [0.01, 0]}, r"tendons\[0\].tension"),
+    ],
+)
+def test_bad_tendons_are_refused_by_name(tendon, message):
+    scene = {"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1}, "tendons": [tendon]}
+    with pytest.raises(ValueError, match=message):
+        softspine.solve(scene)
+
+
+def test_an_anchor_off_the_nodes_and_methods_without_tendons_are_refused():
+    scene = {
+        "length": 1,
+        "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+        "tendons": [{"tension": 1.0, "offset": [0.01, 0], "end": 0.33}],
+    }
+    with pytest.raises(ValueError, match=r"tendons\[0\].end"):
+        softspine.solve(scene, n_elements=20)
+    del scene["tendons"][0]["end"]
+    for method in ("shooting", "paper"):
+        with pytest.raises(ValueError, match="tendons"):
+            softspine.solve(scene, method=method)

@@ -66,6 +66,9 @@ pub(crate) struct Element<'a> {
     pub start: f64,
     /// The tendons' tensions are scaled by this (the load scale).
     pub tension_scale: f64,
+    /// The external field (at the load scale) and the element's
+    /// magnetisation: the potential `-B . R m` per length.
+    pub magnet: Option<(Vector3<f64>, Vector3<f64>)>,
 }
 
 /// Gradient and Jacobian of an element in the body-frame rotations of its
@@ -210,17 +213,21 @@ fn point_terms(
 /// Simpson's weights of the element's nodes `(a, m, b)` in units of `h`.
 const SIMPSON: [f64; 3] = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
 
-/// The load potential `c . T(x)` of a unit node `x` (`c` a world vector
-/// [N m]): its value, gradient in the body-frame rotation and that
-/// gradient's derivative (as `model.rs` does for the second-order scheme).
+/// The node terms of node `k` of an element (value, gradient, block): the
+/// dead loads' `-h w_k F_k . T(x_k)` and the field's `-h w_k B . R(x_k) m`
+/// (`model::body_vector_terms`, the second-order scheme's node rule).
 #[inline(always)]
-fn node_load(x: Quat, c: &Vector3<f64>) -> (f64, Vector3<f64>, Matrix3<f64>) {
-    let f = x.inverse_rotate(*c);
-    (
-        f.z,
-        Vector3::new(-f.y, f.x, 0.0),
-        f * Vector3::z().transpose() - f.z * Matrix3::identity(),
-    )
+fn node_terms(x: Quat, el: &Element, k: usize) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    let (mut value, mut grad, mut block) =
+        crate::model::body_vector_terms(x, &load_weight(el, k), &Vector3::z());
+    if let Some((field, m)) = &el.magnet {
+        let c = (-el.h * SIMPSON[k]) * field;
+        let (v, g, b) = crate::model::body_vector_terms(x, &c, m);
+        value += v;
+        grad += g;
+        block += b;
+    }
+    (value, grad, block)
 }
 
 /// `-h w_k F_k`: the weight `c` of node `k`'s load potential `c . T(x_k)`.
@@ -285,9 +292,7 @@ pub(crate) fn energy(nodes: [Quat; 3], el: &Element) -> f64 {
             0.5 * el.h * point_terms(&q, &p, el, GAUSS[g], false).value
         })
         .sum();
-    let loads: f64 = (0..3)
-        .map(|k| load_weight(el, k).dot(&nodes[k].tangent()))
-        .sum();
+    let loads: f64 = (0..3).map(|k| node_terms(nodes[k], el, k).0).sum();
     elastic + loads
 }
 
@@ -372,7 +377,7 @@ pub(crate) fn derivatives(
         if mid_only && k != 1 {
             continue;
         }
-        let (_, grad, jac) = node_load(*node, &load_weight(el, k));
+        let (_, grad, jac) = node_terms(*node, el, k);
         out.grad[k] += grad;
         if jacobian {
             out.jac[k][k] += jac;
@@ -391,7 +396,7 @@ fn mid_gradient(nodes: [Quat; 3], el: &Element) -> Vector3<f64> {
         let t = point_terms(&q, &p, el, *tau, false);
         euclid += (0.5 * h) * (n[1] * t.grad_q + (dn[1] / h) * t.grad_p);
     }
-    0.5 * conj_product(&x[1]) * euclid + node_load(nodes[1], &load_weight(el, 1)).1
+    0.5 * conj_product(&x[1]) * euclid + node_terms(nodes[1], el, 1).1
 }
 
 /// `q (1, theta / 2)`, normalised: the update of an internal node. It agrees
@@ -772,6 +777,7 @@ mod tests {
             tendons: &[],
             start: 0.0,
             tension_scale: 1.0,
+            magnet: Some((Vector3::new(0.3, -0.2, 0.5), Vector3::new(0.4, 0.1, -0.7))),
         }
     }
 
@@ -880,6 +886,7 @@ mod tests {
     fn a_rest_chain_is_the_exact_arc() {
         let mut el = element();
         el.force = [Vector3::zeros(); 3];
+        el.magnet = None;
         let kappa0 = Vector3::new(2.0, -1.0, 0.0);
         el.rest = gauss_rest_curvature(kappa0, el.h);
         let chain = rest_chain(Quat::IDENTITY, std::iter::repeat_n(el, 4));

@@ -15,7 +15,7 @@
 
 use crate::blocktri::BlockTridiagonal;
 use crate::fe4;
-use crate::quat::{skew, tangent_bilinear, tangent_form_apply, Quat};
+use crate::quat::{rotation_form_apply, skew, tangent_bilinear, tangent_form_apply, Quat};
 use crate::scene::{Scene, TipCondition};
 use nalgebra::{Matrix3, Vector3};
 
@@ -143,6 +143,13 @@ pub struct RodModel {
     pub base_position: Vector3<f64>,
     /// Rest curvature of element `i` (index `i - 1`), material frame [1/m].
     pub rest_curvature: Vec<Vector3<f64>>,
+    /// Magnetisation of element `i` (index `i - 1`), material frame
+    /// [A m^2 / m]; empty without a field or magnetisation.
+    magnetization: Vec<Vector3<f64>>,
+    /// The tip magnet's dipole moment, material frame [A m^2].
+    tip_magnet: Vector3<f64>,
+    /// Uniform external field, world frame [T].
+    magnetic_field: Vector3<f64>,
     /// Tendons, longest first (an element's tendons are a prefix).
     tendons: Vec<crate::scene::Tendon>,
     /// How many tendons (a prefix of `tendons`) run through element `i`
@@ -227,6 +234,16 @@ impl RodModel {
             .map(|j| mean_force[j - 1] + mean_force.get(j).copied().unwrap_or_else(Vector3::zeros))
             .collect();
         let stiffness = scene.stiffness();
+        let magnetized =
+            scene.magnetic_field != Vector3::zeros() && !scene.magnetization.is_empty();
+        let magnetization = if magnetized {
+            let k = scene.magnetization.len();
+            (0..n)
+                .map(|i| scene.magnetization[section_of(i, k, n)])
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut tendons = scene.tendons.clone();
         tendons.sort_by(|a, b| b.end.total_cmp(&a.end));
         let last_element = |t: &crate::scene::Tendon| ((t.end / ds).round() as usize).min(n);
@@ -273,6 +290,9 @@ impl RodModel {
             base: scene.base_quaternion,
             base_position: scene.base_position,
             rest_curvature,
+            magnetization,
+            tip_magnet: scene.tip_magnet,
+            magnetic_field: scene.magnetic_field,
             tendons,
             tendons_through,
             gauss_rest: Vec::new(),
@@ -293,7 +313,17 @@ impl RodModel {
             .iter()
             .map(|t| t.tension * t.offset[0].hypot(t.offset[1]))
             .sum();
+        let field = scene.magnetic_field.norm();
+        let magnetic_moment = field
+            * (scene.tip_magnet.norm()
+                + length
+                    * scene
+                        .magnetization
+                        .iter()
+                        .map(|m| m.norm())
+                        .fold(0.0, f64::max));
         let moment = scene.tip_moment.norm()
+            + magnetic_moment
             + length * scene.tip_force.norm()
             + 0.5 * length * length * f.norm()
             + point_moment
@@ -320,6 +350,21 @@ impl RodModel {
         self
     }
 
+    /// `S q` of element `i`'s load form: the dead force `fbar` against the
+    /// tangent, and the field (at load scale `load`) against the element's
+    /// magnetisation.
+    fn element_form(&self, i: usize, fbar: &Vector3<f64>, load: f64, x: Quat) -> Quat {
+        let mut out = tangent_form_apply(fbar, x);
+        if let Some(m) = self.magnetization.get(i - 1) {
+            let magnetic = rotation_form_apply(&(load * self.magnetic_field), m, x);
+            out = Quat {
+                w: out.w + magnetic.w,
+                v: out.v + magnetic.v,
+            };
+        }
+        out
+    }
+
     /// The tendons that run through element `i` (from 1).
     fn element_tendons(&self, i: usize) -> &[crate::scene::Tendon] {
         &self.tendons[..self.tendons_through[i - 1]]
@@ -342,6 +387,10 @@ impl RodModel {
             tendons: self.element_tendons(i),
             start: (i - 1) as f64 * self.ds,
             tension_scale: load,
+            magnet: self
+                .magnetization
+                .get(i - 1)
+                .map(|m| (load * self.magnetic_field, *m)),
         }
     }
 
@@ -455,6 +504,8 @@ impl RodModel {
     pub fn is_trivial(&self) -> bool {
         self.mean_force.iter().all(|f| f.norm() == 0.0)
             && self.tendons.iter().all(|t| t.tension == 0.0)
+            && self.magnetization.is_empty()
+            && (self.tip_magnet == Vector3::zeros() || self.magnetic_field == Vector3::zeros())
             && self.tip_moment.norm() == 0.0
             && self.constraints.iter().all(|c| c.target == c.rest)
             && self.clamped_tip.is_none_or(|q| q == self.rest_tip)
@@ -615,8 +666,11 @@ impl RodModel {
         if !reactions.is_empty() {
             fbar += self.reactions_from(reactions, i);
         }
-        let sb = tangent_form_apply(&fbar, b);
-        let sa = tangent_form_apply(&fbar, a);
+        // The dead loads' and the field's bilinear forms (both enter as
+        // kappa a^T S b: the same element rule for T(q) and R(q) m).
+        let form = |x: Quat| self.element_form(i, &fbar, load, x);
+        let sb = form(b);
+        let sa = form(a);
         let gax = 0.5 * kappa * (a.conj() * sb).v;
         let gbx = 0.5 * kappa * (b.conj() * sa).v;
         let mut terms = ElementTerms {
@@ -644,7 +698,7 @@ impl RodModel {
             // 1/4 kappa G(a) S G(b)^T, column by column: G(b)^T e_k = b * (0, e_k).
             for col in 0..3 {
                 let bek = b * Quat::pure(Vector3::ith(col, 1.0));
-                let v = (a.conj() * tangent_form_apply(&fbar, bek)).v;
+                let v = (a.conj() * form(bek)).v;
                 jab.set_column(col, &(jab.column(col) + 0.25 * kappa * v));
             }
             terms.jab = jab;
@@ -803,6 +857,26 @@ impl RodModel {
             g[j - 1] += Vector3::new(-f.y, f.x, 0.0);
             if let Some(jac) = jac.as_deref_mut() {
                 jac.diag[j - 1] += f * Vector3::z().transpose() - f.z * Matrix3::identity();
+            }
+            // The field on the magnetisation of the elements that meet here.
+            for e in [j, j + 1] {
+                if let Some(m) = self.magnetization.get(e - 1) {
+                    let c = (-ds / 3.0) * load * self.magnetic_field;
+                    let (_, grad, block) = body_vector_terms(q[j], &c, m);
+                    g[j - 1] += grad;
+                    if let Some(jac) = jac.as_deref_mut() {
+                        jac.diag[j - 1] += block;
+                    }
+                }
+            }
+        }
+        // A tip magnet: the potential -B . R(q_n) mu.
+        if self.tip_magnet != Vector3::zeros() && self.magnetic_field != Vector3::zeros() {
+            let c = -load * self.magnetic_field;
+            let (_, grad, block) = body_vector_terms(q[self.n], &c, &self.tip_magnet);
+            g[self.n - 1] += grad;
+            if let Some(jac) = jac.as_deref_mut() {
+                jac.diag[self.n - 1] += block;
             }
         }
         // Tip moment (a dead load in the world frame, no potential in 3D).
@@ -1030,17 +1104,20 @@ impl RodModel {
 
     /// `Pi` at load scale `lambda` (the applied loads scaled).
     pub fn energy_at(&self, q: &[Quat], lambda: f64) -> f64 {
-        let mut total = 0.0;
         let load = self.load_scale(lambda);
+        // A tip magnet: -B . R(q_n) mu.
+        let mut total =
+            body_vector_terms(q[self.n], &(-load * self.magnetic_field), &self.tip_magnet).0;
         if self.scheme == Scheme::Fe4 {
             let mut mids = self.mids.lock();
-            return (1..=self.n)
-                .map(|i| {
-                    let el = self.fe4_element(i, load, &[]);
-                    let m = fe4::mid_for(&mut mids, i, q[i - 1], q[i], &el);
-                    fe4::energy([q[i - 1], m, q[i]], &el)
-                })
-                .sum();
+            return total
+                + (1..=self.n)
+                    .map(|i| {
+                        let el = self.fe4_element(i, load, &[]);
+                        let m = fe4::mid_for(&mut mids, i, q[i - 1], q[i], &el);
+                        fe4::energy([q[i - 1], m, q[i]], &el)
+                    })
+                    .sum::<f64>();
         }
         for i in 1..=self.n {
             let (a, b) = (q[i - 1], q[i]);
@@ -1053,7 +1130,13 @@ impl RodModel {
                 let s = (i as f64 - 0.5) * self.ds;
                 elastic += crate::tendon::density(tendons, load, s, &omega).0;
             }
-            let work = load * self.mean_force[i - 1].dot(&mean_tangent(a, b));
+            let mut work = load * self.mean_force[i - 1].dot(&mean_tangent(a, b));
+            if let Some(m) = self.magnetization.get(i - 1) {
+                // B . (R(a) m + R(a, b) m + R(b) m) / 3, the tangent's rule.
+                let field = load * self.magnetic_field;
+                let form = |x: Quat| rotation_form_apply(&field, m, x);
+                work += (a.dot(form(a)) + a.dot(form(b)) + b.dot(form(b))) / 3.0;
+            }
             total += self.ds * (elastic - work);
         }
         total
@@ -1145,6 +1228,19 @@ pub fn element_turn(a: Quat, b: Quat) -> f64 {
 }
 
 /// Mean tangent of an element: the exact mean of `T` under linear interpolation of `q`.
+/// The potential `c . R(x) m` of a world vector `c` against a body vector
+/// `m` at a unit node `x`: its value, gradient in the body-frame rotation
+/// (`R(x exp(theta/2)) m = R(x) (m + theta x m + ...)`) and that gradient's
+/// derivative under the same update (as the schemes' other node terms).
+pub(crate) fn body_vector_terms(
+    x: Quat,
+    c: &Vector3<f64>,
+    m: &Vector3<f64>,
+) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    let f = x.inverse_rotate(*c);
+    (f.dot(m), m.cross(&f), skew(m) * skew(&f))
+}
+
 pub fn mean_tangent(a: Quat, b: Quat) -> Vector3<f64> {
     (a.tangent() + tangent_bilinear(a, b) + b.tangent()) / 3.0
 }

@@ -136,6 +136,19 @@ pub fn tangent_form_apply(f: &Vector3<f64>, q: Quat) -> Quat {
     )
 }
 
+/// `S q`, with `S` the symmetric 4x4 matrix of `q^T S q = c . R(q) m` (a
+/// world vector `c` against a body vector `m`; `m = e3` is
+/// [`tangent_form_apply`]): from `R(q) = (w^2 - |v|^2) I + 2 v v^T + 2 w [v]x`.
+pub fn rotation_form_apply(c: &Vector3<f64>, m: &Vector3<f64>, q: Quat) -> Quat {
+    let (w, v) = (q.w, q.v);
+    let cm = c.dot(m);
+    let mc = m.cross(c);
+    Quat {
+        w: cm * w + mc.dot(&v),
+        v: mc * w - cm * v + c * m.dot(&v) + m * c.dot(&v),
+    }
+}
+
 /// Cross-product matrix `[v]x`, `[v]x u = v x u`.
 pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
@@ -180,6 +193,14 @@ mod tests {
         let b = Quat::new(-0.1, 0.4, 0.9, -0.3);
         let f = Vector3::new(1.5, -0.7, 0.25);
         assert!((a.dot(tangent_form_apply(&f, b)) - f.dot(&tangent_bilinear(a, b))).abs() < 1e-14);
+        // The general form: its quadratic value is c . R(q) m, and m = e3 is the tangent's.
+        let (c, m) = (Vector3::new(0.3, -1.2, 0.7), Vector3::new(-0.4, 0.9, 0.2));
+        let unit = a.normalized();
+        let value = unit.dot(rotation_form_apply(&c, &m, unit));
+        assert!((value - c.dot(&unit.rotate(m))).abs() < 1e-14);
+        let z = rotation_form_apply(&f, &Vector3::z(), b);
+        assert!((z.to_array()[0] - tangent_form_apply(&f, b).to_array()[0]).abs() < 1e-14);
+        assert!((z.v - tangent_form_apply(&f, b).v).norm() < 1e-14);
     }
 
     #[test]

@@ -145,6 +145,13 @@ pub struct Scene {
     /// Tendons, each with its tension (an actuation, scaled with the loads
     /// along a load path).
     pub tendons: Vec<Tendon>,
+    /// Magnetisation per equal section (dipole moment per length, material
+    /// frame) [A m^2 / m]; empty: none. One entry magnetises the whole rod.
+    pub magnetization: Vec<Vector3<f64>>,
+    /// A magnet at the tip: its dipole moment, material frame [A m^2].
+    pub tip_magnet: Vector3<f64>,
+    /// Uniform external magnetic field, world frame [T].
+    pub magnetic_field: Vector3<f64>,
 }
 
 impl Scene {
@@ -165,6 +172,9 @@ impl Scene {
             guides: Vec::new(),
             point_loads: Vec::new(),
             tendons: Vec::new(),
+            magnetization: Vec::new(),
+            tip_magnet: Vector3::zeros(),
+            magnetic_field: Vector3::zeros(),
         }
     }
 
@@ -219,6 +229,9 @@ impl Scene {
             "guides",
             "point_loads",
             "tendons",
+            "magnetization",
+            "tip_magnet",
+            "magnetic_field",
         ])?;
         let name = match top.get("name") {
             None => None,
@@ -261,6 +274,15 @@ impl Scene {
             None => Vec::new(),
             Some(v) => tendons(v, length)?,
         };
+        let magnetization: Vec<Vector3<f64>> = match top.get("magnetization") {
+            None => Vec::new(),
+            Some(Value::List(items)) if items.iter().all(|x| matches!(x, Value::List(_))) => items
+                .iter()
+                .enumerate()
+                .map(|(i, x)| vec3(x, &format!("magnetization[{i}]")))
+                .collect::<Result<_>>()?,
+            Some(v) => vec![vec3(v, "magnetization")?],
+        };
         let scene = Scene {
             name,
             length,
@@ -276,6 +298,9 @@ impl Scene {
             guides,
             point_loads,
             tendons,
+            magnetization,
+            tip_magnet: vec3_or_zero("tip_magnet")?,
+            magnetic_field: vec3_or_zero("magnetic_field")?,
         };
         scene.check_derived()?;
         Ok(scene)
@@ -336,6 +361,16 @@ impl Scene {
             let key = format!("rest_curvature[{i}]");
             check(&key, "L |kappa0|", kappa[0].hypot(kappa[1]) * l)?;
         }
+        let b = self.magnetic_field.norm();
+        for (i, m) in self.magnetization.iter().enumerate() {
+            let key = format!("magnetization[{i}]");
+            check(&key, "|m| |B| L^2 / k", m.norm() * b * l / k_min * l)?;
+        }
+        check(
+            "tip_magnet",
+            "|mu| |B| L / k",
+            self.tip_magnet.norm() * b * l / k_min,
+        )?;
         for (i, t) in self.tendons.iter().enumerate() {
             let key = format!("tendons[{i}].tension");
             let arm = t.offset[0].hypot(t.offset[1]);
@@ -430,6 +465,18 @@ impl Scene {
                 .collect();
             m.push(("guides".into(), Value::List(g)));
         }
+        if !self.magnetization.is_empty() {
+            m.push((
+                "magnetization".into(),
+                Value::List(self.magnetization.iter().map(v3).collect()),
+            ));
+        }
+        if self.tip_magnet != Vector3::zeros() {
+            m.push(("tip_magnet".into(), v3(&self.tip_magnet)));
+        }
+        if self.magnetic_field != Vector3::zeros() {
+            m.push(("magnetic_field".into(), v3(&self.magnetic_field)));
+        }
         if !self.tendons.is_empty() {
             let t = self
                 .tendons
@@ -481,6 +528,13 @@ impl Scene {
         }
         for (i, t) in self.tendons.iter().enumerate() {
             check_on_node(&format!("tendons[{i}].end"), t.end, ds)?;
+        }
+        let k = self.magnetization.len();
+        if k > 0 && n % k != 0 {
+            return Err(Error::argument(
+                "n_elements",
+                format!("must be a multiple of the magnetised sections ({k}), got {n}"),
+            ));
         }
         Ok(())
     }

@@ -1,6 +1,8 @@
-"""An independent reference for tendon-driven rods: shooting on the Cosserat
-rod equations with the Rucker-Webster tendon loads (Rucker and Webster 2011),
-written with SciPy and sharing nothing with the solver.
+"""An independent reference for tendon-driven and magnetised rods: shooting
+on the Cosserat rod equations with the Rucker-Webster tendon loads (Rucker
+and Webster 2011) and the magnetic moment `(R m) x B` of a uniform field
+(per length, and at the tip for a tip magnet), written with SciPy and sharing
+nothing with the solver.
 
 The rod: inextensible and unshearable, `p' = R e3`, `R' = R [u]x`, internal
 force `n` and moment `m` (world frame), `m = R K (u - u0)` (the rod's own
@@ -50,13 +52,21 @@ def solve_reference(scene, samples, rtol=1e-12):
     if grav:
         f_ext = grav["linear_density"] * np.array(grav["vector"], dtype=float)
     tendons = scene.get("tendons", [])
+    field = np.array(scene.get("magnetic_field", [0, 0, 0]), dtype=float)
+    magnetization = np.array(scene.get("magnetization", [[0, 0, 0]]), dtype=float).reshape(-1, 3)
+    tip_magnet = np.array(scene.get("tip_magnet", [0, 0, 0]), dtype=float)
     tip_force = np.array(scene.get("tip_force", [0, 0, 0]), dtype=float)
     tip_moment = np.array(scene.get("tip_moment", [0, 0, 0]), dtype=float)
     ends = sorted({t.get("end", length) for t in tendons})
     breaks = sorted(
         {length * i / len(sections) for i in range(1, len(sections))}
+        | {length * i / len(magnetization) for i in range(1, len(magnetization))}
         | {e for e in ends if e < length}
     )
+
+    def magnet(s):
+        i = min(int(s / length * len(magnetization)), len(magnetization) - 1)
+        return magnetization[i]
 
     def rest(s):
         i = min(int(s / length * len(sections)), len(sections) - 1)
@@ -91,6 +101,8 @@ def solve_reference(scene, samples, rtol=1e-12):
             l0 += arm @ fi0
             f_lin += fi_lin
             l_lin += arm @ fi_lin
+        # A magnetised rod in a uniform field: the distributed moment (R m) x B.
+        l0 = l0 + np.cross(r @ magnet(s), field)
         # u' = K^-1 (-u x R^T m + R^T m'), m' = -p' x n - l0 - l_lin u'.
         mp0 = -np.cross(dp, n) - l0
         lhs = np.eye(3) + (r.T @ l_lin) / k[:, None]
@@ -176,7 +188,8 @@ def solve_reference(scene, samples, rtol=1e-12):
                 force = -t["tension"] * dpi / np.linalg.norm(dpi)
                 n_tip -= force
                 m_tip -= np.cross(r @ rho, force)
-        return np.concatenate([n_tip - tip_force, m_tip - tip_moment]), out
+        applied_moment = tip_moment + np.cross(r @ tip_magnet, field)
+        return np.concatenate([n_tip - tip_force, m_tip - applied_moment]), out
 
     guess = np.zeros(6)
     found = root(lambda x: shoot(x)[0], guess, method="hybr", options={"xtol": 1e-14})

@@ -1,5 +1,6 @@
-//! Tendons in the discrete potential: derivatives against differences, the
-//! exact arc of a straight-routed tendon, an anchor inside the rod.
+//! Tendons and magnetic actuation in the discrete potential: derivatives
+//! against differences, the exact arc of a straight-routed tendon, an anchor
+//! inside the rod.
 
 use nalgebra::Vector3;
 use softspine::blocktri::BlockTridiagonal;
@@ -25,6 +26,10 @@ fn scene() -> Scene {
         tendon(8.0, [0.03, 0.01], 0.0, 0.4),
         tendon(5.0, [-0.01, 0.025], 4.0, 0.8),
     ];
+    // Magnetic actuation too: two magnetised sections and a tip magnet.
+    s.magnetization = vec![Vector3::new(0.5, -0.2, 1.0), Vector3::new(-0.3, 0.8, 0.4)];
+    s.tip_magnet = Vector3::new(0.02, 0.05, -0.03);
+    s.magnetic_field = Vector3::new(0.3, -0.6, 0.2);
     s
 }
 

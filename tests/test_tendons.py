@@ -1,6 +1,6 @@
-"""Tendon-driven rods against an independent reference: shooting on the
-Cosserat rod with the Rucker-Webster tendon loads (tests/tendon_reference.py),
-and the scene's tendon input."""
+"""Tendon-driven and magnetised rods against an independent reference:
+shooting on the Cosserat rod with the Rucker-Webster tendon loads and the
+field's moment (tests/tendon_reference.py), and the scene's input."""
 
 from __future__ import annotations
 
@@ -101,3 +101,57 @@ def test_an_anchor_off_the_nodes_and_methods_without_tendons_are_refused():
     for method in ("shooting", "paper"):
         with pytest.raises(ValueError, match="tendons"):
             softspine.solve(scene, method=method)
+
+
+MAGNETIC = {
+    "length": L,
+    "stiffness": {"kx": 0.05, "ky": 0.06, "kz": 0.04},
+    "gravity": {"linear_density": 0.005, "vector": [0, 0, -9.81]},
+    "magnetization": [[0.0, 0.0, 0.8], [0.3, 0.0, 0.5]],  # A m^2 / m, per section
+    "tip_magnet": [0.0, 0.02, 0.05],  # A m^2
+    "magnetic_field": [0.05, 0.02, 0.0],  # T
+}
+
+
+def test_a_magnetised_rod_converges_to_the_shooting_reference_at_the_schemes_orders():
+    reference = solve_reference(MAGNETIC, list(np.linspace(0, L, 33)), rtol=1e-10)
+
+    def errors_of(scheme, sizes):
+        out = []
+        for n in sizes:
+            sol = softspine.solve(MAGNETIC, n_elements=n, scheme=scheme, residual_tol=1e-13)
+            assert sol.converged and sol.stable, sol.message
+            out.append(np.abs(sol.positions - reference[:: 32 // n]).max() / L)
+        return out
+
+    fd2 = errors_of("fd2", [8, 16, 32])
+    fe4 = errors_of("fe4", [4, 8, 16])
+    assert all(1.8 < p < 2.2 for p in observed_orders(fd2)), fd2
+    assert all(3.6 < p < 4.4 for p in observed_orders(fe4)), fe4
+    assert fe4[-1] < 1e-7, fe4
+
+
+def test_a_field_sensitivity_and_the_magnetic_keys_round_trip():
+    data = softspine.Scene(MAGNETIC).to_dict()
+    assert data["magnetic_field"] == MAGNETIC["magnetic_field"]
+    assert data["magnetization"] == MAGNETIC["magnetization"]
+    solver = softspine.Solver(MAGNETIC, n_elements=16, residual_tol=1e-13)
+    solver.solve(check=True)
+    sens = solver.sensitivity("magnetic_field[1]")
+    h = 1e-5
+    tips = []
+    for sign in (1, -1):
+        changed = dict(MAGNETIC, magnetic_field=[0.05, 0.02 + sign * h, 0.0])
+        tips.append(softspine.solve(changed, n_elements=16, residual_tol=1e-13).tip_position)
+    np.testing.assert_allclose(sens.tip_position[:, 0], (tips[0] - tips[1]) / (2 * h), atol=1e-6)
+
+
+def test_bad_magnetic_input_is_refused_by_name():
+    with pytest.raises(ValueError, match=r"magnetization\[1\]"):
+        softspine.solve({**MAGNETIC, "magnetization": [[0, 0, 1], [0, 1]]})
+    with pytest.raises(ValueError, match="magnetised sections"):
+        softspine.solve({**MAGNETIC, "magnetization": [[0, 0, 1]] * 3}, n_elements=16)
+    with pytest.raises(ValueError, match="magnetic_field"):
+        softspine.solve({**MAGNETIC, "magnetic_field": [0, float("inf"), 0]})
+    with pytest.raises(ValueError, match="magnetic actuation"):
+        softspine.solve(MAGNETIC, method="shooting")

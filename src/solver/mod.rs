@@ -75,7 +75,8 @@ impl Solver {
         scene.check_derived()?;
         scene.check_elements(n)?;
         let reach_limit = scene.check_constraints(n)?;
-        if !scene.tendons.is_empty()
+        let magnetic = !scene.magnetization.is_empty() || scene.tip_magnet != Vector3::zeros();
+        if (!scene.tendons.is_empty() || magnetic)
             && matches!(
                 settings.method,
                 Method::Shooting | Method::Paper | Method::PaperLiteral
@@ -84,7 +85,7 @@ impl Solver {
             return Err(Error::argument(
                 "method",
                 format!(
-                    "{} does not model tendons; use 'newton' or 'lm'",
+                    "{} does not model tendons or magnetic actuation; use 'newton' or 'lm'",
                     settings.method.name()
                 ),
             ));

@@ -518,7 +518,7 @@ impl Scene {
         let ds = self.length / n as f64;
         for (i, p) in self.point_loads.iter().enumerate() {
             let key = format!("point_loads[{i}].s");
-            if !(p.s > 0.0 && p.s <= self.length) {
+            if !in_rod(p.s, self.length) {
                 return Err(Error::scene(
                     key,
                     format!("must lie in (0, L] = (0, {}], got {}", self.length, p.s),
@@ -887,6 +887,13 @@ fn tip(v: &Value) -> Result<TipCondition> {
 
 /// Refuse an arc length `s` that does not fall on a node of spacing `ds`
 /// (up to round-off): loads and guides act at nodes.
+/// Whether arc length `s` lies in `(0, L]`, within the round-off of a sum
+/// of section lengths (`3 * 0.1` is a little past `0.3`): the same relative
+/// tolerance as [`check_on_node`].
+fn in_rod(s: f64, length: f64) -> bool {
+    s > 0.0 && s <= length * (1.0 + 1e-9)
+}
+
 fn check_on_node(key: &str, s: f64, ds: f64) -> Result<()> {
     let node = s / ds;
     if (node - node.round()).abs() <= 1e-9 * node.max(1.0) {
@@ -967,7 +974,7 @@ fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
                 None => length,
                 Some(v) => finite(v, &t.key("end"))?,
             };
-            if !(end > 0.0 && end <= length) {
+            if !in_rod(end, length) {
                 return Err(Error::scene(
                     t.key("end"),
                     format!("must lie in (0, L] = (0, {length}], got {end}"),
@@ -977,7 +984,7 @@ fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
                 tension,
                 offset,
                 twist,
-                end,
+                end: end.min(length),
             })
         })
         .collect()

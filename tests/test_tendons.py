@@ -155,3 +155,17 @@ def test_bad_magnetic_input_is_refused_by_name():
         softspine.solve({**MAGNETIC, "magnetic_field": [0, float("inf"), 0]})
     with pytest.raises(ValueError, match="magnetic actuation"):
         softspine.solve(MAGNETIC, method="shooting")
+
+
+def test_an_anchor_at_a_sum_of_section_lengths_is_at_the_tip():
+    """0.1 * 3 is 0.30000000000000004: still the tip of a 0.3 m rod (it was
+    refused as beyond the rod), and a point load there too."""
+    scene = {
+        "length": 0.3,
+        "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+        "tendons": [{"tension": 1.0, "offset": [0.01, 0], "end": 0.1 * 3}],
+        "point_loads": [{"s": 0.1 * 3, "force": [0, 0.1, 0]}],
+    }
+    sol = softspine.solve(scene, n_elements=30)
+    assert sol.converged
+    assert softspine.Scene(scene).to_dict()["tendons"][0]["end"] == 0.3

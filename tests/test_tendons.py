@@ -169,3 +169,26 @@ def test_an_anchor_at_a_sum_of_section_lengths_is_at_the_tip():
     sol = softspine.solve(scene, n_elements=30)
     assert sol.converged
     assert softspine.Scene(scene).to_dict()["tendons"][0]["end"] == 0.3
+
+
+def test_a_solver_takes_new_tensions_and_fields():
+    solver = softspine.Solver(SCENE, n_elements=16)
+    solver.solve(check=True)
+    solver.set_tensions([3.0, 0.0, 1.0])
+    moved = solver.solve(check=True)
+    data = softspine.Scene(SCENE).to_dict()
+    for t, tension in zip(data["tendons"], [3.0, 0.0, 1.0], strict=True):
+        t["tension"] = tension
+    np.testing.assert_allclose(
+        moved.positions, softspine.solve(data, n_elements=16).positions, atol=1e-9
+    )
+    with pytest.raises(ValueError, match=r"tensions\[1\]: a tendon pulls"):
+        solver.set_tensions([1.0, -2.0, 0.0])
+    with pytest.raises(ValueError, match="expected 3"):
+        solver.set_tensions([1.0])
+    magnetic = softspine.Solver(MAGNETIC, n_elements=16)
+    magnetic.solve(check=True)
+    magnetic.set_magnetic_field([0.0, 0.05, 0.0])
+    turned = magnetic.solve(check=True)
+    fresh = softspine.solve({**MAGNETIC, "magnetic_field": [0.0, 0.05, 0.0]}, n_elements=16)
+    np.testing.assert_allclose(turned.positions, fresh.positions, atol=1e-9)

@@ -368,6 +368,10 @@ class Solver:
         """The dead force at the tip, world frame, N."""
     def set_tip_moment(self, moment: npt.ArrayLike) -> None:
         """The dead moment at the tip, world frame, N m."""
+    def set_tensions(self, tensions: npt.ArrayLike) -> None:
+        """The tendons' tensions, N (one a tendon, in the scene's order, >= 0)."""
+    def set_magnetic_field(self, field: npt.ArrayLike) -> None:
+        """The uniform magnetic field, world frame, T."""
     def sensitivity(self, parameters: str | Sequence[str]) -> Sensitivity:
         """Sensitivity of the last solve's equilibrium (solve first) to named
         parameters: paths in the scene's dict (``"tip_force[0]"``,

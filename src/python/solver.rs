@@ -172,6 +172,23 @@ impl PySolver {
         super::fitting::sensitivity_result(py, &s, None)
     }
 
+    /// Set the tendons' tensions, N: one a tendon, in the scene's order, >= 0.
+    fn set_tensions(&self, tensions: &Bound<'_, PyAny>) -> PyResult<()> {
+        let t: Vec<f64> = tensions.extract().map_err(|_| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "tensions: expected a sequence of numbers, got {}",
+                type_name(tensions)
+            ))
+        })?;
+        Ok(self.held()?.solver.set_tensions(&t)?)
+    }
+
+    /// Set the uniform magnetic field, world frame, T.
+    fn set_magnetic_field(&self, field: &Bound<'_, PyAny>) -> PyResult<()> {
+        let b = vec3_arg("field", field)?;
+        Ok(self.held()?.solver.set_magnetic_field(b)?)
+    }
+
     /// Forget the last equilibrium: the next ``solve()`` starts from the straight rod.
     fn reset(&self) -> PyResult<()> {
         self.held()?.last = None;

@@ -153,6 +153,51 @@ impl Solver {
         let mut scene = self.scene.clone();
         scene.tip_force = force;
         scene.tip_moment = moment;
+        self.rebuild(scene)
+    }
+
+    /// Change the tendons' tensions [N] (one each, in the scene's order,
+    /// each >= 0) keeping the workspace; the discretised tendons are rebuilt.
+    pub fn set_tensions(&mut self, tensions: &[f64]) -> Result<()> {
+        let count = self.scene.tendons.len();
+        if tensions.len() != count {
+            return Err(Error::argument(
+                "tensions",
+                format!("expected {count} (one a tendon), got {}", tensions.len()),
+            ));
+        }
+        if let Some(i) = tensions.iter().position(|t| !(t.is_finite() && *t >= 0.0)) {
+            return Err(Error::argument(
+                format!("tensions[{i}]"),
+                format!(
+                    "a tendon pulls: must be finite and >= 0 N, got {}",
+                    tensions[i]
+                ),
+            ));
+        }
+        let mut scene = self.scene.clone();
+        for (t, tension) in scene.tendons.iter_mut().zip(tensions) {
+            t.tension = *tension;
+        }
+        self.rebuild(scene)
+    }
+
+    /// Change the uniform magnetic field [T], world frame, keeping the workspace.
+    pub fn set_magnetic_field(&mut self, field: Vector3<f64>) -> Result<()> {
+        if let Some(c) = field.iter().position(|x| !x.is_finite()) {
+            return Err(Error::argument(
+                format!("magnetic_field[{c}]"),
+                format!("must be finite, got {}", field[c]),
+            ));
+        }
+        let mut scene = self.scene.clone();
+        scene.magnetic_field = field;
+        self.rebuild(scene)
+    }
+
+    /// Take `scene` (the same rod with other loads or actuation): its
+    /// discretised loads are rebuilt (O(n)), the workspace kept.
+    fn rebuild(&mut self, scene: Scene) -> Result<()> {
         scene.check_derived()?;
         self.model = RodModel::new(&scene, self.model.n).with_scheme(self.model.scheme);
         self.scene = scene;

@@ -350,23 +350,12 @@ impl RodModel {
         self
     }
 
-    /// `S q` of element `i`'s load form: the dead force `fbar` against the
-    /// tangent, and the field (at load scale `load`) against the element's
-    /// magnetisation.
-    fn element_form(&self, i: usize, fbar: &Vector3<f64>, load: f64, x: Quat) -> Quat {
-        let mut out = tangent_form_apply(fbar, x);
-        if let Some(m) = self.magnetization.get(i - 1) {
-            let magnetic = rotation_form_apply(&(load * self.magnetic_field), m, x);
-            out = Quat {
-                w: out.w + magnetic.w,
-                v: out.v + magnetic.v,
-            };
-        }
-        out
-    }
-
     /// The tendons that run through element `i` (from 1).
+    #[inline(always)]
     fn element_tendons(&self, i: usize) -> &[crate::scene::Tendon] {
+        if self.tendons.is_empty() {
+            return &[];
+        }
         &self.tendons[..self.tendons_through[i - 1]]
     }
 
@@ -648,14 +637,14 @@ impl RodModel {
         // Bending/twisting moment, body frame, and its derivative in the
         // curvature: the elastic law, plus the tendons' (at the midpoint).
         let mut w = k.component_mul(&e);
-        let mut kmat = Matrix3::from_diagonal(&k);
         let tendons = self.element_tendons(i);
+        let mut tendon_stiffness = None;
         if !tendons.is_empty() {
             let omega = (2.0 / ds) * cv;
             let (_, moment, stiffness) =
                 crate::tendon::density(tendons, load, (i as f64 - 0.5) * ds, &omega);
             w += moment;
-            kmat += stiffness;
+            tendon_stiffness = Some(stiffness);
         }
         let amat = Matrix3::identity() * c0 + skew(&cv);
         let ga = -(amat * w);
@@ -666,11 +655,8 @@ impl RodModel {
         if !reactions.is_empty() {
             fbar += self.reactions_from(reactions, i);
         }
-        // The dead loads' and the field's bilinear forms (both enter as
-        // kappa a^T S b: the same element rule for T(q) and R(q) m).
-        let form = |x: Quat| self.element_form(i, &fbar, load, x);
-        let sb = form(b);
-        let sa = form(a);
+        let sb = tangent_form_apply(&fbar, b);
+        let sa = tangent_form_apply(&fbar, a);
         let gax = 0.5 * kappa * (a.conj() * sb).v;
         let gbx = 0.5 * kappa * (b.conj() * sa).v;
         let mut terms = ElementTerms {
@@ -682,6 +668,10 @@ impl RodModel {
         };
         if !with_jacobian {
             return terms;
+        }
+        let mut kmat = Matrix3::from_diagonal(&k);
+        if let Some(stiffness) = tendon_stiffness {
+            kmat += stiffness;
         }
         let cw = cv.dot(&w);
         let psi = kappa * a.dot(sb);
@@ -698,10 +688,53 @@ impl RodModel {
             // 1/4 kappa G(a) S G(b)^T, column by column: G(b)^T e_k = b * (0, e_k).
             for col in 0..3 {
                 let bek = b * Quat::pure(Vector3::ith(col, 1.0));
-                let v = (a.conj() * form(bek)).v;
+                let v = (a.conj() * tangent_form_apply(&fbar, bek)).v;
                 jab.set_column(col, &(jab.column(col) + 0.25 * kappa * v));
             }
             terms.jab = jab;
+        }
+        terms
+    }
+
+    /// The field's terms of element `i` on its magnetisation `m`: the
+    /// bilinear part `kappa a^T S b` of `-B . R m` by the tangent's rule
+    /// (the nodes' parts are node terms), entering the gradient and the
+    /// Jacobian as the dead loads' part does in [`RodModel::element_terms`].
+    /// Apart from it so that the common element, without a field, stays lean.
+    fn magnetic_terms(
+        &self,
+        i: usize,
+        q: &[Quat],
+        load: f64,
+        m: &Vector3<f64>,
+        with_jacobian: bool,
+    ) -> ElementTerms {
+        let (a, b) = (q[i - 1], q[i]);
+        let kappa = -self.ds / 3.0;
+        let field = load * self.magnetic_field;
+        let (sa, sb) = (
+            rotation_form_apply(&field, m, a),
+            rotation_form_apply(&field, m, b),
+        );
+        let mut terms = ElementTerms {
+            ga: 0.5 * kappa * (a.conj() * sb).v,
+            gb: 0.5 * kappa * (b.conj() * sa).v,
+            jaa: Matrix3::zeros(),
+            jbb: Matrix3::zeros(),
+            jab: Matrix3::zeros(),
+        };
+        if !with_jacobian {
+            return terms;
+        }
+        let radial = (-0.25 * kappa * a.dot(sb)) * Matrix3::identity();
+        terms.jbb = radial + 0.5 * skew(&terms.gb);
+        if i >= 2 {
+            terms.jaa = radial + 0.5 * skew(&terms.ga);
+            for col in 0..3 {
+                let bek = b * Quat::pure(Vector3::ith(col, 1.0));
+                let v = (a.conj() * rotation_form_apply(&field, m, bek)).v;
+                terms.jab.set_column(col, &(0.25 * kappa * v));
+            }
         }
         terms
     }
@@ -793,7 +826,15 @@ impl RodModel {
             if i % INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
                 return;
             }
-            let t = self.element_terms(i, q, load, reactions, with_jacobian);
+            let mut t = self.element_terms(i, q, load, reactions, with_jacobian);
+            if let Some(m) = self.magnetization.get(i - 1) {
+                let f = self.magnetic_terms(i, q, load, m, with_jacobian);
+                t.ga += f.ga;
+                t.gb += f.gb;
+                t.jaa += f.jaa;
+                t.jbb += f.jbb;
+                t.jab += f.jab;
+            }
             let row = i - slab.first;
             if i >= 2 {
                 if i == slab.first {

@@ -15,7 +15,9 @@ use nalgebra::{Matrix3, Vector3};
 /// The tendons' potential density at curvature `omega` (material frame) at
 /// arc length `s`, tensions times `scale`: its value [N], gradient in
 /// `omega` (a moment [N m]) and Hessian [N m^2]. `tendons` are those that
-/// reach past `s`.
+/// reach past `s`. Kept out of line: the elements without tendons, the
+/// common case, keep a small kernel.
+#[inline(never)]
 pub(crate) fn density(
     tendons: &[Tendon],
     scale: f64,

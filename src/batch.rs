@@ -164,14 +164,7 @@ where
             })
             .collect()
     };
-    let parts = match settings.threads {
-        None => chunks()?,
-        Some(threads) => rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| Error::argument("threads", format!("no thread pool: {e}")))?
-            .install(chunks)?,
-    };
+    let parts = Threads::new(settings.threads)?.run(chunks)?;
     if control.stop.load(Ordering::Relaxed) {
         return Err(Error::Interrupted);
     }
@@ -204,6 +197,31 @@ impl Last {
     }
 }
 
+/// Where parallel work runs: rayon's global pool (every core) or a pool of
+/// the threads asked for, built once.
+pub(crate) struct Threads(Option<rayon::ThreadPool>);
+
+impl Threads {
+    pub(crate) fn new(threads: Option<usize>) -> Result<Self> {
+        threads
+            .map(|t| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(t)
+                    .build()
+                    .map_err(|e| Error::argument("threads", format!("no thread pool: {e}")))
+            })
+            .transpose()
+            .map(Threads)
+    }
+
+    pub(crate) fn run<R: Send>(&self, work: impl FnOnce() -> R + Send) -> R {
+        match &self.0 {
+            Some(pool) => pool.install(work),
+            None => work(),
+        }
+    }
+}
+
 /// A solve from the chunk's last equilibrium where it is near (and warm
 /// starts are on), redone from the straight rod if that does not end
 /// converged and stable; else from the straight rod.
@@ -219,10 +237,7 @@ fn solve_warm(
     } else {
         None
     };
-    let mut sol = solver.solve(start)?;
-    if start.is_some() && !(sol.converged() && sol.stable) {
-        sol = solver.solve(None)?;
-    }
+    let sol = solver.solve_warm_or_cold(start)?;
     if warm && sol.converged() && sol.stable {
         last.q = Some(sol.quaternions.clone());
         last.kappa = kappa.to_vec();
@@ -236,13 +251,10 @@ type ChunkState = (Solver, Last);
 impl Robot {
     /// What makes a chunk's state: a forward solver of this robot (its
     /// default discretisation) under `tip_mass`.
-    fn chunk_solver(&self, tip_mass: f64) -> Result<impl Fn() -> Result<ChunkState> + Sync> {
-        let scene = self.scene(&vec![[0.0; 2]; self.sections], tip_mass)?;
-        let settings = Settings {
-            n_elements: Some(self.n_elements),
-            ..Settings::default()
-        };
-        Ok(move || Ok((Solver::new(&scene, settings.clone())?, Last::default())))
+    fn chunk_solver(&self, tip_mass: f64) -> Result<impl Fn() -> Result<ChunkState> + Sync + '_> {
+        let zero = vec![[0.0; 2]; self.sections];
+        self.scene(&zero, tip_mass)?;
+        Ok(move || Ok((self.forward_solver(&zero, tip_mass)?, Last::default())))
     }
 
     /// One forward sample of a chunk.

@@ -121,7 +121,7 @@ impl Robot {
     }
 
     /// The forward solver of this robot (its default discretisation).
-    fn forward_solver(&self, kappa: &[[f64; 2]], tip_mass: f64) -> Result<Solver> {
+    pub(crate) fn forward_solver(&self, kappa: &[[f64; 2]], tip_mass: f64) -> Result<Solver> {
         let settings = Settings {
             n_elements: Some(self.n_elements),
             ..Settings::default()
@@ -143,10 +143,7 @@ impl Robot {
     ) -> Result<(Solution, Sensitivity)> {
         let parameters = self.parameters(names)?;
         let mut solver = self.forward_solver(kappa, tip_mass)?;
-        let mut sol = solver.solve(initial)?;
-        if initial.is_some() && !(sol.converged() && sol.stable) {
-            sol = solver.solve(None)?;
-        }
+        let sol = solver.solve_warm_or_cold(initial)?;
         if !sol.converged() {
             return Err(Error::NotConverged {
                 status: sol.status,
@@ -296,6 +293,8 @@ impl Robot {
             Ok((self.with_fields(&field_names, &field_values)?, mass))
         };
         let samples: Vec<&[[f64; 2]]> = actuations.chunks(m).collect();
+        // Built once: the evaluations of every iteration and line search share it.
+        let threads = crate::batch::Threads::new(settings.batch.threads)?;
         let mut warm: Vec<Option<Vec<Quat>>> = vec![None; samples.len()];
         // Residuals (measured - model) and the Jacobian of the model's tips.
         let evaluate = |p: &[f64],
@@ -304,15 +303,6 @@ impl Robot {
          -> Result<(DVector<f64>, Option<DMatrix<f64>>)> {
             let (robot, mass) = split(p)?;
             let names: Vec<&str> = fields.iter().map(|s| s.as_str()).collect();
-            let pool = match settings.batch.threads {
-                Some(t) => Some(
-                    rayon::ThreadPoolBuilder::new()
-                        .num_threads(t)
-                        .build()
-                        .map_err(|e| Error::argument("threads", e.to_string()))?,
-                ),
-                None => None,
-            };
             let work = |warm: &mut Vec<Option<Vec<Quat>>>| {
                 samples
                     .par_iter()
@@ -325,11 +315,7 @@ impl Robot {
                                 (sol, Some(sens))
                             } else {
                                 let mut solver = robot.forward_solver(kappa, mass)?;
-                                let mut sol = solver.solve(q.as_deref())?;
-                                if q.is_some() && !(sol.converged() && sol.stable) {
-                                    sol = solver.solve(None)?;
-                                }
-                                (sol, None)
+                                (solver.solve_warm_or_cold(q.as_deref())?, None)
                             };
                             if !sol.converged() {
                                 return Err(Error::NotConverged {
@@ -345,10 +331,7 @@ impl Robot {
                     )
                     .collect::<Result<Vec<_>>>()
             };
-            let results = match pool {
-                Some(pool) => pool.install(|| work(warm))?,
-                None => work(warm)?,
-            };
+            let results = threads.run(|| work(warm))?;
             let mut r = DVector::zeros(3 * samples.len());
             let mut jac = jacobian.then(|| DMatrix::zeros(3 * samples.len(), k));
             for (i, (tip, sens)) in results.iter().enumerate() {

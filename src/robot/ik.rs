@@ -431,12 +431,7 @@ impl InverseSolver {
     /// Forward statics at `kappa`, warm from the last accepted state.
     fn forward(&mut self, kappa: &[[f64; 2]]) -> Result<Solution> {
         self.solver.set_rest_curvature(kappa)?;
-        let sol = self.solver.solve(self.q.as_deref())?;
-        if usable(&sol) || self.q.is_none() {
-            return Ok(sol);
-        }
-        // A far warm start can fail where the straight rod succeeds.
-        self.solver.solve(None)
+        self.solver.solve_warm_or_cold(self.q.as_deref())
     }
 
     /// Put the forward solver back at an accepted state (its Jacobian is the

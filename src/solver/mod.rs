@@ -223,6 +223,17 @@ impl Solver {
         Ok(solution)
     }
 
+    /// [`Solver::solve`] from `initial`, redone from the straight rod if a
+    /// warm start does not end converged and stable (a far warm start can
+    /// fail where the straight rod succeeds).
+    pub fn solve_warm_or_cold(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
+        let sol = self.solve(initial)?;
+        if initial.is_none() || (sol.converged() && sol.stable) {
+            return Ok(sol);
+        }
+        self.solve(None)
+    }
+
     fn solve_uninterrupted(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
         let n = self.model.n;
         if let Some(q) = initial {

@@ -322,6 +322,15 @@ impl Robot {
         control: &BatchControl,
     ) -> Result<Vec<IkSample>> {
         options.settings.validate()?;
+        if self.actuation_space() != crate::robot::ActuationSpace::Curvature {
+            return Err(Error::argument(
+                "robot",
+                format!(
+                    "inverse batches search muscle curvatures; this robot's actuation is its {} (use track)",
+                    self.actuation_space().name()
+                ),
+            ));
+        }
         if let Some(i) = targets
             .iter()
             .position(|t| !t.iter().all(|v| v.is_finite()))

@@ -59,8 +59,8 @@ pub struct ReadmeDoctests;
 pub use model::{RodModel, Scheme};
 pub use quat::Quat;
 pub use robot::{
-    Calibration, CalibrationSettings, IkEnding, IkOptions, IkResult, IkSettings, InverseSolver,
-    Robot, Strategy,
+    ActuatedInverseSolver, Actuation, ActuationSpace, Calibration, CalibrationSettings, IkEnding,
+    IkOptions, IkResult, IkSettings, InverseSolver, Robot, Strategy, TendonRoute,
 };
 pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, Tendon, TipCondition};
 pub use solver::{

@@ -166,7 +166,17 @@ fn the_robot_sensitivity_matches_differences_of_forward_solves() {
         "disk_mass",
         "rest_curvature[9][0]",
     ];
-    let (sol, sens) = robot.sensitivity(&kappa, 0.03, &names, None).unwrap();
+    let (sol, sens) = robot
+        .sensitivity(
+            &softspine::Actuation {
+                rest_curvature: kappa.clone(),
+                ..Default::default()
+            },
+            0.03,
+            &names,
+            None,
+        )
+        .unwrap();
     assert!(sol.converged());
     let base = robot.to_value();
     for (j, name) in names.iter().enumerate() {

@@ -140,6 +140,12 @@ class IkResult:
     @property
     def inflation_times(self) -> _Array: ...
     @property
+    def tensions(self) -> _Array:
+        """Tendon tensions, N (a tendon-driven robot; empty otherwise)."""
+    @property
+    def field(self) -> _Array:
+        """The uniform magnetic field, world frame, T (a magnetic robot; zero otherwise)."""
+    @property
     def solution(self) -> Solution: ...
     @property
     def tip_position(self) -> _Array: ...
@@ -195,7 +201,10 @@ class InverseSolver:
 
 @final
 class Robot:
-    """A multi-section pneumatic continuum robot (three muscles a section)."""
+    """A multi-section continuum robot: pneumatic muscles (three a section),
+    tendons routed along its sections, magnetised material, or any of them
+    together. Its inverse kinematics searches the tendons' tensions if it has
+    tendons, else the field if it is magnetic, else the muscles' curvature."""
 
     def __new__(cls, data: dict[str, Any] | None = None) -> Robot: ...
     @staticmethod
@@ -213,7 +222,17 @@ class Robot:
     @property
     def muscle_length_range(self) -> tuple[float, float]: ...
     def to_dict(self) -> dict[str, Any]: ...
-    def scene(self, rest_curvature: npt.ArrayLike, load: float = 0.0) -> Scene: ...
+    def scene(
+        self,
+        rest_curvature: npt.ArrayLike | None = None,
+        load: float = 0.0,
+        *,
+        tensions: npt.ArrayLike | None = None,
+        field: npt.ArrayLike | None = None,
+    ) -> Scene:
+        """The Scene of this robot with an actuation (rest curvature (m, 2),
+        default straight; one tension a tendon, N; a uniform field, T) and a
+        tip mass (kg)."""
     def muscle_lengths(self, rest_curvature: npt.ArrayLike) -> _Array: ...
     def rest_curvature(self, muscle_lengths: npt.ArrayLike) -> _Array: ...
     def inflation_times(self, muscle_lengths: npt.ArrayLike) -> _Array: ...
@@ -221,25 +240,36 @@ class Robot:
     def within_bounds(self, rest_curvature: npt.ArrayLike) -> bool: ...
     def forward(
         self,
-        rest_curvature: npt.ArrayLike,
+        rest_curvature: npt.ArrayLike | None = None,
         load: float = 0.0,
         initial: Solution | npt.ArrayLike | None = None,
+        *,
+        tensions: npt.ArrayLike | None = None,
+        field: npt.ArrayLike | None = None,
     ) -> Solution:
-        """The loaded equilibrium of an actuation (m, 2) under a tip mass (kg),
-        from the straight rod or warm from ``initial`` (a Solution of this
-        robot or its quaternions (n + 1, 4))."""
+        """The loaded equilibrium of an actuation under a tip mass (kg): the
+        muscles' rest curvature (m, 2) (default straight), the tendons'
+        ``tensions`` (N, one a tendon, each >= 0 and at most ``max_tension``)
+        and a uniform ``field`` (T, world frame, at most ``max_field``); from
+        the straight rod or warm from ``initial`` (a Solution of this robot or
+        its quaternions (n + 1, 4))."""
     def sensitivity(
         self,
-        rest_curvature: npt.ArrayLike,
+        rest_curvature: npt.ArrayLike | None = None,
         load: float = 0.0,
         parameters: str | Sequence[str] | None = None,
         initial: Solution | npt.ArrayLike | None = None,
+        *,
+        tensions: npt.ArrayLike | None = None,
+        field: npt.ArrayLike | None = None,
     ) -> Sensitivity:
         """The loaded equilibrium of an actuation (``.solution``) and its tip's
-        sensitivity to the named parameters: ``"rest_curvature"`` (default),
+        sensitivity to the named parameters: ``"rest_curvature"``,
         ``"muscle_lengths"`` (or one component, ``"muscle_lengths[2][0]"``),
-        ``"load"`` (the tip mass) and any numeric field of ``to_dict()``
-        (``"stiffness.E"``, ``"linear_density"``, ``"disk_mass"``)."""
+        ``"tensions"`` (or ``"tensions[i]"``), ``"field"`` (or
+        ``"field[c]"``), ``"load"`` (the tip mass) and any numeric field of
+        ``to_dict()`` (``"stiffness.E"``, ``"linear_density"``,
+        ``"disk_mass"``). Default: the robot's actuation space."""
     def forward_batch(
         self,
         actuations: npt.ArrayLike,
@@ -316,10 +346,17 @@ class Robot:
         tol: float | None = None,
         max_iterations: int | None = None,
         initial: IkResult | Solution | npt.ArrayLike | None = None,
+        pretension: npt.ArrayLike | None = None,
     ) -> IkResult:
-        """Load-aware inverse kinematics of one target. ``initial``: a warm
-        start, an earlier IkResult or Solution (its equilibrium; its actuation
-        is the reference unless one is given) or quaternions (n + 1, 4)."""
+        """Load-aware inverse kinematics of one target, in the robot's
+        actuation space. Muscles: the curvature closest to ``reference``.
+        Tendons: the non-negative tensions (at most ``max_tension``) closest
+        in norm to ``pretension`` (default zero) among those that reach the
+        target, a local minimum (its KKT conditions hold). Field: the
+        smallest field (at most ``max_field``) that puts the tip closest to
+        the target. ``initial``: a warm start, an earlier IkResult or
+        Solution (its equilibrium; its actuation is the reference unless one
+        is given) or quaternions (n + 1, 4)."""
     def track(
         self,
         points: npt.ArrayLike,
@@ -331,6 +368,7 @@ class Robot:
         strategy: str | None = None,
         tol: float | None = None,
         max_iterations: int | None = None,
+        pretension: npt.ArrayLike | None = None,
     ) -> list[IkResult]: ...
     def __reduce__(self) -> tuple[type[Robot], tuple[dict[str, Any]]]: ...
 

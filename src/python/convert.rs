@@ -456,6 +456,10 @@ impl<'py> Fields<'py> {
         vector_of(&self.name(key), &self.get(key)?)
     }
 
+    pub(super) fn floats(&self, key: &str) -> PyResult<Vec<f64>> {
+        floats_arg(&self.name(key), &self.get(key)?)
+    }
+
     pub(super) fn optional_vector(&self, key: &str) -> PyResult<Option<Vector3<f64>>> {
         given(Some(&self.get(key)?))
             .map(|v| vector_of(&self.name(key), &v))
@@ -507,6 +511,20 @@ pub(super) fn vector_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<
         _ => numbers::<3>(&to_value(obj, &path)?, &path)?,
     };
     Ok(Vector3::from(v))
+}
+
+/// A flat sequence of numbers (a list or a 1-D array), finite or not (the
+/// core checks the values and names the entry).
+pub(super) fn floats_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+    if let Ok(a) = obj.extract::<PyReadonlyArray1<f64>>() {
+        return Ok(a.as_array().to_vec());
+    }
+    obj.extract::<Vec<f64>>().map_err(|_| {
+        Path::argument(name).error(format!(
+            "expected a sequence of numbers, got {}",
+            type_name(obj)
+        ))
+    })
 }
 
 // `#[pyo3(from_py_with = ...)]` takes a function path: one converter a name.

@@ -6,7 +6,7 @@ use super::detach::detach_solve;
 use super::scene::PyScene;
 use super::settings::ik_settings_arg;
 use super::solution::{quaternions_arg, PySolution};
-use crate::robot::{trajectory, IkOptions, IkResult, IkStart, InverseSolver, Robot};
+use crate::robot::{trajectory, Actuation, IkOptions, IkResult, IkStart, InverseSolver, Robot};
 use crate::Settings;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
@@ -51,6 +51,16 @@ impl PyIkResult {
     #[getter]
     fn inflation_times<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows_n(py, &self.inner.inflation_times)
+    }
+    /// Tendon tensions, N (a tendon-driven robot; empty otherwise).
+    #[getter]
+    fn tensions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.tensions)
+    }
+    /// The uniform magnetic field, world frame, T (a magnetic robot; zero otherwise).
+    #[getter]
+    fn field<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vec3_array(py, &self.inner.field)
     }
     /// The loaded equilibrium with this actuation.
     #[getter]
@@ -109,6 +119,8 @@ impl PyIkResult {
         d.set_item("rest_curvature", rows_n(py, &r.rest_curvature))?;
         d.set_item("muscle_lengths", rows_n(py, &r.muscle_lengths))?;
         d.set_item("inflation_times", rows_n(py, &r.inflation_times))?;
+        d.set_item("tensions", PyArray1::from_slice(py, &r.tensions))?;
+        d.set_item("field", vec3_array(py, &r.field))?;
         let solution = PySolution {
             inner: r.solution.clone(),
         };
@@ -132,6 +144,8 @@ impl PyIkResult {
             rest_curvature: d.rows::<2>("rest_curvature")?,
             muscle_lengths: d.rows::<3>("muscle_lengths")?,
             inflation_times: d.rows::<3>("inflation_times")?,
+            tensions: d.floats("tensions")?,
+            field: d.vector("field")?,
             solution: PySolution::from_dict(&d.get("solution")?)?.inner,
             tip_position: d.vector("tip_position")?,
             tip_miss: number_or_infinite("ik_result.tip_miss", &d.get("tip_miss")?)?,
@@ -306,16 +320,20 @@ impl PyRobot {
         Ok(d)
     }
 
-    /// The Scene of this robot with an actuation (m, 2) and a tip mass (kg).
-    #[pyo3(signature = (rest_curvature, load=0.0))]
+    /// The Scene of this robot with an actuation and a tip mass (kg):
+    /// rest curvature (m, 2) 1/m (default straight), tendon ``tensions`` (N)
+    /// and an external ``field`` (T, world frame).
+    #[pyo3(signature = (rest_curvature=None, load=0.0, *, tensions=None, field=None))]
     fn scene(
         &self,
-        rest_curvature: &Bound<'_, PyAny>,
+        rest_curvature: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = load_arg)] load: f64,
+        tensions: Option<&Bound<'_, PyAny>>,
+        field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyScene> {
-        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        let a = actuation_arg(rest_curvature, tensions, field)?;
         Ok(PyScene {
-            inner: self.inner.scene(&k, load)?,
+            inner: self.inner.actuated_scene(&a, load)?,
         })
     }
 
@@ -369,16 +387,18 @@ impl PyRobot {
     /// Forward statics: the loaded equilibrium of an actuation, from the
     /// straight rod or from ``initial`` (a Solution of this robot, or its
     /// quaternions (n + 1, 4)): a warm start.
-    #[pyo3(signature = (rest_curvature, load=0.0, initial=None))]
+    #[pyo3(signature = (rest_curvature=None, load=0.0, initial=None, *, tensions=None, field=None))]
     fn forward(
         &self,
         py: Python<'_>,
-        rest_curvature: &Bound<'_, PyAny>,
+        rest_curvature: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = load_arg)] load: f64,
         initial: Option<&Bound<'_, PyAny>>,
+        tensions: Option<&Bound<'_, PyAny>>,
+        field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PySolution> {
-        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
-        let scene = self.inner.scene(&k, load)?;
+        let a = actuation_arg(rest_curvature, tensions, field)?;
+        let scene = self.inner.actuated_scene(&a, load)?;
         let settings = Settings {
             n_elements: Some(self.inner.n_elements),
             ..Settings::default()
@@ -396,19 +416,26 @@ impl PyRobot {
     /// The loaded equilibrium of an actuation and its tip's sensitivity to
     /// the named parameters (see the Python documentation of
     /// ``Robot.sensitivity``).
-    #[pyo3(signature = (rest_curvature, load=0.0, parameters=None, initial=None))]
+    #[pyo3(signature = (rest_curvature=None, load=0.0, parameters=None, initial=None, *, tensions=None, field=None))]
+    #[allow(clippy::too_many_arguments)]
     fn sensitivity<'py>(
         &self,
         py: Python<'py>,
-        rest_curvature: &Bound<'py, PyAny>,
+        rest_curvature: Option<&Bound<'py, PyAny>>,
         #[pyo3(from_py_with = load_arg)] load: f64,
         parameters: Option<&Bound<'py, PyAny>>,
         initial: Option<&Bound<'py, PyAny>>,
+        tensions: Option<&Bound<'py, PyAny>>,
+        field: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        let k = actuation_arg(rest_curvature, tensions, field)?;
         let names = match given(parameters) {
             Some(p) => super::fitting::parameter_names(&p)?,
-            None => vec!["rest_curvature".to_string()],
+            None => vec![self
+                .inner
+                .actuation_space()
+                .name()
+                .replace("curvature", "rest_curvature")],
         };
         let initial = given(initial)
             .map(|q| quaternions_arg("initial", &q))
@@ -559,6 +586,7 @@ impl PyRobot {
                 .map(|d| vec3_arg("direction", &d))
                 .transpose()?,
             settings: ik_settings_arg(settings, &[])?,
+            pretension: None,
             initial: None,
         };
         let batch = batch_settings(threads, chunk, None, None)?;
@@ -587,7 +615,7 @@ impl PyRobot {
     /// optionally with the tip along ``direction``. ``settings`` an
     /// ``IkSettings`` or a dict; ``strategy``, ``tol`` and ``max_iterations``
     /// override its fields.
-    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None))]
+    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None, pretension=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse(
         &self,
@@ -601,6 +629,7 @@ impl PyRobot {
         tol: Option<&Bound<'_, PyAny>>,
         max_iterations: Option<&Bound<'_, PyAny>>,
         initial: Option<&Bound<'_, PyAny>>,
+        pretension: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
         let target = vec3_arg("target", target)?;
         let keywords = [
@@ -610,6 +639,9 @@ impl PyRobot {
         ];
         let mut options = self.ik_options(load, reference, direction, settings, &keywords)?;
         options.initial = given(initial).map(|x| ik_start(&x)).transpose()?;
+        options.pretension = given(pretension)
+            .map(|p| floats_arg("pretension", &p))
+            .transpose()?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
         let r = detach_solve(py, long, move || robot.inverse(target, &options))?;
@@ -618,7 +650,7 @@ impl PyRobot {
 
     /// Inverse kinematics of a sequence of targets (N, 3), each warm from the
     /// previous one and closest to its actuation (see ``inverse``).
-    #[pyo3(signature = (points, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None))]
+    #[pyo3(signature = (points, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, pretension=None))]
     #[allow(clippy::too_many_arguments)]
     fn track(
         &self,
@@ -631,6 +663,7 @@ impl PyRobot {
         strategy: Option<&Bound<'_, PyAny>>,
         tol: Option<&Bound<'_, PyAny>>,
         max_iterations: Option<&Bound<'_, PyAny>>,
+        pretension: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyIkResult>> {
         let pts: Vec<Vector3<f64>> = rows_arg::<3>("points", points)?
             .into_iter()
@@ -641,7 +674,10 @@ impl PyRobot {
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let options = self.ik_options(load, reference, direction, settings, &keywords)?;
+        let mut options = self.ik_options(load, reference, direction, settings, &keywords)?;
+        options.pretension = given(pretension)
+            .map(|p| floats_arg("pretension", &p))
+            .transpose()?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
         let rs = detach_solve(py, long, move || robot.track(&pts, &options))?;
@@ -656,14 +692,45 @@ impl PyRobot {
     }
 }
 
+/// An actuation from the keyword arguments of `forward`, `scene` and
+/// `sensitivity` (each optional).
+fn actuation_arg(
+    rest_curvature: Option<&Bound<'_, PyAny>>,
+    tensions: Option<&Bound<'_, PyAny>>,
+    field: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Actuation> {
+    Ok(Actuation {
+        rest_curvature: given(rest_curvature)
+            .map(|k| rows_arg::<2>("rest_curvature", &k))
+            .transpose()?
+            .unwrap_or_default(),
+        tensions: given(tensions)
+            .map(|t| floats_arg("tensions", &t))
+            .transpose()?
+            .unwrap_or_default(),
+        field: given(field)
+            .map(|b| vec3_arg("field", &b))
+            .transpose()?
+            .unwrap_or_else(Vector3::zeros),
+    })
+}
+
 /// A warm start of an inverse solve: an IkResult (its equilibrium and
 /// actuation), a Solution (its quaternions and rest curvature) or quaternions.
 fn ik_start(x: &Bound<'_, PyAny>) -> PyResult<IkStart> {
     if let Ok(r) = x.cast::<PyIkResult>() {
         let r = &r.get().inner;
+        let actuation = if !r.tensions.is_empty() {
+            Some(r.tensions.clone())
+        } else if r.field != Vector3::zeros() {
+            Some(r.field.iter().copied().collect())
+        } else {
+            None
+        };
         return Ok(IkStart {
             quaternions: r.solution.quaternions.clone(),
             rest_curvature: Some(r.rest_curvature.clone()),
+            actuation,
         });
     }
     if let Ok(s) = x.cast::<PySolution>() {
@@ -671,11 +738,13 @@ fn ik_start(x: &Bound<'_, PyAny>) -> PyResult<IkStart> {
         return Ok(IkStart {
             quaternions: s.quaternions.clone(),
             rest_curvature: Some(s.rest_curvature.clone()),
+            actuation: None,
         });
     }
     Ok(IkStart {
         quaternions: quaternions_arg("initial", x)?,
         rest_curvature: None,
+        actuation: None,
     })
 }
 
@@ -695,6 +764,7 @@ impl PyRobot {
                 .transpose()?,
             direction: direction.map(|d| vec3_arg("direction", d)).transpose()?,
             settings: ik_settings_arg(settings, keywords)?,
+            pretension: None,
             initial: None,
         })
     }

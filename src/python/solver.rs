@@ -174,12 +174,7 @@ impl PySolver {
 
     /// Set the tendons' tensions, N: one a tendon, in the scene's order, >= 0.
     fn set_tensions(&self, tensions: &Bound<'_, PyAny>) -> PyResult<()> {
-        let t: Vec<f64> = tensions.extract().map_err(|_| {
-            pyo3::exceptions::PyValueError::new_err(format!(
-                "tensions: expected a sequence of numbers, got {}",
-                type_name(tensions)
-            ))
-        })?;
+        let t = floats_arg("tensions", tensions)?;
         Ok(self.held()?.solver.set_tensions(&t)?)
     }
 

@@ -1,7 +1,7 @@
 //! The robot's sensitivities to its actuation, load and fields, and the
 //! calibration of its fields to measured tip positions.
 
-use super::Robot;
+use super::{Actuation, Robot};
 use crate::batch::BatchSettings;
 use crate::error::{Error, Result};
 use crate::quat::Quat;
@@ -18,6 +18,10 @@ enum Parameter {
     Length(usize, usize),
     /// `load`: the tip mass [kg].
     Load,
+    /// `tensions[i]`: a tendon's tension [N].
+    Tension(usize),
+    /// `field[c]`: a component of the external magnetic field [T].
+    MagneticField(usize),
     /// A numeric field of `Robot::to_value` (`"stiffness.E"`, `"linear_density"`).
     Field(String),
 }
@@ -64,8 +68,19 @@ impl Robot {
                     }
                 }
                 "load" => out.push((name.into(), Parameter::Load)),
+                "tensions" => out.extend(
+                    (0..self.tendons.len())
+                        .map(|i| (format!("tensions[{i}]"), Parameter::Tension(i))),
+                ),
+                "field" => {
+                    out.extend((0..3).map(|c| (format!("field[{c}]"), Parameter::MagneticField(c))))
+                }
                 _ => {
-                    if let Some((s, c)) = index(name, "rest_curvature", 2)? {
+                    if let Some(i) = one_index(name, "tensions", self.tendons.len())? {
+                        out.push((name.into(), Parameter::Tension(i)));
+                    } else if let Some(c) = one_index(name, "field", 3)? {
+                        out.push((name.into(), Parameter::MagneticField(c)));
+                    } else if let Some((s, c)) = index(name, "rest_curvature", 2)? {
                         out.push((name.into(), Parameter::Curvature(s, c)));
                     } else if let Some((s, c)) = index(name, "muscle_lengths", 3)? {
                         out.push((name.into(), Parameter::Length(s, c)));
@@ -83,66 +98,114 @@ impl Robot {
     }
 
     /// The value of a parameter at an actuation and a tip mass.
-    fn parameter_value(&self, p: &Parameter, kappa: &[[f64; 2]], tip_mass: f64) -> Result<f64> {
+    fn parameter_value(&self, p: &Parameter, a: &Actuation, tip_mass: f64) -> Result<f64> {
+        let kappa = &a.rest_curvature;
         Ok(match p {
-            Parameter::Curvature(s, c) => kappa[*s][*c],
-            Parameter::Length(s, c) => self.muscle_lengths(kappa)[*s][*c],
+            Parameter::Curvature(s, c) => kappa.get(*s).map_or(0.0, |k| k[*c]),
+            Parameter::Length(s, c) => self.muscle_lengths(&self.curvature_of(a))[*s][*c],
             Parameter::Load => tip_mass,
+            Parameter::Tension(i) => a.tensions.get(*i).copied().unwrap_or(0.0),
+            Parameter::MagneticField(c) => a.field[*c],
             Parameter::Field(path) => *self.to_value().number_at_mut(path)?,
         })
+    }
+
+    /// The actuation's rest curvature (straight when not given).
+    fn curvature_of(&self, a: &Actuation) -> Vec<[f64; 2]> {
+        if a.rest_curvature.is_empty() {
+            vec![[0.0; 2]; self.sections]
+        } else {
+            a.rest_curvature.clone()
+        }
     }
 
     /// The scene with a parameter moved by `delta`.
     fn scene_moved(
         &self,
         p: &Parameter,
-        kappa: &[[f64; 2]],
+        a: &Actuation,
         tip_mass: f64,
         delta: f64,
     ) -> Result<Scene> {
+        let mut moved = Actuation {
+            rest_curvature: self.curvature_of(a),
+            ..a.clone()
+        };
         match p {
-            Parameter::Curvature(s, c) => {
-                let mut k = kappa.to_vec();
-                k[*s][*c] += delta;
-                self.scene(&k, tip_mass)
-            }
+            Parameter::Curvature(s, c) => moved.rest_curvature[*s][*c] += delta,
             Parameter::Length(s, c) => {
-                let mut lengths = self.muscle_lengths(kappa);
+                let mut lengths = self.muscle_lengths(&moved.rest_curvature);
                 lengths[*s][*c] += delta;
-                self.scene(&self.rest_curvature(&lengths)?, tip_mass)
+                moved.rest_curvature = self.rest_curvature(&lengths)?;
             }
-            Parameter::Load => self.scene(kappa, tip_mass + delta),
+            Parameter::Load => return self.actuated_scene(a, tip_mass + delta),
+            Parameter::Tension(i) => {
+                // The equations are linear in a tension: a difference through
+                // zero (a slack tendon) is as exact as any, so the scene is
+                // built without the non-negativity check.
+                let tension = moved.tensions.get(*i).copied().unwrap_or(0.0);
+                moved.tensions = Vec::new();
+                let mut scene = self.actuated_scene(&moved, tip_mass)?;
+                for (k, t) in scene.tendons.iter_mut().enumerate() {
+                    t.tension = a.tensions.get(k).copied().unwrap_or(0.0);
+                }
+                scene.tendons[*i].tension = tension + delta;
+                return Ok(scene);
+            }
+            Parameter::MagneticField(c) => {
+                // Past max_field by a difference step: built as the scene.
+                let field = moved.field;
+                moved.field = Vector3::zeros();
+                let mut scene = self.actuated_scene(&moved, tip_mass)?;
+                scene.magnetic_field = field;
+                scene.magnetic_field[*c] += delta;
+                return Ok(scene);
+            }
             Parameter::Field(path) => {
                 let mut v = self.to_value();
                 *v.number_at_mut(path)? += delta;
-                Robot::from_value(&v)?.scene(kappa, tip_mass)
+                return Robot::from_value(&v)?.actuated_scene(a, tip_mass);
             }
         }
+        self.actuated_scene(&moved, tip_mass)
     }
 
     /// The forward solver of this robot (its default discretisation).
     pub(crate) fn forward_solver(&self, kappa: &[[f64; 2]], tip_mass: f64) -> Result<Solver> {
+        self.actuated_solver(
+            &Actuation {
+                rest_curvature: kappa.to_vec(),
+                ..Actuation::default()
+            },
+            tip_mass,
+        )
+    }
+
+    /// The forward solver of this robot under a whole actuation.
+    pub(crate) fn actuated_solver(&self, a: &Actuation, tip_mass: f64) -> Result<Solver> {
         let settings = Settings {
             n_elements: Some(self.n_elements),
             ..Settings::default()
         };
-        Solver::new(&self.scene(kappa, tip_mass)?, settings)
+        Solver::new(&self.actuated_scene(a, tip_mass)?, settings)
     }
 
     /// The loaded equilibrium of an actuation and its tip's sensitivity to
     /// the named parameters: `"rest_curvature"`, `"muscle_lengths"` (or one
-    /// component, `"muscle_lengths[2][0]"`), `"load"` (the tip mass) and any
-    /// numeric field of the robot (`"stiffness.E"`, `"linear_density"`,
-    /// `"disk_mass"`, `"inflation_rate"` has no effect on statics).
+    /// component, `"muscle_lengths[2][0]"`), `"tensions"` (or
+    /// `"tensions[i]"`), `"field"` (or `"field[c]"`), `"load"` (the tip
+    /// mass) and any numeric field of the robot (`"stiffness.E"`,
+    /// `"linear_density"`, `"disk_mass"`; `"inflation_rate"` has no effect
+    /// on statics).
     pub fn sensitivity(
         &self,
-        kappa: &[[f64; 2]],
+        actuation: &Actuation,
         tip_mass: f64,
         names: &[&str],
         initial: Option<&[Quat]>,
     ) -> Result<(Solution, Sensitivity)> {
         let parameters = self.parameters(names)?;
-        let mut solver = self.forward_solver(kappa, tip_mass)?;
+        let mut solver = self.actuated_solver(actuation, tip_mass)?;
         let sol = solver.solve_warm_or_cold(initial)?;
         if !sol.converged() {
             return Err(Error::NotConverged {
@@ -154,13 +217,34 @@ impl Robot {
         }
         let values = parameters
             .iter()
-            .map(|(_, p)| self.parameter_value(p, kappa, tip_mass))
+            .map(|(_, p)| self.parameter_value(p, actuation, tip_mass))
             .collect::<Result<Vec<_>>>()?;
         let names = parameters.iter().map(|(n, _)| n.clone()).collect();
         let sens = solver.sensitivity_with(names, &values, |j, delta| {
-            self.scene_moved(&parameters[j].1, kappa, tip_mass, delta)
+            self.scene_moved(&parameters[j].1, actuation, tip_mass, delta)
         })?;
         Ok((sol, sens))
+    }
+}
+
+/// `prefix[i]` with `i < count`, or `None` for another name.
+fn one_index(name: &str, prefix: &str, count: usize) -> Result<Option<usize>> {
+    let Some(rest) = name.strip_prefix(prefix) else {
+        return Ok(None);
+    };
+    if !rest.starts_with('[') {
+        return Ok(None);
+    }
+    match rest
+        .strip_prefix('[')
+        .and_then(|r| r.strip_suffix(']'))
+        .and_then(|i| i.parse::<usize>().ok())
+    {
+        Some(i) if i < count => Ok(Some(i)),
+        _ => Err(Error::argument(
+            name.to_string(),
+            format!("expected {prefix}[0..{count}]"),
+        )),
     }
 }
 
@@ -273,7 +357,13 @@ impl Robot {
         }
         let start: Vec<f64> = parameters
             .iter()
-            .map(|(_, p)| self.parameter_value(p, &actuations[..m], tip_mass))
+            .map(|(_, p)| {
+                let first = Actuation {
+                    rest_curvature: actuations[..m].to_vec(),
+                    ..Actuation::default()
+                };
+                self.parameter_value(p, &first, tip_mass)
+            })
             .collect::<Result<_>>()?;
         let scale: Vec<f64> = start.iter().map(|x| x.abs().max(1e-12)).collect();
         // The robot and tip mass of a parameter vector.
@@ -310,8 +400,15 @@ impl Robot {
                     .map(
                         |(kappa, q)| -> Result<(Vector3<f64>, Option<Sensitivity>)> {
                             let (sol, sens) = if jacobian {
-                                let (sol, sens) =
-                                    robot.sensitivity(kappa, mass, &names, q.as_deref())?;
+                                let (sol, sens) = robot.sensitivity(
+                                    &Actuation {
+                                        rest_curvature: kappa.to_vec(),
+                                        ..Actuation::default()
+                                    },
+                                    mass,
+                                    &names,
+                                    q.as_deref(),
+                                )?;
                                 (sol, Some(sens))
                             } else {
                                 let mut solver = robot.forward_solver(kappa, mass)?;

@@ -19,6 +19,7 @@
 //! target, the last answer, the straight robot, a few actuations spread over the
 //! range), each with the same iteration budget, until one reaches it.
 
+use super::actuated::{ActuatedInverseSolver, ActuationSpace};
 use super::bounds::Bounds;
 use super::Robot;
 use crate::error::{Error, Result};
@@ -184,6 +185,9 @@ pub struct IkOptions {
     /// Also reach this tip direction (unit vector, world frame).
     pub direction: Option<Vector3<f64>>,
     pub settings: IkSettings,
+    /// Tendon-driven robots: the tensions to stay closest to [N] (default
+    /// zero: the least tension, in norm, that reaches the target).
+    pub pretension: Option<Vec<f64>>,
     /// A warm start: an earlier answer's equilibrium (node quaternions) and
     /// actuation. The forward solves start from the equilibrium, and the
     /// actuation is the reference when none is given (the search starts at
@@ -196,6 +200,9 @@ pub struct IkOptions {
 pub struct IkStart {
     pub quaternions: Vec<Quat>,
     pub rest_curvature: Option<Vec<[f64; 2]>>,
+    /// A tendon-driven or magnetic robot's actuation: its tensions [N] or
+    /// its field [T] (`None`: from slack, or zero field).
+    pub actuation: Option<Vec<f64>>,
 }
 
 /// Why an inverse solve ended.
@@ -260,6 +267,10 @@ pub struct IkResult {
     pub muscle_lengths: Vec<[f64; 3]>,
     /// Three inflation times per section [s].
     pub inflation_times: Vec<[f64; 3]>,
+    /// Tendon tensions [N] (a tendon-driven robot; empty otherwise).
+    pub tensions: Vec<f64>,
+    /// Uniform magnetic field, world frame [T] (a magnetic robot; zero otherwise).
+    pub field: Vector3<f64>,
     /// The loaded equilibrium with this actuation.
     pub solution: Solution,
     pub tip_position: Vector3<f64>,
@@ -1045,6 +1056,8 @@ impl InverseSolver {
             inflation_times: self.robot.inflation_times(&lengths),
             muscle_lengths: lengths,
             rest_curvature: kappa,
+            tensions: Vec::new(),
+            field: Vector3::zeros(),
             tip_position: sol.tip_position(),
             solution: sol,
             tip_miss: miss,
@@ -1097,6 +1110,31 @@ fn flatten(k: &[[f64; 2]]) -> DVector<f64> {
     DVector::from_iterator(2 * k.len(), k.iter().flat_map(|x| x.iter().copied()))
 }
 
+/// Refuse a warm start that does not fit the robot's discretisation.
+fn check_initial(start: &IkStart, n_elements: usize) -> Result<()> {
+    if start.quaternions.len() != n_elements + 1 {
+        return Err(Error::argument(
+            "initial",
+            format!(
+                "has {} nodes, the robot's discretisation {}",
+                start.quaternions.len(),
+                n_elements + 1
+            ),
+        ));
+    }
+    if start
+        .quaternions
+        .iter()
+        .any(|q| !q.to_array().iter().all(|x| x.is_finite()) || q.norm() < 1e-6)
+    {
+        return Err(Error::argument(
+            "initial",
+            "quaternions must be finite and non-zero",
+        ));
+    }
+    Ok(())
+}
+
 fn unflatten(v: &DVector<f64>) -> Vec<[f64; 2]> {
     v.as_slice().chunks(2).map(|c| [c[0], c[1]]).collect()
 }
@@ -1112,6 +1150,15 @@ impl Robot {
     pub fn track(&self, targets: &[Vector3<f64>], options: &IkOptions) -> Result<Vec<IkResult>> {
         let settings = &options.settings;
         settings.validate()?;
+        if self.actuation_space() != ActuationSpace::Curvature {
+            return self.track_actuated(targets, options);
+        }
+        if options.pretension.is_some() {
+            return Err(Error::argument(
+                "pretension",
+                "the robot has no tendons (its actuation is the muscles' curvature)",
+            ));
+        }
         let mut loaded = InverseSolver::new(self, options.tip_mass)?;
         let mut weightless = match settings.strategy {
             Strategy::Equilibrium => None,
@@ -1119,26 +1166,7 @@ impl Robot {
         };
         let mut reference = options.reference.clone();
         if let Some(start) = &options.initial {
-            if start.quaternions.len() != self.n_elements + 1 {
-                return Err(Error::argument(
-                    "initial",
-                    format!(
-                        "has {} nodes, the robot's discretisation {}",
-                        start.quaternions.len(),
-                        self.n_elements + 1
-                    ),
-                ));
-            }
-            if start
-                .quaternions
-                .iter()
-                .any(|q| !q.to_array().iter().all(|x| x.is_finite()) || q.norm() < 1e-6)
-            {
-                return Err(Error::argument(
-                    "initial",
-                    "quaternions must be finite and non-zero",
-                ));
-            }
+            check_initial(start, self.n_elements)?;
             loaded.q = Some(start.quaternions.clone());
             if reference.is_none() {
                 reference.clone_from(&start.rest_curvature);
@@ -1169,5 +1197,50 @@ impl Robot {
             out.push(result);
         }
         Ok(out)
+    }
+
+    /// [`Robot::track`] of a tendon-driven or magnetic robot, in tension or
+    /// field space (see `actuated.rs`).
+    fn track_actuated(
+        &self,
+        targets: &[Vector3<f64>],
+        options: &IkOptions,
+    ) -> Result<Vec<IkResult>> {
+        let space = self.actuation_space();
+        if options.settings.strategy != Strategy::Equilibrium {
+            return Err(Error::argument(
+                "strategy",
+                format!(
+                    "the geometric strategy fits muscle curvatures; this robot's actuation is its {}",
+                    space.name()
+                ),
+            ));
+        }
+        if options.reference.is_some() {
+            return Err(Error::argument(
+                "reference",
+                format!(
+                    "a curvature reference steers muscles; this robot's actuation is its {} (use pretension for tendons)",
+                    space.name()
+                ),
+            ));
+        }
+        let mut solver = ActuatedInverseSolver::new(self, options.tip_mass)?;
+        if let Some(start) = &options.initial {
+            check_initial(start, self.n_elements)?;
+            solver.warm_start(start)?;
+        }
+        targets
+            .iter()
+            .map(|target| {
+                solver.solve(
+                    *target,
+                    options.direction,
+                    options.pretension.as_deref(),
+                    options.settings.tol,
+                    options.settings.max_iterations,
+                )
+            })
+            .collect()
     }
 }

@@ -15,18 +15,20 @@
 //! mode) does not bend the backbone; it is chosen to centre the lengths in the
 //! muscles' range, which leaves the most room for the next move.
 
+mod actuated;
 mod bounds;
 mod calibrate;
 mod ik;
 pub mod trajectory;
 
+pub use actuated::{ActuatedInverseSolver, ActuationSpace};
 pub use calibrate::{Calibration, CalibrationSettings};
 pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, Strategy};
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
-use crate::read::{count, finite};
-use crate::scene::{Gravity, PointLoad, Scene, Stiffness};
+use crate::read::{count, finite, numbers, vec3, Table};
+use crate::scene::{Gravity, PointLoad, Scene, Stiffness, Tendon};
 use crate::value::Value;
 use nalgebra::{Matrix3, Vector3};
 
@@ -84,6 +86,45 @@ pub struct Robot {
     /// smallest multiple of the sections that is at least 20, see
     /// [`crate::solver::default_elements`]).
     pub n_elements: usize,
+    /// Tendons routed along the backbone (default none); their tensions are
+    /// the actuation of [`Actuation::tensions`].
+    pub tendons: Vec<TendonRoute>,
+    /// Largest tension a tendon's drive can pull [N] (default none: unbounded).
+    pub max_tension: Option<f64>,
+    /// Magnetisation per section, material frame [A m^2 / m] (default none;
+    /// one entry magnetises every section).
+    pub magnetization: Vec<Vector3<f64>>,
+    /// A magnet at the tip, material frame [A m^2] (default none).
+    pub tip_magnet: Vector3<f64>,
+    /// Largest field the magnetic system makes, |B| [T] (default none: unbounded).
+    pub max_field: Option<f64>,
+}
+
+/// How a tendon runs through the robot: routed at an offset from the
+/// backbone in the cross-section (its angle may turn at a constant rate: a
+/// helix), pulled at the base, anchored at the end of a section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TendonRoute {
+    /// Offset `[x, y]` from the backbone at the base, material frame [m].
+    pub offset: [f64; 2],
+    /// Turn of the routing angle per length [rad/m] (default 0: straight).
+    pub twist: f64,
+    /// The section at whose end the tendon is anchored, 1..=sections
+    /// (default: the last).
+    pub section: usize,
+}
+
+/// What drives a robot at one instant: the muscles' rest curvature, the
+/// tendons' tensions and the external magnetic field. Each left empty (or
+/// zero) does not act.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Actuation {
+    /// `[kappa_x, kappa_y]` per section [1/m]; empty: straight.
+    pub rest_curvature: Vec<[f64; 2]>,
+    /// One tension per tendon of the robot [N], each >= 0; empty: all slack.
+    pub tensions: Vec<f64>,
+    /// Uniform external field, world frame [T].
+    pub field: Vector3<f64>,
 }
 
 /// Why muscle angles are refused.
@@ -125,6 +166,11 @@ impl Default for Robot {
             inflation_rate: -0.01,
             muscle_length_range: [0.8 * rest, 1.05 * rest],
             n_elements: 20,
+            tendons: Vec::new(),
+            max_tension: None,
+            magnetization: Vec::new(),
+            tip_magnet: Vector3::zeros(),
+            max_field: None,
         }
     }
 }
@@ -247,10 +293,86 @@ impl Robot {
         forward.has_long_passes() || self.sections >= LONG_IK_PASS_SECTIONS
     }
 
-    /// The scene of the robot with the given actuation and a tip mass [kg]: own
-    /// weight, the disks as point loads at the section ends, the tip mass's weight.
+    /// The scene of the robot with the given muscle actuation and a tip mass
+    /// [kg] (tendons slack, no field): own weight, the disks as point loads at
+    /// the section ends, the tip mass's weight.
     pub fn scene(&self, rest_curvature: &[[f64; 2]], tip_mass: f64) -> Result<Scene> {
+        self.scene_of(rest_curvature, &[], Vector3::zeros(), tip_mass)
+    }
+
+    /// The scene of the robot under a whole actuation (muscles, tendons and
+    /// field) and a tip mass [kg].
+    pub fn actuated_scene(&self, actuation: &Actuation, tip_mass: f64) -> Result<Scene> {
+        if actuation.rest_curvature.is_empty() {
+            let straight = vec![[0.0; 2]; self.sections];
+            self.scene_of(&straight, &actuation.tensions, actuation.field, tip_mass)
+        } else {
+            self.scene_of(
+                &actuation.rest_curvature,
+                &actuation.tensions,
+                actuation.field,
+                tip_mass,
+            )
+        }
+    }
+
+    /// Refuse tensions or a field the robot's drives cannot apply, naming them.
+    pub fn check_actuation(&self, tensions: &[f64], field: Vector3<f64>) -> Result<()> {
+        if !tensions.is_empty() && tensions.len() != self.tendons.len() {
+            return Err(Error::argument(
+                "tensions",
+                format!(
+                    "expected one a tendon ({}), got {}",
+                    self.tendons.len(),
+                    tensions.len()
+                ),
+            ));
+        }
+        let most = self.max_tension.unwrap_or(f64::INFINITY);
+        for (i, t) in tensions.iter().enumerate() {
+            if !(t.is_finite() && *t >= 0.0) {
+                return Err(Error::argument(
+                    format!("tensions[{i}]"),
+                    format!("a tendon pulls, it cannot push: must be finite and >= 0 N, got {t}"),
+                ));
+            }
+            if *t > most {
+                return Err(Error::argument(
+                    format!("tensions[{i}]"),
+                    format!("{t} N is more than the robot's max_tension ({most} N)"),
+                ));
+            }
+        }
+        if let Some(c) = field.iter().position(|b| !b.is_finite()) {
+            return Err(Error::argument(
+                format!("field[{c}]"),
+                format!("must be finite, got {}", field[c]),
+            ));
+        }
+        if let Some(limit) = self.max_field {
+            // Round-off of a field the inverse solve put on the limit passes.
+            if field.norm() > limit * (1.0 + 1e-12) {
+                return Err(Error::argument(
+                    "field",
+                    format!(
+                        "|B| = {} T is more than the robot's max_field ({limit} T)",
+                        field.norm()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn scene_of(
+        &self,
+        rest_curvature: &[[f64; 2]],
+        tensions: &[f64],
+        field: Vector3<f64>,
+        tip_mass: f64,
+    ) -> Result<Scene> {
         self.validate()?;
+        self.check_actuation(tensions, field)?;
         if rest_curvature.len() != self.sections {
             return Err(Error::argument(
                 "rest_curvature",
@@ -292,7 +414,47 @@ impl Robot {
             })
             .filter(|p| p.force.norm() > 0.0)
             .collect();
+        s.tendons = self
+            .tendons
+            .iter()
+            .enumerate()
+            .map(|(i, route)| Tendon {
+                tension: tensions.get(i).copied().unwrap_or(0.0),
+                offset: route.offset,
+                twist: route.twist,
+                end: self.section_end(route.section),
+            })
+            .collect();
+        s.magnetization.clone_from(&self.magnetization);
+        s.tip_magnet = self.tip_magnet;
+        s.magnetic_field = field;
         Ok(s)
+    }
+
+    /// Arc length of the end of section `k` (1-based) [m].
+    pub fn section_end(&self, k: usize) -> f64 {
+        if k >= self.sections {
+            self.length
+        } else {
+            k as f64 * self.section_length()
+        }
+    }
+
+    /// Whether the robot has magnetised material or a tip magnet.
+    pub fn is_magnetic(&self) -> bool {
+        !self.magnetization.is_empty() || self.tip_magnet != Vector3::zeros()
+    }
+
+    /// The space its inverse kinematics searches: tensions if it has
+    /// tendons, else the field if it is magnetic, else the muscles' curvature.
+    pub fn actuation_space(&self) -> ActuationSpace {
+        if !self.tendons.is_empty() {
+            ActuationSpace::Tensions
+        } else if self.is_magnetic() {
+            ActuationSpace::Field
+        } else {
+            ActuationSpace::Curvature
+        }
     }
 
     /// The same robot without weight or load: what a purely geometric model sees.
@@ -310,7 +472,62 @@ impl Robot {
         self.check_counts()?;
         self.check_fields()?;
         self.check_muscle_angles()?;
+        self.check_drives()?;
         self.check_derived()
+    }
+
+    /// Tendon routes, magnets and the drives' limits.
+    fn check_drives(&self) -> Result<()> {
+        for (i, t) in self.tendons.iter().enumerate() {
+            if t.offset.iter().any(|x| !x.is_finite()) {
+                return Err(Error::scene(
+                    format!("tendons[{i}].offset"),
+                    "must be finite",
+                ));
+            }
+            if !t.twist.is_finite() {
+                return Err(Error::scene(
+                    format!("tendons[{i}].twist"),
+                    "must be finite",
+                ));
+            }
+            if !(1..=self.sections).contains(&t.section) {
+                return Err(Error::scene(
+                    format!("tendons[{i}].section"),
+                    format!(
+                        "must be a section in [1, {}], got {}",
+                        self.sections, t.section
+                    ),
+                ));
+            }
+        }
+        let k = self.magnetization.len();
+        if k > 1 && k != self.sections {
+            return Err(Error::scene(
+                "magnetization",
+                format!(
+                    "expected one entry or one a section ({}), got {k}",
+                    self.sections
+                ),
+            ));
+        }
+        if self
+            .magnetization
+            .iter()
+            .chain(std::iter::once(&self.tip_magnet))
+            .any(|m| m.iter().any(|x| !x.is_finite()))
+        {
+            return Err(Error::scene("magnetization", "must be finite"));
+        }
+        for (name, limit) in [
+            ("max_tension", self.max_tension),
+            ("max_field", self.max_field),
+        ] {
+            if let Some(x) = limit {
+                positive(name, x)?;
+            }
+        }
+        Ok(())
     }
 
     fn check_counts(&self) -> Result<()> {
@@ -508,7 +725,7 @@ impl Robot {
                 .expect("a scene has a stiffness"),
             _ => unreachable!("a scene is a table"),
         };
-        Value::Map(vec![
+        let mut value = Value::Map(vec![
             ("length".into(), num(self.length)),
             ("stiffness".into(), stiffness),
             ("linear_density".into(), num(self.linear_density)),
@@ -529,7 +746,44 @@ impl Robot {
                 list(&self.muscle_length_range),
             ),
             ("n_elements".into(), num(self.n_elements as f64)),
-        ])
+        ]);
+        let Value::Map(entries) = &mut value else {
+            unreachable!("built as a table")
+        };
+        if !self.tendons.is_empty() {
+            let routes = self
+                .tendons
+                .iter()
+                .map(|t| {
+                    Value::Map(vec![
+                        ("offset".into(), list(&t.offset)),
+                        ("twist".into(), num(t.twist)),
+                        ("section".into(), num(t.section as f64)),
+                    ])
+                })
+                .collect();
+            entries.push(("tendons".into(), Value::List(routes)));
+        }
+        if !self.magnetization.is_empty() {
+            let per_section = self
+                .magnetization
+                .iter()
+                .map(|m| list(m.as_slice()))
+                .collect();
+            entries.push(("magnetization".into(), Value::List(per_section)));
+        }
+        if self.tip_magnet != Vector3::zeros() {
+            entries.push(("tip_magnet".into(), list(self.tip_magnet.as_slice())));
+        }
+        for (name, limit) in [
+            ("max_tension", self.max_tension),
+            ("max_field", self.max_field),
+        ] {
+            if let Some(x) = limit {
+                entries.push((name.into(), num(x)));
+            }
+        }
+        value
     }
 
     pub fn from_value(v: &Value) -> Result<Self> {
@@ -556,6 +810,9 @@ impl Robot {
         }
         if !given("n_elements") {
             r.n_elements = crate::solver::default_elements(r.sections);
+        }
+        for t in r.tendons.iter_mut().filter(|t| t.section == LAST_SECTION) {
+            t.section = r.sections;
         }
         // A field defaulted from another is blamed on the one given.
         let rest_key = if given("muscle_rest_length") {
@@ -619,10 +876,62 @@ impl Robot {
                 self.muscle_length_range = [a[0], a[1]];
             }
             "n_elements" => self.n_elements = count(value, key, MAX_ROBOT_ELEMENTS)?,
+            "tendons" => self.tendons = tendon_routes(value)?,
+            "max_tension" => self.max_tension = Some(num(value)?),
+            "magnetization" => {
+                self.magnetization = match value {
+                    Value::List(items) if items.iter().all(|x| matches!(x, Value::List(_))) => items
+                        .iter()
+                        .enumerate()
+                        .map(|(i, x)| vec3(x, &format!("magnetization[{i}]")))
+                        .collect::<Result<_>>()?,
+                    other => vec![vec3(other, key)?],
+                }
+            }
+            "tip_magnet" => self.tip_magnet = vec3(value, key)?,
+            "max_field" => self.max_field = Some(num(value)?),
             other => {
-                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements)"))
+                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements, tendons, max_tension, magnetization, tip_magnet, max_field)"))
             }
         }
         Ok(())
     }
 }
+
+/// Tendon routes from a list of `{offset, twist, section}` tables (section:
+/// default the last, filled in by `Robot::from_value`'s validation as 0 here).
+fn tendon_routes(v: &Value) -> Result<Vec<TendonRoute>> {
+    let Value::List(items) = v else {
+        return Err(Error::scene(
+            "tendons",
+            format!(
+                "expected a list of {{offset, twist, section}} tables, got {}",
+                v.kind()
+            ),
+        ));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| {
+            let path = format!("tendons[{i}]");
+            let t = Table::new(item, &path)?;
+            t.only(&["offset", "twist", "section"])?;
+            Ok(TendonRoute {
+                offset: numbers::<2>(t.require("offset")?, &t.key("offset"))?,
+                twist: match t.get("twist") {
+                    None => 0.0,
+                    Some(x) => finite(x, &t.key("twist"))?,
+                },
+                section: match t.get("section") {
+                    None => LAST_SECTION,
+                    Some(x) => count(x, &t.key("section"), MAX_SECTIONS)?,
+                },
+            })
+        })
+        .collect()
+}
+
+/// Placeholder of a route read without `section`: the robot's last section,
+/// set once the number of sections is known.
+const LAST_SECTION: usize = usize::MAX;

@@ -1,0 +1,863 @@
+//! Inverse kinematics of tendon-driven and magnetic robots: the tendon
+//! tensions, or the uniform field, whose *loaded* equilibrium puts the tip
+//! at the target (and, optionally, along a direction).
+//!
+//! Each iteration solves the forward statics (warm) and takes the tip's
+//! sensitivity to the actuation from the factored equilibrium Jacobian
+//! ([`Solver::sensitivity_with`]: O(n) a column). Then:
+//!
+//! * **Tensions** (never negative, at most `max_tension`): the step goes to the
+//!   minimiser of `|t - p|^2` (`p` the pretension, default zero) over the
+//!   tensions that reach the target to first order, `J t = e + J t_k`. That
+//!   small QP is solved exactly through its dual, `t = clip(p + J^T y)`, by a
+//!   semismooth Newton method on `y`. At a fixed point the tip is on target
+//!   and `t = clip(p + J^T y)` with `J` the sensitivity *there*: the KKT
+//!   conditions of the minimum-norm choice on the nonlinear problem. When no
+//!   admissible tensions reach the linearised target, the step is a bounded
+//!   Levenberg-Marquardt step on the tip error instead (closest tip).
+//! * **Field** (`|B|` at most `max_field`): a Levenberg-Marquardt step on the
+//!   tip error inside the ball. A magnet at the tip of an otherwise passive
+//!   rod only feels the part of `B` across it, so its tips form a surface: a
+//!   target off it ends as the closest tip, `out_of_reach`.
+//!
+//! A backtracking line search on the tip error accepts only converged,
+//! stable equilibria.
+
+use super::ik::{IkEnding, IkResult};
+use super::{Actuation, Robot};
+use crate::error::{Error, Result};
+use crate::quat::Quat;
+use crate::solver::{Settings, Solution, Solver};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// Relative accuracy to which the tensions are the minimum-norm choice.
+const MIN_NORM_ACCURACY: f64 = 1e-5;
+
+/// Shortest line-search step of a minimum-norm step.
+const MIN_ALPHA: f64 = 1e-4;
+
+/// Levenberg-Marquardt damping, relative to the largest diagonal entry of
+/// `J^T J`: at the first step, at most, and where the descent gives up.
+const LM_START: f64 = 1e-3;
+const LM_SMALLEST: f64 = 1e-12;
+const LM_GIVE_UP: f64 = 1e10;
+
+/// Tip error [relative to L] from which the minimum-norm steps take over.
+const POLISH_RADIUS: f64 = 1e-3;
+
+/// The damped descent is at the closest tip after `SLOW_STEPS` accepted
+/// steps in a row that each shrink the miss by less than `SLOW_GAIN` of it.
+const SLOW_GAIN: f64 = 0.01;
+const SLOW_STEPS: usize = 4;
+
+/// At the closest tip, how much a minimum-norm step may grow the miss.
+const LEVEL_SLACK: f64 = 1e-6;
+
+/// Iterations of the dual QP's semismooth Newton method (it ends when its
+/// active set repeats, in a few for a handful of tendons).
+const DUAL_ITERATIONS: usize = 100;
+
+/// What an inverse solve searches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ActuationSpace {
+    /// The muscles' rest curvature per section (pneumatic robots).
+    Curvature,
+    /// The tendons' tensions.
+    Tensions,
+    /// The uniform external magnetic field.
+    Field,
+}
+
+impl ActuationSpace {
+    /// The snake_case name used by the Python API.
+    pub fn name(self) -> &'static str {
+        match self {
+            ActuationSpace::Curvature => "curvature",
+            ActuationSpace::Tensions => "tensions",
+            ActuationSpace::Field => "field",
+        }
+    }
+}
+
+/// The tip goal of one solve: position, and optionally direction.
+struct Goal {
+    target: Vector3<f64>,
+    direction: Option<Vector3<f64>>,
+    tol: f64,
+    length: f64,
+}
+
+impl Goal {
+    /// Position error, then (with a direction) the direction's error in the
+    /// plane across the tip tangent, weighted by `L`.
+    fn error(&self, sol: &Solution) -> DVector<f64> {
+        let mut e = DVector::zeros(if self.direction.is_some() { 5 } else { 3 });
+        e.rows_mut(0, 3)
+            .copy_from(&(self.target - sol.tip_position()));
+        if let Some(d) = self.direction {
+            let t = sol.tip_quaternion().tangent();
+            let (u, v) = across(t);
+            // The turn that takes t toward d, as a small rotation across t.
+            let turn = t.cross(&d);
+            let turn = if t.dot(&d) < 0.0 {
+                // More than a right angle off: aim along the sine's direction
+                // at full length (or any axis if antiparallel).
+                turn.try_normalize(1e-12).unwrap_or(u)
+            } else {
+                turn
+            };
+            e[3] = turn.dot(&u) * self.length;
+            e[4] = turn.dot(&v) * self.length;
+        }
+        e
+    }
+
+    fn reached(&self, e: &DVector<f64>) -> bool {
+        e.rows(0, 3).norm() <= self.tol && (e.len() == 3 || e.rows(3, 2).norm() <= self.tol)
+    }
+}
+
+/// An orthonormal pair across the unit vector `t`.
+fn across(t: Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let helper = if t.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let u = t.cross(&helper).normalize();
+    (u, t.cross(&u))
+}
+
+/// An accepted point of the descent: a converged, stable equilibrium.
+struct State {
+    x: DVector<f64>,
+    sol: Solution,
+    e: DVector<f64>,
+}
+
+/// Inverse kinematics of a tendon-driven or magnetic robot under one tip
+/// mass, reusing its forward solver and the last answer as the warm start of
+/// the next (trajectories).
+pub struct ActuatedInverseSolver {
+    robot: Robot,
+    space: ActuationSpace,
+    solver: Solver,
+    /// The last answer's actuation and equilibrium.
+    x: DVector<f64>,
+    q: Option<Vec<Quat>>,
+    iterations: usize,
+}
+
+impl ActuatedInverseSolver {
+    /// The solver of `robot`'s own space ([`Robot::actuation_space`]: tensions
+    /// if it has tendons, else the field); a pneumatic robot has
+    /// [`super::InverseSolver`].
+    pub fn new(robot: &Robot, tip_mass: f64) -> Result<Self> {
+        let space = robot.actuation_space();
+        let variables =
+            match space {
+                ActuationSpace::Tensions => robot.tendons.len(),
+                ActuationSpace::Field => 3,
+                ActuationSpace::Curvature => return Err(Error::argument(
+                    "robot",
+                    "has neither tendons nor magnets: its inverse kinematics is in curvature space",
+                )),
+            };
+        let scene = robot.actuated_scene(&Actuation::default(), tip_mass)?;
+        let settings = Settings {
+            n_elements: Some(robot.n_elements),
+            residual_tol: 1e-12,
+            ..Settings::default()
+        };
+        Ok(ActuatedInverseSolver {
+            robot: robot.clone(),
+            space,
+            solver: Solver::new(&scene, settings)?,
+            x: DVector::zeros(variables),
+            q: None,
+            iterations: 0,
+        })
+    }
+
+    pub fn space(&self) -> ActuationSpace {
+        self.space
+    }
+
+    /// Start the next solve from an earlier answer's equilibrium and actuation.
+    pub fn warm_start(&mut self, start: &super::IkStart) -> Result<()> {
+        if let Some(x) = &start.actuation {
+            if x.len() != self.x.len() {
+                return Err(Error::argument(
+                    "initial",
+                    format!(
+                        "has {} actuation values, the robot's {} space {}",
+                        x.len(),
+                        self.space.name(),
+                        self.x.len()
+                    ),
+                ));
+            }
+            match self.space {
+                ActuationSpace::Tensions => self.robot.check_actuation(x, Vector3::zeros())?,
+                _ => self
+                    .robot
+                    .check_actuation(&[], Vector3::new(x[0], x[1], x[2]))?,
+            }
+            self.x = DVector::from_column_slice(x);
+        }
+        self.q = Some(start.quaternions.clone());
+        Ok(())
+    }
+
+    /// Forward statics at `x`, warm from the last accepted state.
+    fn forward(&mut self, x: &DVector<f64>) -> Result<Solution> {
+        match self.space {
+            ActuationSpace::Tensions => self.solver.set_tensions(x.as_slice())?,
+            _ => self
+                .solver
+                .set_magnetic_field(Vector3::new(x[0], x[1], x[2]))?,
+        }
+        self.solver.solve_warm_or_cold(self.q.as_deref())
+    }
+
+    /// Rows of the goal's error differentiated in the actuation, at the
+    /// solver's (accepted) state; `None` at a bifurcation.
+    fn jacobian(&mut self, goal: &Goal, sol: &Solution) -> Option<DMatrix<f64>> {
+        let k = self.x.len();
+        let names = (0..k).map(|j| format!("actuation[{j}]")).collect();
+        let scene = self.solver.scene().clone();
+        let space = self.space;
+        let values: Vec<f64> = match space {
+            ActuationSpace::Tensions => scene.tendons.iter().map(|t| t.tension).collect(),
+            _ => scene.magnetic_field.iter().copied().collect(),
+        };
+        let sens = self
+            .solver
+            .sensitivity_with(names, &values, |j, delta| {
+                let mut moved = scene.clone();
+                match space {
+                    ActuationSpace::Tensions => moved.tendons[j].tension += delta,
+                    _ => moved.magnetic_field[j] += delta,
+                }
+                Ok(moved)
+            })
+            .ok()?;
+        let mut jac = DMatrix::zeros(if goal.direction.is_some() { 5 } else { 3 }, k);
+        jac.rows_mut(0, 3).copy_from(&sens.tip_position);
+        if goal.direction.is_some() {
+            // The tip tangent turns by phi x t; the error's rows shrink by it.
+            let t = sol.tip_quaternion().tangent();
+            let (u, v) = across(t);
+            for c in 0..k {
+                let phi: Vector3<f64> = sens.tip_rotation.column(c).into();
+                jac[(3, c)] = phi.dot(&u) * goal.length;
+                jac[(4, c)] = phi.dot(&v) * goal.length;
+            }
+        }
+        Some(jac)
+    }
+
+    /// The tensions (or field) whose loaded equilibrium puts the tip at
+    /// `target` (and along `direction`), starting from the last answer.
+    /// Tensions: the one closest to `pretension` (default zero).
+    pub fn solve(
+        &mut self,
+        target: Vector3<f64>,
+        direction: Option<Vector3<f64>>,
+        pretension: Option<&[f64]>,
+        tol: f64,
+        max_iterations: usize,
+    ) -> Result<IkResult> {
+        let started = std::time::Instant::now();
+        let goal = self.goal(target, direction, tol)?;
+        let pull = self.pull(pretension)?;
+        self.iterations = 0;
+        let (state, mut ending) = self.descend(&goal, &pull, max_iterations)?;
+        let beyond = (target - self.robot.base_position).norm() > self.robot.length;
+        if beyond && ending != IkEnding::Reached {
+            ending = IkEnding::OutOfReach;
+        }
+        let mut result = self.conclude(state, ending);
+        result.seconds = started.elapsed().as_secs_f64();
+        Ok(result)
+    }
+
+    fn goal(
+        &self,
+        target: Vector3<f64>,
+        direction: Option<Vector3<f64>>,
+        tol: f64,
+    ) -> Result<Goal> {
+        if target.iter().any(|x| !x.is_finite()) {
+            return Err(Error::argument("target", "must be finite"));
+        }
+        let length = self.robot.length;
+        crate::solver::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
+        let direction = match direction {
+            Some(d) if d.iter().all(|x| x.is_finite()) && d.norm() > 0.0 => Some(d.normalize()),
+            Some(_) => {
+                return Err(Error::argument(
+                    "direction",
+                    "must be a finite non-zero vector",
+                ))
+            }
+            None => None,
+        };
+        Ok(Goal {
+            target,
+            direction,
+            tol,
+            length,
+        })
+    }
+
+    /// The point the minimum-norm choice is pulled to (tensions) or from
+    /// (zero field).
+    fn pull(&self, pretension: Option<&[f64]>) -> Result<DVector<f64>> {
+        let k = self.x.len();
+        match (pretension, self.space) {
+            (None, _) => Ok(DVector::zeros(k)),
+            (Some(_), ActuationSpace::Field) => Err(Error::argument(
+                "pretension",
+                "a magnetic robot has no tendons to pretension",
+            )),
+            (Some(p), _) => {
+                self.robot
+                    .check_actuation(p, Vector3::zeros())
+                    .map_err(|e| match e {
+                        Error::InvalidArgument { name, reason } => {
+                            Error::argument(name.replacen("tensions", "pretension", 1), reason)
+                        }
+                        other => other,
+                    })?;
+                if p.len() != k {
+                    return Err(Error::argument(
+                        "pretension",
+                        format!("expected one a tendon ({k}), got {}", p.len()),
+                    ));
+                }
+                Ok(DVector::from_column_slice(p))
+            }
+        }
+    }
+
+    /// Accept `x` if its equilibrium is converged and stable.
+    fn try_state(&mut self, goal: &Goal, x: DVector<f64>) -> Result<Option<State>> {
+        let sol = self.forward(&x)?;
+        if !(sol.converged() && sol.stable) {
+            return Ok(None);
+        }
+        let e = goal.error(&sol);
+        Ok(Some(State { x, sol, e }))
+    }
+
+    /// From the last answer: Levenberg-Marquardt steps on the tip error
+    /// (damping adapted as a trust region) until the tip is near the target,
+    /// then, for tensions, the minimum-norm steps (see the module's notes).
+    fn descend(
+        &mut self,
+        goal: &Goal,
+        pull: &DVector<f64>,
+        max_iterations: usize,
+    ) -> Result<(State, IkEnding)> {
+        let k = self.x.len();
+        let start = self.x.clone();
+        let mut state = match self.try_state(goal, start)? {
+            Some(s) => s,
+            None => {
+                // The last answer's equilibrium is gone (another load?): from slack.
+                self.q = None;
+                match self.try_state(goal, DVector::zeros(k))? {
+                    Some(s) => s,
+                    None => {
+                        let sol = self.forward(&DVector::zeros(k))?;
+                        let e = goal.error(&sol);
+                        let x = DVector::zeros(k);
+                        return Ok((State { x, sol, e }, IkEnding::SolverFailure));
+                    }
+                }
+            }
+        };
+        self.q = Some(state.sol.quaternions.clone());
+        let mut damping = LM_START;
+        let mut unusable = false;
+        let mut jac = None;
+        // Accepted damped steps in a row that each gained less than SLOW_GAIN.
+        let mut slow = 0;
+        loop {
+            let reached = goal.reached(&state.e);
+            if self.iterations >= max_iterations {
+                let ending = if reached {
+                    IkEnding::Reached
+                } else {
+                    IkEnding::IterationLimit
+                };
+                return Ok((state, ending));
+            }
+            if jac.is_none() {
+                jac = self.jacobian(goal, &state.sol);
+            }
+            let Some(j) = jac.as_ref() else {
+                return Ok((state, IkEnding::SolverFailure));
+            };
+            let b = &state.e + j * &state.x;
+            let near = state.e.norm() <= POLISH_RADIUS * goal.length;
+            let stalled = slow >= SLOW_STEPS;
+            if near || stalled {
+                // The minimum-norm choice among the actuations that reach
+                // the (linearised) target, or come closest to it.
+                if let Some((y, multiplier)) = self.min_norm_step(j, &b, pull) {
+                    let d = &y - &state.x;
+                    let settled = d.norm() <= MIN_NORM_ACCURACY * state.x.norm().max(y.norm());
+                    if settled && (reached || stalled) {
+                        let ending = if reached {
+                            IkEnding::Reached
+                        } else {
+                            self.blocked_ending(&state.x, j, &state.e)
+                        };
+                        return Ok((state, ending));
+                    }
+                    self.iterations += 1;
+                    if let Some(next) =
+                        self.merit_search(goal, &state, &y, &multiplier, pull, stalled)?
+                    {
+                        state = next;
+                        jac = None;
+                        continue;
+                    }
+                }
+                if reached || stalled {
+                    // On target (or at the closest tip), the pull toward the
+                    // minimum norm is blocked.
+                    let ending = if reached {
+                        IkEnding::Reached
+                    } else {
+                        self.blocked_ending(&state.x, j, &state.e)
+                    };
+                    return Ok((state, ending));
+                }
+            }
+            // A damped step on the tip error alone.
+            let y = match self.space {
+                ActuationSpace::Tensions => {
+                    let upper = self.robot.max_tension.unwrap_or(f64::INFINITY);
+                    lm_step_in_box(j, &b, &state.x, upper, damping)
+                }
+                _ => {
+                    let limit = self.robot.max_field.unwrap_or(f64::INFINITY);
+                    lm_step_in_ball(j, &b, &state.x, limit, damping)
+                }
+            };
+            let d = &y - &state.x;
+            if d.norm() <= 1e-15 * state.x.norm() || damping > LM_GIVE_UP {
+                let ending = if reached {
+                    IkEnding::Reached
+                } else if unusable && damping > LM_GIVE_UP {
+                    IkEnding::SolverFailure
+                } else {
+                    self.blocked_ending(&state.x, j, &state.e)
+                };
+                self.forward(&state.x.clone())?;
+                return Ok((state, ending));
+            }
+            self.iterations += 1;
+            match self.try_state(goal, y)? {
+                Some(next) if next.e.norm() < state.e.norm() => {
+                    let gain = 1.0 - next.e.norm() / state.e.norm();
+                    slow = if gain < SLOW_GAIN { slow + 1 } else { 0 };
+                    self.q = Some(next.sol.quaternions.clone());
+                    state = next;
+                    jac = None;
+                    damping = (damping / 3.0).max(LM_SMALLEST);
+                    unusable = false;
+                }
+                trial => {
+                    unusable |= trial.is_none();
+                    damping *= 4.0;
+                    // The solver's state is the trial's; the Jacobian kept is
+                    // the accepted state's.
+                }
+            }
+        }
+    }
+
+    /// The minimum-norm step of the space and its multiplier, `None` where
+    /// it has none: the tensions closest to the pull that reach `J t = b`
+    /// (see [`min_norm_in_box`]); the smallest field among those that come
+    /// closest to it (`B = J^T y`), inside `|B| <= max_field`.
+    fn min_norm_step(
+        &self,
+        jac: &DMatrix<f64>,
+        b: &DVector<f64>,
+        pull: &DVector<f64>,
+    ) -> Option<(DVector<f64>, DVector<f64>)> {
+        match self.space {
+            ActuationSpace::Tensions => {
+                let upper = self.robot.max_tension.unwrap_or(f64::INFINITY);
+                min_norm_in_box(jac, b, pull, upper)
+            }
+            _ => {
+                let cut = 1e-9 * jac.amax();
+                let gram = jac * jac.transpose();
+                let y = gram.svd(true, true).solve(b, cut * cut).ok()?;
+                let field = jac.transpose() * &y;
+                let limit = self.robot.max_field.unwrap_or(f64::INFINITY);
+                (field.norm() <= limit).then_some((field, y))
+            }
+        }
+    }
+
+    /// A minimum-norm step from `state` toward `target` (multiplier `y`),
+    /// backtracked on the merit `|x - p|^2 / 2 + rho |e|` with `rho` twice
+    /// the multiplier: it may trade some miss for a smaller norm, which the
+    /// next steps restore. At the closest tip (`level`) the miss is the
+    /// least the drives reach: there a step must keep it. Only converged,
+    /// stable equilibria are accepted; the solver is left at the accepted
+    /// state (or back at `state`).
+    fn merit_search(
+        &mut self,
+        goal: &Goal,
+        state: &State,
+        target: &DVector<f64>,
+        y: &DVector<f64>,
+        pull: &DVector<f64>,
+        level: bool,
+    ) -> Result<Option<State>> {
+        let d = target - &state.x;
+        let rho = 2.0 * y.norm() + f64::MIN_POSITIVE;
+        let merit =
+            |x: &DVector<f64>, e: &DVector<f64>| 0.5 * (x - pull).norm_squared() + rho * e.norm();
+        let miss = state.e.norm();
+        let phi = merit(&state.x, &state.e);
+        let slope = (&state.x - pull).dot(&d) - rho * miss;
+        let mut alpha = 1.0;
+        while alpha >= MIN_ALPHA {
+            let x = &state.x + &d * alpha;
+            if let Some(next) = self.try_state(goal, x)? {
+                let new_miss = next.e.norm();
+                let accept = if level {
+                    new_miss <= (1.0 + LEVEL_SLACK) * miss
+                        && (next.x.clone() - pull).norm() < (&state.x - pull).norm()
+                } else {
+                    merit(&next.x, &next.e) <= phi + 1e-4 * alpha * slope.min(0.0)
+                        && (new_miss < miss || goal.reached(&next.e) || slope < 0.0)
+                };
+                if accept {
+                    self.q = Some(next.sol.quaternions.clone());
+                    return Ok(Some(next));
+                }
+            }
+            alpha *= 0.5;
+        }
+        self.forward(&state.x.clone())?;
+        Ok(None)
+    }
+
+    /// Why a descent that cannot move misses: a drive at its limit holds it
+    /// back (the error's descent direction `J^T e` points out of the
+    /// admissible set there), or no admissible actuation brings the tip closer.
+    fn blocked_ending(&self, x: &DVector<f64>, jac: &DMatrix<f64>, e: &DVector<f64>) -> IkEnding {
+        let descent = jac.transpose() * e;
+        let scale = descent.amax();
+        let pushed = match self.space {
+            ActuationSpace::Tensions => {
+                let upper = self.robot.max_tension.unwrap_or(f64::INFINITY);
+                (0..x.len()).any(|i| {
+                    (x[i] <= 0.0 && descent[i] < -1e-6 * scale)
+                        || (x[i] >= upper && descent[i] > 1e-6 * scale)
+                })
+            }
+            _ => self.robot.max_field.is_some_and(|limit| {
+                x.norm() >= limit * (1.0 - 1e-9) && descent.dot(x) > 1e-6 * scale * x.norm()
+            }),
+        };
+        if pushed {
+            IkEnding::BoundsActive
+        } else {
+            IkEnding::OutOfReach
+        }
+    }
+
+    fn conclude(&mut self, state: State, ending: IkEnding) -> IkResult {
+        let usable = state.sol.converged() && state.sol.stable;
+        self.q = usable.then(|| state.sol.quaternions.clone());
+        if usable {
+            self.x = state.x.clone();
+        }
+        let miss = state.e.rows(0, 3).norm();
+        let message = self.message(ending, miss, &state.x);
+        let kappa = vec![[0.0; 2]; self.robot.sections];
+        let lengths = self.robot.muscle_lengths(&kappa);
+        let (tensions, field) = match self.space {
+            ActuationSpace::Tensions => (state.x.iter().copied().collect(), Vector3::zeros()),
+            _ => (Vec::new(), Vector3::new(state.x[0], state.x[1], state.x[2])),
+        };
+        IkResult {
+            inflation_times: self.robot.inflation_times(&lengths),
+            muscle_lengths: lengths,
+            rest_curvature: kappa,
+            tensions,
+            field,
+            tip_position: state.sol.tip_position(),
+            solution: state.sol,
+            tip_miss: miss,
+            reached: ending == IkEnding::Reached,
+            ending,
+            message,
+            iterations: self.iterations,
+            starts: 1,
+            seconds: 0.0,
+        }
+    }
+
+    fn message(&self, ending: IkEnding, miss: f64, x: &DVector<f64>) -> String {
+        let (drive, limit) = match self.space {
+            ActuationSpace::Tensions => (
+                "tensions",
+                "tendons at zero tension or at max_tension hold it back",
+            ),
+            _ => ("field", "the field is at max_field"),
+        };
+        match ending {
+            IkEnding::Reached => match self.space {
+                ActuationSpace::Tensions => format!(
+                    "reached with tensions of {:.6} N in all (the least, in norm, that reach it)",
+                    x.sum()
+                ),
+                _ => format!("reached with a field of {:.6} T", x.norm()),
+            },
+            IkEnding::OutOfReach => format!(
+                "not reached: no {drive} put the tip closer; the closest tip found misses by {miss:.3e} m"
+            ),
+            IkEnding::BoundsActive => format!(
+                "not reached: {limit}; the closest tip found misses by {miss:.3e} m"
+            ),
+            IkEnding::SolverFailure => format!(
+                "not reached: the forward solver found no stable equilibrium where the descent had to go; the closest tip found misses by {miss:.3e} m"
+            ),
+            IkEnding::IterationLimit => format!(
+                "not reached after {} iterations: the tip misses by {miss:.3e} m and was still closing in (raise max_iterations)",
+                self.iterations
+            ),
+            IkEnding::LoadIgnored => unreachable!("no geometric strategy in {drive} space"),
+        }
+    }
+}
+
+/// The minimiser of `|t - p|^2` over `J t = b`, `0 <= t <= upper`, with the
+/// multiplier `y` of `J t = b`, or `None` when no such `t` exists (to the
+/// round-off of the dual's gradient).
+///
+/// Through the dual: `t(y) = clip(p + J^T y)` and the concave dual's
+/// gradient is `b - J t(y)`. Semismooth Newton on `y` with the generalised
+/// Hessian `J_F J_F^T` (the free tensions' columns) and an Armijo search on
+/// the dual objective; an infeasible primal sends the dual to infinity.
+pub(crate) fn min_norm_in_box(
+    jac: &DMatrix<f64>,
+    b: &DVector<f64>,
+    p: &DVector<f64>,
+    upper: f64,
+) -> Option<(DVector<f64>, DVector<f64>)> {
+    let (rows, k) = jac.shape();
+    let clip = |z: f64| z.clamp(0.0, upper);
+    // The primal Psi(z) whose derivative is clip(z).
+    let psi = |z: f64| {
+        if z <= 0.0 {
+            0.0
+        } else if z <= upper {
+            0.5 * z * z
+        } else {
+            upper * z - 0.5 * upper * upper
+        }
+    };
+    let dual = |y: &DVector<f64>| -> f64 {
+        let z = p + jac.transpose() * y;
+        z.iter().map(|z| psi(*z)).sum::<f64>() - b.dot(y)
+    };
+    let scale = b.norm() + (jac * p.map(clip)).norm();
+    if scale == 0.0 {
+        return Some((p.map(clip), DVector::zeros(rows)));
+    }
+    let gram_scale = (jac * jac.transpose()).diagonal().max();
+    if gram_scale.is_nan() || gram_scale <= 0.0 {
+        return None;
+    }
+    let mut y = DVector::zeros(rows);
+    for _ in 0..DUAL_ITERATIONS {
+        let z = p + jac.transpose() * &y;
+        let t = z.map(clip);
+        let grad = jac * &t - b;
+        if grad.norm() <= 1e-13 * scale {
+            return Some((t, y));
+        }
+        let mut hess = DMatrix::<f64>::identity(rows, rows) * (1e-13 * gram_scale);
+        // At a kink (z = 0: a tension about to engage) the element of the
+        // generalised Hessian that counts the tendon keeps the step finite.
+        for c in (0..k).filter(|&c| z[c] >= 0.0 && z[c] <= upper) {
+            let col = jac.column(c);
+            hess += col * col.transpose();
+        }
+        let step = hess.cholesky()?.solve(&(-&grad));
+        let f0 = dual(&y);
+        let slope = grad.dot(&step);
+        let mut alpha = 1.0;
+        loop {
+            let trial = &y + &step * alpha;
+            if dual(&trial) <= f0 + 1e-4 * alpha * slope {
+                y = trial;
+                break;
+            }
+            alpha *= 0.5;
+            if alpha < 1e-12 {
+                return None;
+            }
+        }
+        // An unbounded dual: no admissible tensions reach the target.
+        if (jac.transpose() * &y).amax() > 1e12 * (p.amax() + scale / gram_scale.sqrt()) {
+            return None;
+        }
+    }
+    None
+}
+
+/// A Levenberg-Marquardt step toward `J x = b` from `x0`, inside
+/// `0 <= x <= upper`: the minimiser of `|J x - b|^2 + mu |x - x0|^2` over the
+/// box (`mu` is `damping` times the largest diagonal entry of `J^T J`), by
+/// projected Newton with the box's active set (Bertsekas).
+pub(crate) fn lm_step_in_box(
+    jac: &DMatrix<f64>,
+    b: &DVector<f64>,
+    x0: &DVector<f64>,
+    upper: f64,
+    damping: f64,
+) -> DVector<f64> {
+    let k = x0.len();
+    let jtj = jac.transpose() * jac;
+    let mu = damping * jtj.diagonal().max().max(f64::MIN_POSITIVE);
+    let hess = &jtj + DMatrix::<f64>::identity(k, k) * mu;
+    let c = jac.transpose() * b + x0 * mu;
+    let objective = |x: &DVector<f64>| 0.5 * x.dot(&(&hess * x)) - c.dot(x);
+    let mut x = x0.map(|t| t.clamp(0.0, upper));
+    for _ in 0..(10 * k + 20) {
+        let grad = &hess * &x - &c;
+        let free: Vec<usize> = (0..k)
+            .filter(|&i| !((x[i] <= 0.0 && grad[i] > 0.0) || (x[i] >= upper && grad[i] < 0.0)))
+            .collect();
+        if free.is_empty() {
+            break;
+        }
+        let sub = DMatrix::from_fn(free.len(), free.len(), |r, s| hess[(free[r], free[s])]);
+        let rhs = DVector::from_fn(free.len(), |r, _| -grad[free[r]]);
+        let Some(chol) = sub.cholesky() else { break };
+        let dir = chol.solve(&rhs);
+        if dir.amax() <= 1e-15 * x.amax().max(1e-300) {
+            break;
+        }
+        let f0 = objective(&x);
+        let mut alpha = 1.0;
+        let mut moved = false;
+        while alpha > 1e-12 {
+            let mut trial = x.clone();
+            for (r, &i) in free.iter().enumerate() {
+                trial[i] = (x[i] + alpha * dir[r]).clamp(0.0, upper);
+            }
+            if objective(&trial) < f0 {
+                x = trial;
+                moved = true;
+                break;
+            }
+            alpha *= 0.5;
+        }
+        if !moved {
+            break;
+        }
+    }
+    x
+}
+
+/// A Levenberg-Marquardt step toward `J x = b` from `x0` inside the ball
+/// `|x| <= limit`: `(J^T J + mu I + nu I) x = J^T b + mu x0` with the
+/// smallest `nu >= 0` that keeps `x` in the ball (found by bisection).
+pub(crate) fn lm_step_in_ball(
+    jac: &DMatrix<f64>,
+    b: &DVector<f64>,
+    x0: &DVector<f64>,
+    limit: f64,
+    damping: f64,
+) -> DVector<f64> {
+    let k = x0.len();
+    let jtj = jac.transpose() * jac;
+    let mu = damping * jtj.diagonal().max().max(f64::MIN_POSITIVE);
+    let rhs = jac.transpose() * b + x0 * mu;
+    let solve = |nu: f64| -> DVector<f64> {
+        let h = &jtj + DMatrix::<f64>::identity(k, k) * (mu + nu);
+        h.cholesky()
+            .map(|c| c.solve(&rhs))
+            .unwrap_or_else(|| x0.clone())
+    };
+    let x = solve(0.0);
+    if x.norm() <= limit {
+        return x;
+    }
+    let (mut lo, mut hi) = (0.0, mu.max(1e-300));
+    while solve(hi).norm() > limit && hi < 1e300 {
+        hi *= 4.0;
+    }
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if solve(mid).norm() > limit {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let x = solve(hi);
+    // On the sphere to round-off, never outside it.
+    let shrink = (limit / x.norm()).min(1.0);
+    x * shrink
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_dual_qp_gives_the_minimum_norm_admissible_tensions() {
+        // Two tendons pull one way, one the other: J t = b with t >= 0.
+        let jac = DMatrix::from_row_slice(1, 3, &[1.0, 2.0, -1.0]);
+        let b = DVector::from_element(1, 2.0);
+        let p = DVector::zeros(3);
+        let (t, _) = min_norm_in_box(&jac, &b, &p, f64::INFINITY).unwrap();
+        // The minimum-norm solution is J^T (J J^T)^-1 b restricted to the
+        // positive columns: t = [1, 2, 0] * 2 / 5.
+        assert!((t - DVector::from_row_slice(&[0.4, 0.8, 0.0])).norm() < 1e-12);
+        // With an upper bound of 0.7, the second tendon saturates and the
+        // first makes up the rest: t1 + 2 (0.7) = 2.
+        let (t, _) = min_norm_in_box(&jac, &b, &p, 0.7).unwrap();
+        assert!((jac.clone() * &t - &b).norm() < 1e-12);
+        assert!((t[1] - 0.7).abs() < 1e-12 && t[2] == 0.0 && (t[0] - 0.6).abs() < 1e-12);
+        // Past what the bounds allow (1.5 at most): none.
+        assert!(min_norm_in_box(&jac, &b, &p, 0.5).is_none());
+        // Unreachable: only the third tendon moves the other way.
+        let b = DVector::from_element(1, -1.0);
+        let jac_pos = DMatrix::from_row_slice(1, 2, &[1.0, 2.0]);
+        assert!(min_norm_in_box(&jac_pos, &b, &DVector::zeros(2), f64::INFINITY).is_none());
+    }
+
+    #[test]
+    fn the_box_step_keeps_the_bounds_and_minimises() {
+        let jac = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 1.0]);
+        let b = DVector::from_row_slice(&[-1.0, 2.0]);
+        let x = lm_step_in_box(&jac, &b, &DVector::zeros(2), 1.5, 1e-12);
+        assert!((x - DVector::from_row_slice(&[0.0, 1.5])).norm() < 1e-8);
+    }
+
+    #[test]
+    fn the_ball_step_stays_inside() {
+        let jac = DMatrix::identity(3, 3);
+        let b = DVector::from_row_slice(&[3.0, 4.0, 0.0]);
+        let x = lm_step_in_ball(&jac, &b, &DVector::zeros(3), 1.0, 1e-12);
+        assert!((x.norm() - 1.0).abs() < 1e-12);
+        assert!((x - DVector::from_row_slice(&[0.6, 0.8, 0.0])).norm() < 1e-6);
+    }
+}

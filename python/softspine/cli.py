@@ -47,30 +47,47 @@ def _save_solution(sol, path: str) -> None:
     np.savetxt(path, table, delimiter=",", header=header, comments="", fmt="%.17g")
 
 
-def _save_track(points: np.ndarray, results, path: str) -> None:
+def _actuation_columns(robot: Robot, results) -> tuple[str, np.ndarray, list[str]]:
+    """The actuation the IK searched, one row a target, with its CSV names:
+    rest curvature per section, tendon tensions or the field."""
+    space = robot.actuation_space
+    if space == "tensions":
+        values = np.array([r.tensions for r in results])
+        return space, values, [f"tension{i}" for i in range(values.shape[1])]
+    if space == "field":
+        values = np.array([r.field for r in results])
+        return space, values, [f"B{c}" for c in "xyz"]
+    values = np.array([r.rest_curvature for r in results])
+    names = [f"kappa{k}_{c}" for k in range(values.shape[1]) for c in "xy"]
+    return "rest_curvature", values.reshape(len(results), -1), names
+
+
+def _save_track(robot: Robot, points: np.ndarray, results, path: str) -> None:
     """One row per target: the target, the tip reached, the miss, how it ended,
-    and the actuation (rest curvature per section)."""
+    and the actuation (rest curvature per section, tensions or field)."""
     tips = np.array([r.tip_position for r in results])
     misses = np.array([r.tip_miss for r in results])
     reached = np.array([r.reached for r in results])
     endings = np.array([str(r.ending) for r in results])
-    kappa = np.array([r.rest_curvature for r in results])
+    name, actuation, columns = _actuation_columns(robot, results)
     if _save_format(path) == "npz":
+        extra = {}
+        if name == "rest_curvature":
+            extra["rest_curvature"] = np.array([r.rest_curvature for r in results])
+            extra["muscle_lengths"] = np.array([r.muscle_lengths for r in results])
+        else:
+            extra[name] = actuation
         np.savez(path, targets=points, tips=tips, tip_miss=misses, reached=reached,
-                 ending=endings, rest_curvature=kappa,
-                 muscle_lengths=np.array([r.muscle_lengths for r in results]),
-                 time=np.array([r.time for r in results]))
+                 ending=endings, time=np.array([r.time for r in results]), **extra)
         return
-    sections = kappa.shape[1]
     header = ["target_x", "target_y", "target_z", "tip_x", "tip_y", "tip_z", "tip_miss",
-              "reached", "ending"]
-    header += [f"kappa{k}_{c}" for k in range(sections) for c in "xy"]
+              "reached", "ending", *columns]
     with open(path, "w", encoding="utf-8") as f:
         f.write(",".join(header) + "\n")
         for i in range(len(results)):
             row = [*(f"{x:.17g}" for x in (*points[i], *tips[i], misses[i])),
                    str(bool(reached[i])), endings[i],
-                   *(f"{x:.17g}" for x in kappa[i].ravel())]
+                   *(f"{x:.17g}" for x in actuation[i])]
             f.write(",".join(row) + "\n")
 
 
@@ -166,25 +183,40 @@ def _track(args: argparse.Namespace) -> int:
     _check_outputs(args)
     robot = Robot.from_file(args.robot) if args.robot else Robot()
     if args.trajectory in trajectories.NAMES:
-        points = trajectories.by_name(args.trajectory, args.points)
+        # The seed's trajectory, placed at the robot (scaled to its length).
+        points = trajectories.by_name(args.trajectory, args.points, robot)
     else:
         points = _read_points(args.trajectory)
+    space = robot.actuation_space
     print(f"{args.trajectory}: {len(points)} points, {args.load * 1e3:.0f} g at the tip, "
-          f"{robot.sections}-section robot, n = {robot.n_elements}, strategy {args.strategy}")
-    solver = robot.inverse_solver(args.load)
+          f"{robot.sections}-section robot, n = {robot.n_elements}, "
+          f"IK in {space} space" + (f", strategy {args.strategy}" if space == "curvature" else ""))
     geometric = None
     results = []
-    reference = None
-    for i, p in enumerate(points):
+    if space != "curvature":
+        if args.strategy != "equilibrium":
+            raise ValueError(f"strategy: {args.strategy} fits muscle curvatures; this robot's "
+                             f"actuation is its {space}")
+        # Each point warm from the last answer.
+        last = None
+        for i, p in enumerate(points):
+            r = robot.inverse(p, load=args.load, initial=last)
+            last = r if r.solution.stable else None
+            results.append(r)
+            _progress(i + 1, len(points))
+    else:
+        solver = robot.inverse_solver(args.load)
+        reference = None
+        for i, p in enumerate(points):
+            if args.strategy == "equilibrium":
+                r = solver.solve(p, reference=reference)
+            else:
+                r = robot.inverse(p, load=args.load, reference=reference, strategy="geometric")
+            reference = r.rest_curvature
+            results.append(r)
+            _progress(i + 1, len(points))
         if args.strategy == "equilibrium":
-            r = solver.solve(p, reference=reference)
-        else:
-            r = robot.inverse(p, load=args.load, reference=reference, strategy="geometric")
-        reference = r.rest_curvature
-        results.append(r)
-        _progress(i + 1, len(points))
-    if args.strategy == "equilibrium":
-        geometric = robot.track(points, load=args.load, strategy="geometric")
+            geometric = robot.track(points, load=args.load, strategy="geometric")
     misses = np.array([r.tip_miss for r in results])
     times = np.array([r.time for r in results])
     reached = sum(r.reached for r in results)
@@ -201,7 +233,7 @@ def _track(args: argparse.Namespace) -> int:
         if not r.reached:
             print(f"  {r.message}")
     if args.save is not None:
-        _save_track(points, results, args.save)
+        _save_track(robot, points, results, args.save)
         print(f"results written to {args.save}")
     if not args.no_plot:
         from .plotting import plot_tracking

@@ -295,6 +295,12 @@ impl PyRobot {
     fn n_elements(&self) -> usize {
         self.inner.n_elements
     }
+    /// What the inverse kinematics searches: ``"tensions"`` if the robot has
+    /// tendons, else ``"field"`` if it is magnetic, else ``"curvature"``.
+    #[getter]
+    fn actuation_space(&self) -> &'static str {
+        self.inner.actuation_space().name()
+    }
     /// ``[min, max]`` muscle length, m.
     #[getter]
     fn muscle_length_range(&self) -> (f64, f64) {
@@ -771,13 +777,15 @@ impl PyRobot {
 }
 
 /// One of the seed's trajectories for the default robot: "pentagram", "circle"
-/// or "spiral", shape (points, 3), m.
+/// or "spiral", shape (points, 3), m; with ``robot``, placed at that robot
+/// (scaled by its length, carried to its base pose).
 #[pyfunction]
-#[pyo3(signature = (name, points=60))]
+#[pyo3(signature = (name, points=60, robot=None))]
 pub(super) fn trajectory_points<'py>(
     py: Python<'py>,
     name: &Bound<'py, PyAny>,
     #[pyo3(from_py_with = points_arg)] points: usize,
+    robot: Option<PyRef<'py, PyRobot>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let name = str_arg("trajectory", name)?;
     if points == 0 {
@@ -788,5 +796,9 @@ pub(super) fn trajectory_points<'py>(
             "trajectory: unknown '{name}' (expected pentagram, circle or spiral)"
         ))
     })?;
+    let pts = match robot {
+        Some(r) => trajectory::placed(&pts, &r.inner),
+        None => pts,
+    };
     Ok(rows3(py, &pts))
 }

@@ -31,7 +31,7 @@ use crate::solver::{Settings, Solution, Solver};
 use nalgebra::{DMatrix, DVector, Vector3};
 
 /// Relative accuracy to which the tensions are the minimum-norm choice.
-const MIN_NORM_ACCURACY: f64 = 1e-5;
+const MIN_NORM_ACCURACY: f64 = 1e-6;
 
 /// Shortest line-search step of a minimum-norm step.
 const MIN_ALPHA: f64 = 1e-4;
@@ -52,6 +52,11 @@ const SLOW_STEPS: usize = 4;
 
 /// At the closest tip, how much a minimum-norm step may grow the miss.
 const LEVEL_SLACK: f64 = 1e-6;
+
+/// Gradient of the dual QP, relative to the target's scale, at which a
+/// semismooth Newton iteration that can no longer progress has its answer
+/// (the outer iteration's tip tolerance is 3e-9 of the robot's length).
+const DUAL_ROUNDOFF: f64 = 1e-10;
 
 /// Iterations of the dual QP's semismooth Newton method (it ends when its
 /// active set repeats, in a few for a handful of tendons).
@@ -146,6 +151,8 @@ pub struct ActuatedInverseSolver {
     x: DVector<f64>,
     q: Option<Vec<Quat>>,
     iterations: usize,
+    /// Whether the last answer's minimum-norm refinement stalled.
+    unrefined: bool,
 }
 
 impl ActuatedInverseSolver {
@@ -176,6 +183,7 @@ impl ActuatedInverseSolver {
             x: DVector::zeros(variables),
             q: None,
             iterations: 0,
+            unrefined: false,
         })
     }
 
@@ -272,6 +280,7 @@ impl ActuatedInverseSolver {
         let goal = self.goal(target, direction, tol)?;
         let pull = self.pull(pretension)?;
         self.iterations = 0;
+        self.unrefined = false;
         let (state, mut ending) = self.descend(&goal, &pull, max_iterations)?;
         let beyond = (target - self.robot.base_position).norm() > self.robot.length;
         if beyond && ending != IkEnding::Reached {
@@ -429,6 +438,7 @@ impl ActuatedInverseSolver {
                 if reached || stalled {
                     // On target (or at the closest tip), the pull toward the
                     // minimum norm is blocked.
+                    self.unrefined = true;
                     let ending = if reached {
                         IkEnding::Reached
                     } else {
@@ -536,8 +546,9 @@ impl ActuatedInverseSolver {
             if let Some(next) = self.try_state(goal, x)? {
                 let new_miss = next.e.norm();
                 let accept = if level {
-                    new_miss <= (1.0 + LEVEL_SLACK) * miss
-                        && (next.x.clone() - pull).norm() < (&state.x - pull).norm()
+                    new_miss < (1.0 - 1e-4 * alpha) * miss
+                        || (new_miss <= (1.0 + LEVEL_SLACK) * miss
+                            && (&next.x - pull).norm() < (&state.x - pull).norm())
                 } else {
                     merit(&next.x, &next.e) <= phi + 1e-4 * alpha * slope.min(0.0)
                         && (new_miss < miss || goal.reached(&next.e) || slope < 0.0)
@@ -619,13 +630,22 @@ impl ActuatedInverseSolver {
             _ => ("field", "the field is at max_field"),
         };
         match ending {
-            IkEnding::Reached => match self.space {
-                ActuationSpace::Tensions => format!(
-                    "reached with tensions of {:.6} N in all (the least, in norm, that reach it)",
-                    x.sum()
-                ),
-                _ => format!("reached with a field of {:.6} T", x.norm()),
-            },
+            IkEnding::Reached => {
+                let choice = match (self.space, self.unrefined) {
+                    (ActuationSpace::Tensions, false) => "the least, in norm, that reach it",
+                    (ActuationSpace::Tensions, true) => {
+                        "they reach it; the refinement toward the least norm stalled"
+                    }
+                    (_, false) => "the smallest that reaches it",
+                    (_, true) => "it reaches it; the refinement toward the smallest stalled",
+                };
+                match self.space {
+                    ActuationSpace::Tensions => {
+                        format!("reached with tensions of {:.6} N in all ({choice})", x.sum())
+                    }
+                    _ => format!("reached with a field of {:.6} T ({choice})", x.norm()),
+                }
+            }
             IkEnding::OutOfReach => format!(
                 "not reached: no {drive} put the tip closer; the closest tip found misses by {miss:.3e} m"
             ),
@@ -698,18 +718,28 @@ pub(crate) fn min_norm_in_box(
             hess += col * col.transpose();
         }
         let step = hess.cholesky()?.solve(&(-&grad));
+        // The full step where it shrinks the gradient (near the answer the
+        // dual's own decrease drowns in its round-off), else Armijo on the dual.
+        let full = &y + &step;
+        let full_grad = jac * (p + jac.transpose() * &full).map(clip) - b;
+        if full_grad.norm() < 0.5 * grad.norm() {
+            y = full;
+            continue;
+        }
         let f0 = dual(&y);
         let slope = grad.dot(&step);
         let mut alpha = 1.0;
         loop {
             let trial = &y + &step * alpha;
-            if dual(&trial) <= f0 + 1e-4 * alpha * slope {
+            if dual(&trial) < f0 + 1e-4 * alpha * slope {
                 y = trial;
                 break;
             }
             alpha *= 0.5;
             if alpha < 1e-12 {
-                return None;
+                // No progress left: the answer if the gradient is at the
+                // level of the dual's round-off.
+                return (grad.norm() <= DUAL_ROUNDOFF * scale).then(|| (t, y));
             }
         }
         // An unbounded dual: no admissible tensions reach the target.
@@ -723,7 +753,9 @@ pub(crate) fn min_norm_in_box(
 /// A Levenberg-Marquardt step toward `J x = b` from `x0`, inside
 /// `0 <= x <= upper`: the minimiser of `|J x - b|^2 + mu |x - x0|^2` over the
 /// box (`mu` is `damping` times the largest diagonal entry of `J^T J`), by
-/// projected Newton with the box's active set (Bertsekas).
+/// projected Newton with the box's active set (Bertsekas). Worked in the
+/// step `delta = x - x0`, so that the objective's decrease is resolved down
+/// to the last digits of the tip error.
 pub(crate) fn lm_step_in_box(
     jac: &DMatrix<f64>,
     b: &DVector<f64>,
@@ -735,13 +767,15 @@ pub(crate) fn lm_step_in_box(
     let jtj = jac.transpose() * jac;
     let mu = damping * jtj.diagonal().max().max(f64::MIN_POSITIVE);
     let hess = &jtj + DMatrix::<f64>::identity(k, k) * mu;
-    let c = jac.transpose() * b + x0 * mu;
-    let objective = |x: &DVector<f64>| 0.5 * x.dot(&(&hess * x)) - c.dot(x);
-    let mut x = x0.map(|t| t.clamp(0.0, upper));
+    // The steepest descent of the miss at x0: J^T (b - J x0).
+    let pull = jac.transpose() * (b - jac * x0);
+    let objective = |d: &DVector<f64>| 0.5 * d.dot(&(&hess * d)) - pull.dot(d);
+    let (lo, hi) = (-x0, x0.map(|t| upper - t));
+    let mut d = DVector::<f64>::zeros(k);
     for _ in 0..(10 * k + 20) {
-        let grad = &hess * &x - &c;
+        let grad = &hess * &d - &pull;
         let free: Vec<usize> = (0..k)
-            .filter(|&i| !((x[i] <= 0.0 && grad[i] > 0.0) || (x[i] >= upper && grad[i] < 0.0)))
+            .filter(|&i| !((d[i] <= lo[i] && grad[i] > 0.0) || (d[i] >= hi[i] && grad[i] < 0.0)))
             .collect();
         if free.is_empty() {
             break;
@@ -750,19 +784,19 @@ pub(crate) fn lm_step_in_box(
         let rhs = DVector::from_fn(free.len(), |r, _| -grad[free[r]]);
         let Some(chol) = sub.cholesky() else { break };
         let dir = chol.solve(&rhs);
-        if dir.amax() <= 1e-15 * x.amax().max(1e-300) {
+        if dir.amax() <= 1e-15 * d.amax() {
             break;
         }
-        let f0 = objective(&x);
+        let f0 = objective(&d);
         let mut alpha = 1.0;
         let mut moved = false;
         while alpha > 1e-12 {
-            let mut trial = x.clone();
+            let mut trial = d.clone();
             for (r, &i) in free.iter().enumerate() {
-                trial[i] = (x[i] + alpha * dir[r]).clamp(0.0, upper);
+                trial[i] = (d[i] + alpha * dir[r]).clamp(lo[i], hi[i]);
             }
             if objective(&trial) < f0 {
-                x = trial;
+                d = trial;
                 moved = true;
                 break;
             }
@@ -772,7 +806,8 @@ pub(crate) fn lm_step_in_box(
             break;
         }
     }
-    x
+    // On the bounds exactly where the step took a tension to them.
+    (x0 + d).map(|t| t.clamp(0.0, upper))
 }
 
 /// A Levenberg-Marquardt step toward `J x = b` from `x0` inside the ball

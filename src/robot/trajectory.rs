@@ -2,6 +2,7 @@
 //! 60 points by default: a pentagram, a circle and a space spiral. Sizes are
 //! chosen inside what the default robot reaches with 60 g at the tip.
 
+use super::Robot;
 use nalgebra::Vector3;
 use std::f64::consts::PI;
 
@@ -54,5 +55,44 @@ pub fn by_name(name: &str, points: usize) -> Option<Vec<Vector3<f64>>> {
         "circle" => Some(circle(points)),
         "spiral" => Some(spiral(points)),
         _ => None,
+    }
+}
+
+/// A trajectory of the default robot placed at another robot: scaled by its
+/// length (the default robot is 1 m long) and carried from the default base
+/// pose (at the origin, hanging) to its base pose. For the default robot,
+/// the points themselves.
+pub fn placed(points: &[Vector3<f64>], robot: &Robot) -> Vec<Vector3<f64>> {
+    let default = Robot::default();
+    let scale = robot.length / default.length;
+    // World from base of the robot, times base from world of the default.
+    let turn = robot.base_quaternion.normalized() * default.base_quaternion.conj();
+    points
+        .iter()
+        .map(|p| robot.base_position + turn.rotate((p - default.base_position) * scale))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::quat::Quat;
+
+    #[test]
+    fn a_placed_trajectory_keeps_its_place_relative_to_the_base() {
+        let points = circle(8);
+        assert_eq!(placed(&points, &Robot::default()), points);
+        // A 0.3 m robot pointing up from (0, 0, 1): the circle 0.264 m above it.
+        let up = Robot {
+            length: 0.3,
+            base_quaternion: Quat::IDENTITY,
+            base_position: Vector3::new(0.0, 0.0, 1.0),
+            ..Robot::default()
+        };
+        for (p, q) in points.iter().zip(placed(&points, &up)) {
+            assert!((q.z - (1.0 + 0.3 * 0.88)).abs() < 1e-12);
+            assert!(((q - up.base_position).xy().norm() - 0.3 * RADIUS).abs() < 1e-12);
+            assert!((p.xy().norm() - RADIUS).abs() < 1e-12);
+        }
     }
 }

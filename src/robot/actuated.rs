@@ -739,7 +739,7 @@ pub(crate) fn min_norm_in_box(
             if alpha < 1e-12 {
                 // No progress left: the answer if the gradient is at the
                 // level of the dual's round-off.
-                return (grad.norm() <= DUAL_ROUNDOFF * scale).then(|| (t, y));
+                return (grad.norm() <= DUAL_ROUNDOFF * scale).then_some((t, y));
             }
         }
         // An unbounded dual: no admissible tensions reach the target.

@@ -50,9 +50,10 @@ class IkEnding(_Name):
     REACHED = "reached"
     """The tip (and direction) is within the tolerance, on a stable equilibrium."""
     OUT_OF_REACH = "out_of_reach"
-    """The closest tip found is limited by the robot, not by its muscles."""
+    """The closest tip found is limited by the robot, not by its drives' limits."""
     BOUNDS_ACTIVE = "bounds_active"
-    """Muscles at their length limits hold the closest tip found back."""
+    """Drives at their limits hold the closest tip found back: muscles at their
+    length limits, tendons slack or at ``max_tension``, the field at ``max_field``."""
     SOLVER_FAILURE = "solver_failure"
     """No stable equilibrium was found where the descent had to go."""
     ITERATION_LIMIT = "iteration_limit"

@@ -214,7 +214,9 @@ pub enum IkEnding {
     /// farther than the robot is long, or a local minimum of the miss with no
     /// muscle at a length limit holding it back.
     OutOfReach,
-    /// Muscles at their length limits hold the closest tip found back.
+    /// Drives at their limits hold the closest tip found back: muscles at
+    /// their length limits, tendons slack or at `max_tension`, the field at
+    /// `max_field`.
     BoundsActive,
     /// No stable equilibrium was found where the descent had to go.
     SolverFailure,

@@ -1,0 +1,254 @@
+"""Tendon-driven and magnetic robots from Python: the description, forward
+solves against the Rucker-Webster reference (tests/tendon_reference.py),
+inverse kinematics in tension and field space (minimum norm by its KKT
+conditions, endings), tracking, the CLI and bad input."""
+
+from __future__ import annotations
+
+import json
+import pickle
+
+import numpy as np
+import pytest
+from tendon_reference import solve_reference
+
+import softspine
+from softspine import trajectories
+from softspine.cli import main
+
+from closed_forms import observed_orders
+
+
+def tendon_robot(**fields) -> softspine.Robot:
+    """Three 0.1 m sections pointing up, three tendons a section 8 mm off the
+    backbone (turned 40 degrees a section), each anchored at its section's end."""
+    tendons = []
+    for section in range(3):
+        for k in range(3):
+            angle = np.deg2rad(90 + 120 * k + 40 * section)
+            offset = [0.008 * np.cos(angle), 0.008 * np.sin(angle)]
+            tendons.append({"offset": offset, "section": section + 1})
+    return softspine.Robot({
+        "length": 0.3,
+        "sections": 3,
+        "linear_density": 0.05,
+        "disk_mass": 0.002,
+        "base_quaternion": [1, 0, 0, 0],
+        "stiffness": {"E": 60e9, "G": 23e9, "diameter": 0.0015},
+        "tendons": tendons,
+        **fields,
+    })
+
+
+def catheter(**fields) -> softspine.Robot:
+    """A 0.2 m catheter pointing up, magnetised along its axis, with a tip magnet."""
+    return softspine.Robot({
+        "length": 0.2,
+        "sections": 4,
+        "linear_density": 0.01,
+        "disk_mass": 0.0,
+        "base_quaternion": [1, 0, 0, 0],
+        "stiffness": {"kx": 2e-4, "ky": 2e-4, "kz": 1.5e-4},
+        "magnetization": [[0, 0, 0.02]] * 4,
+        "tip_magnet": [0, 0, 0.05],
+        "max_field": 0.05,
+        **fields,
+    })
+
+
+GIVEN = np.array([12.0, 0, 0, 0, 0, 14.0, 0, 10.0, 0])
+
+
+def minimum_norm_conditions(robot, tensions, load, pull=None):
+    """The KKT conditions of min |t - p|^2 over tip(t) = target, t >= 0: how far
+    the free tensions' offset from the pull is from the span of their
+    sensitivity rows (relative), and the largest multiplier a slack tendon
+    would get (positive: engaging it would lower the norm)."""
+    pull = np.zeros_like(tensions) if pull is None else pull
+    jac = robot.sensitivity(tensions=tensions, load=load, parameters="tensions").tip_position
+    free = tensions > 1e-8
+    offset = tensions[free] - pull[free]
+    y = np.linalg.lstsq(jac[:, free].T, offset, rcond=None)[0]
+    off_span = np.linalg.norm(offset - jac[:, free].T @ y) / np.linalg.norm(offset)
+    slack = jac[:, ~free].T @ y - pull[~free]
+    return off_span, (slack.max() / np.linalg.norm(y) if slack.size else -np.inf)
+
+
+def test_the_description_round_trips_through_dict_json_toml_and_pickle(tmp_path):
+    robot = tendon_robot(max_tension=40.0)
+    d = robot.to_dict()
+    assert len(d["tendons"]) == 9 and d["tendons"][4]["section"] == 2
+    assert d["max_tension"] == 40.0
+    assert softspine.Robot(d).to_dict() == d
+    assert softspine.Robot.from_json(json.dumps(d)).to_dict() == d
+    assert pickle.loads(pickle.dumps(robot)).to_dict() == d
+    magnet = catheter()
+    assert softspine.Robot(magnet.to_dict()).to_dict() == magnet.to_dict()
+    assert (robot.actuation_space, magnet.actuation_space) == ("tensions", "field")
+    assert softspine.Robot().actuation_space == "curvature"
+    # A route without a section ends at the last one.
+    short = softspine.Robot({"sections": 4, "tendons": [{"offset": [0.01, 0]}]})
+    assert short.to_dict()["tendons"][0]["section"] == 4
+
+
+def test_forward_with_tensions_and_a_field_is_the_robots_scene_with_them():
+    robot = tendon_robot()
+    sol = robot.forward(tensions=GIVEN, load=0.02)
+    scene = robot.scene(tensions=GIVEN, load=0.02)
+    assert [t["tension"] for t in scene.to_dict()["tendons"]] == list(GIVEN)
+    again = softspine.solve(scene, n_elements=robot.n_elements)
+    assert np.array_equal(sol.positions, again.positions)
+    magnet = catheter()
+    b = [0.02, -0.01, 0.0]
+    assert np.array_equal(
+        magnet.forward(field=b).positions,
+        softspine.solve(magnet.scene(field=b), n_elements=magnet.n_elements).positions,
+    )
+
+
+@pytest.mark.parametrize("kind", ["tendons", "magnetic"])
+def test_the_robot_converges_to_the_rucker_webster_rod_at_second_order(kind):
+    """Own weight, a tip mass and the actuation (tendons anchored at section
+    ends; a magnetised catheter with a tip magnet in a field) against shooting
+    on the Cosserat rod (no disks: the reference has no point loads)."""
+    if kind == "tendons":
+        robot, actuation, load = tendon_robot(disk_mass=0.0), {"tensions": GIVEN * 0.3}, 0.01
+    else:
+        robot, actuation, load = catheter(), {"field": [0.01, 0.005, 0.0]}, 0.0
+    scene = robot.scene(load=load, **actuation).to_dict()
+    kx, ky, kz = robot.scene(load=load, **actuation).stiffness
+    scene["stiffness"] = {"kx": kx, "ky": ky, "kz": kz}
+    # Slack tendons load nothing: the reference integrates the others only.
+    scene["tendons"] = [t for t in scene.get("tendons", []) if t["tension"] > 0]
+    length = robot.length
+    reference = solve_reference(scene, list(np.linspace(0, length, 97)), rtol=1e-8)
+    errors = []
+    for n in (24, 48, 96):
+        sized = softspine.Robot({**robot.to_dict(), "n_elements": n})
+        sol = sized.forward(load=load, **actuation)
+        assert sol.converged and sol.stable, sol.message
+        errors.append(np.abs(sol.positions - reference[:: 96 // n]).max() / length)
+    assert all(1.8 < p < 2.2 for p in observed_orders(errors)), errors
+    assert errors[-1] < 1e-4, errors
+
+
+def test_the_tensions_found_reach_the_target_with_the_least_norm():
+    robot = tendon_robot()
+    target = robot.forward(tensions=GIVEN, load=0.02).tip_position
+    for point, load in [(target, 0.02), ([0.05, 0.02, 0.27], 0.02), ([0.1, 0.1, 0.2], 0.0)]:
+        r = robot.inverse(point, load=load)
+        assert r.ending == softspine.IkEnding.REACHED, r.message
+        assert r.tip_miss <= 1e-9 and r.solution.stable
+        assert (r.tensions >= 0).all() and r.tensions.shape == (9,)
+        off_span, slack = minimum_norm_conditions(robot, r.tensions, load)
+        assert off_span < 1e-5 and slack < 1e-6, (off_span, slack)
+    # The given actuation reaches the first target, but is not the least.
+    assert np.linalg.norm(robot.inverse(target, load=0.02).tensions) < np.linalg.norm(GIVEN)
+
+
+def test_a_pretension_pulls_the_choice_toward_it():
+    robot = tendon_robot()
+    target = robot.forward(tensions=GIVEN, load=0.02).tip_position
+    r = robot.inverse(target, load=0.02, pretension=GIVEN)
+    assert r.reached, r.message
+    assert np.allclose(r.tensions, GIVEN, atol=1e-6)
+    pull = np.full(9, 3.0)
+    r = robot.inverse([0.05, 0.02, 0.27], load=0.02, pretension=pull)
+    assert r.reached, r.message
+    off_span, slack = minimum_norm_conditions(robot, r.tensions, 0.02, pull)
+    assert off_span < 1e-5 and slack < 1e-6, (off_span, slack)
+
+
+def test_endings_tell_a_drive_at_its_limit_from_a_target_out_of_reach():
+    robot = tendon_robot()
+    far = robot.inverse([0, 0, 0.5])
+    assert far.ending == softspine.IkEnding.OUT_OF_REACH, far.message
+    limited = tendon_robot(max_tension=5.0).inverse([0.1, 0.1, 0.2])
+    assert limited.ending == softspine.IkEnding.BOUNDS_ACTIVE, limited.message
+    assert limited.tensions.max() <= 5.0 and limited.tip_miss > 1e-3
+    weak = catheter(max_field=0.002)
+    target = catheter().forward(field=[0.02, 0.0, 0.0]).tip_position
+    r = weak.inverse(target)
+    assert r.ending == softspine.IkEnding.BOUNDS_ACTIVE, r.message
+    assert np.linalg.norm(r.field) <= 0.002 * (1 + 1e-12)
+
+
+def test_the_field_found_reaches_a_tip_the_field_can_reach():
+    magnet = catheter()
+    field = np.array([0.015, -0.01, 0.004])
+    target = magnet.forward(field=field).tip_position
+    r = magnet.inverse(target)
+    assert r.reached, r.message
+    assert r.tensions.shape == (0,)
+    assert np.linalg.norm(magnet.forward(field=r.field).tip_position - target) < 1e-8
+    # A magnetised catheter is pulled like a tip force of |m| B L: 3 fields, 3
+    # coordinates, one answer.
+    assert np.allclose(r.field, field, atol=1e-6)
+
+
+def test_tracking_the_seeds_circle_placed_at_the_robot():
+    robot = tendon_robot()
+    points = trajectories.circle(12, robot)
+    # Scaled to 0.3 m and turned to point up.
+    assert np.allclose(points[:, 2], 0.3 * 0.88)
+    results = robot.track(points, load=0.01)
+    assert all(r.reached for r in results), [r.message for r in results if not r.reached]
+    tensions = np.array([r.tensions for r in results])
+    assert np.abs(np.diff(tensions, axis=0)).max() < 0.8 * tensions.max()
+
+
+def test_ik_results_keep_their_tensions_and_field_through_dicts_and_pickles():
+    r = tendon_robot().inverse([0.05, 0.02, 0.27], load=0.02)
+    back = pickle.loads(pickle.dumps(r))
+    assert np.array_equal(back.tensions, r.tensions)
+    m = catheter().inverse(catheter().forward(field=[0.01, 0, 0]).tip_position)
+    assert np.array_equal(softspine.IkResult.from_dict(m.to_dict()).field, m.field)
+    # A warm start from an earlier answer starts at its tensions.
+    again = tendon_robot().inverse([0.05, 0.02, 0.27], load=0.02, initial=r)
+    assert again.reached and again.iterations <= 2
+
+
+def test_the_cli_tracks_a_tendon_robot_and_saves_its_tensions(tmp_path, capsys):
+    (tmp_path / "robot.json").write_text(json.dumps(tendon_robot().to_dict()))
+    out = tmp_path / "track.csv"
+    code = main(["track", "--robot", str(tmp_path / "robot.json"), "--trajectory", "circle",
+                 "--points", "6", "--load", "0.01", "--no-plot", "--save", str(out)])
+    assert code == 0, capsys.readouterr().out
+    assert "IK in tensions space" in capsys.readouterr().out
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[-9:] == [f"tension{i}" for i in range(9)]
+    table = np.loadtxt(out, delimiter=",", skiprows=1, usecols=range(7))
+    assert table.shape == (6, 7) and table[:, 6].max() <= 1e-9
+
+
+def message(call) -> str:
+    with pytest.raises(ValueError) as e:
+        call()
+    return str(e.value)
+
+
+def test_actuation_the_drives_cannot_apply_is_refused_by_name():
+    robot = tendon_robot(max_tension=20.0)
+    assert "tensions" in message(lambda: robot.forward(tensions=[1.0, 2.0]))
+    negative = np.zeros(9)
+    negative[3] = -1.0
+    assert "tensions[3]" in message(lambda: robot.forward(tensions=negative))
+    high = np.zeros(9)
+    high[8] = 25.0
+    assert "max_tension" in message(lambda: robot.forward(tensions=high))
+    assert "field: at [1]" in message(lambda: catheter().forward(field=[0, np.nan, 0]))
+    assert "max_field" in message(lambda: catheter().forward(field=[0.1, 0, 0]))
+    assert "pretension" in message(lambda: catheter().inverse([0, 0, 0.2], pretension=[1.0]))
+    assert "pretension[2]" in message(
+        lambda: robot.inverse([0, 0, 0.2], pretension=[0, 0, -1, 0, 0, 0, 0, 0, 0]))
+    assert "reference" in message(lambda: robot.inverse([0, 0, 0.2], reference=np.zeros((3, 2))))
+    assert "strategy" in message(lambda: robot.inverse([0, 0, 0.2], strategy="geometric"))
+    assert "pretension" in message(lambda: softspine.Robot().inverse([0, 0, -0.9], pretension=[]))
+    assert "use track" in message(lambda: robot.inverse_batch([[0, 0, 0.2]]))
+    bad = {"sections": 2, "tendons": [{"offset": [0.01, 0], "section": 3}]}
+    assert "tendons[0].section" in message(lambda: softspine.Robot(bad))
+    bad = {"tendons": [{"offset": [0.01, 0], "tension": 2.0}]}
+    assert "tension" in message(lambda: softspine.Robot(bad))
+    bad = {"sections": 3, "magnetization": [[0, 0, 1], [0, 0, 1]]}
+    assert "magnetization" in message(lambda: softspine.Robot(bad))
+    assert "max_field" in message(lambda: softspine.Robot({"max_field": -1.0}))

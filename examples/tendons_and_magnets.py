@@ -1,6 +1,7 @@
-"""A 3-section tendon-driven continuum robot with a tip load, and a magnetic
-catheter steered by a uniform field, on one figure (needs matplotlib:
-pip install 'softspine[plot]').
+"""A 3-section tendon-driven robot tracking the seed's circle with 20 g at its
+tip, and a magnetic catheter steered around a circle by a uniform field: the
+inverse kinematics in tension space and in field space, on one figure (needs
+matplotlib: pip install 'softspine[plot]').
 
 Run: python examples/tendons_and_magnets.py [out.png]
 """
@@ -8,62 +9,65 @@ Run: python examples/tendons_and_magnets.py [out.png]
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
 import softspine
+from softspine import trajectories
 from softspine.plotting import plot_backbone
 
-# The tendon robot: a 0.3 m nitinol-like backbone, three sections of 0.1 m,
-# three tendons a section at 120 degrees and 8 mm from the backbone, each
-# anchored at its section's end; 20 g at the tip.
-sections, radius = 3, 0.008
-tendons = []
-for section, tensions in enumerate([(12.0, 0.0, 0.0), (0.0, 0.0, 14.0), (0.0, 10.0, 0.0)]):
-    for k, tension in enumerate(tensions):
-        angle = np.deg2rad(90 + 120 * k + 40 * section)
-        tendons.append(
-            {
-                "tension": tension,  # N
-                "offset": [radius * np.cos(angle), radius * np.sin(angle)],  # m
-                "end": 0.1 * (section + 1),  # m: anchored at the section's end
-            }
-        )
-robot = {
-    "length": 0.3,
-    "stiffness": {"E": 60e9, "G": 23e9, "diameter": 0.0015},
-    "gravity": {"linear_density": 0.05, "vector": [0, 0, -9.81]},
-    "base_quaternion": [1, 0, 0, 0],  # pointing up
-    "tip_force": [0, 0, -0.02 * 9.81],
-    "tendons": tendons,
-}
-bent = softspine.solve(robot, n_elements=30, scheme="fe4", check=True)
-print(f"tendon robot: tip at {np.round(bent.tip_position, 4)} m, stable={bent.stable}")
+ROBOTS = Path(__file__).parent / "robots"
 
-# The catheter: 0.2 m, soft, a magnetised last quarter and a tip magnet, in a
-# 40 mT field along +x; the field turns the tip towards it.
-catheter = {
-    "length": 0.2,
-    "stiffness": {"kx": 2e-4, "ky": 2e-4, "kz": 1.5e-4},
-    "magnetization": [[0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0.05]],  # A m^2 / m
-    "tip_magnet": [0, 0, 0.05],  # A m^2, along the tip's axis
-    "magnetic_field": [0.04, 0.0, 0.0],  # T
-}
-steered = softspine.solve(catheter, n_elements=32, scheme="fe4", check=True)
-turn = np.degrees(np.arccos(np.clip(steered.rotation_matrices[-1][:, 2] @ [1, 0, 0], -1, 1)))
-print(f"catheter: tip at {np.round(steered.tip_position, 4)} m, {turn:.1f} deg from the field")
+# The tendon robot (examples/robots/tendon_robot.toml): 0.3 m, pointing up,
+# three tendons a section anchored at its end. The seed's circle, scaled to its
+# length and turned with its base; 20 g at the tip.
+robot = softspine.Robot.from_file(ROBOTS / "tendon_robot.toml")
+circle = trajectories.circle(36, robot)
+tracked = robot.track(circle, load=0.02)
+times = np.array([r.time for r in tracked])
+tensions = np.array([r.tensions for r in tracked])
+print(f"tendon robot: {sum(r.reached for r in tracked)}/{len(circle)} points reached, "
+      f"tip miss max {max(r.tip_miss for r in tracked):.1e} m, "
+      f"IK per point median {np.median(times) * 1e3:.2f} ms; "
+      f"tensions up to {tensions.max():.1f} N, "
+      f"at most {np.max((tensions > 0).sum(1))} of 9 pulling")
+
+# The catheter (examples/robots/magnetic_catheter.toml): 0.2 m, magnetised
+# along its axis with a tip magnet. A field of 20 mT along x bends it; its
+# tip's circle about the axis (the catheter is round) is what the field
+# reaches as it turns, and the IK finds those fields back.
+catheter = softspine.Robot.from_file(ROBOTS / "magnetic_catheter.toml")
+bent = catheter.forward(field=[0.02, 0.0, 0.0])
+x, _, z = bent.tip_position
+angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+ring = np.column_stack([x * np.cos(angles), x * np.sin(angles), np.full_like(angles, z)])
+steered = catheter.track(ring)
+fields = np.array([r.field for r in steered])
+print(f"catheter: {sum(r.reached for r in steered)}/{len(ring)} points reached, "
+      f"|B| from {np.linalg.norm(fields, axis=1).min() * 1e3:.2f} "
+      f"to {np.linalg.norm(fields, axis=1).max() * 1e3:.2f} mT; "
+      f"a point off its reach: {catheter.inverse([0.05, 0.0, 0.15]).message}")
 
 fig = plt.figure(figsize=(10, 5))
 left = fig.add_subplot(1, 2, 1, projection="3d")
-plot_backbone(bent, left, label="3 sections, 9 tendons, 20 g")
-left.set_title("tendon-driven robot")
-left.legend()
+for k in range(0, len(tracked), 9):
+    plot_backbone(tracked[k].solution, left, nodes=False, color="0.55")
+left.plot(*circle.T, "o", ms=4, mfc="none", color="tab:blue", label="targets")
+left.plot(*np.array([r.tip_position for r in tracked]).T, ".", ms=4, color="tab:red",
+          label="tips (20 g load)")
+left.set_title("tendon-driven robot: 3 sections, 9 tendons")
+left.legend(loc="upper left", fontsize=8)
 right = fig.add_subplot(1, 2, 2, projection="3d")
-plot_backbone(softspine.solve({**catheter, "magnetic_field": [0, 0, 0]}), right, label="no field")
-plot_backbone(steered, right, label="40 mT along +x")
-right.set_title("magnetic catheter")
-right.legend()
+plot_backbone(catheter.forward(), right, nodes=False, color="0.3", label="no field")
+for k in range(0, len(steered), 6):
+    plot_backbone(steered[k].solution, right, nodes=False, color="0.55")
+right.plot(*ring.T, "o", ms=4, mfc="none", color="tab:blue", label="targets")
+right.quiver(*np.zeros((3, 4)), *(fields[::6].T / 0.02 * 0.05), color="tab:green",
+             label="field (20 mT = 5 cm)")
+right.set_title("magnetic catheter steered by a uniform field")
+right.legend(loc="upper left", fontsize=8)
 out = sys.argv[1] if len(sys.argv) > 1 else "tendons_and_magnets.png"
 fig.savefig(out, dpi=90)
 plt.close(fig)

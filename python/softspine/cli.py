@@ -71,14 +71,16 @@ def _save_track(robot: Robot, points: np.ndarray, results, path: str) -> None:
     endings = np.array([str(r.ending) for r in results])
     name, actuation, columns = _actuation_columns(robot, results)
     if _save_format(path) == "npz":
-        extra = {}
+        arrays: dict[str, np.ndarray] = {
+            "targets": points, "tips": tips, "tip_miss": misses, "reached": reached,
+            "ending": endings, "time": np.array([r.time for r in results]),
+        }
         if name == "rest_curvature":
-            extra["rest_curvature"] = np.array([r.rest_curvature for r in results])
-            extra["muscle_lengths"] = np.array([r.muscle_lengths for r in results])
+            arrays["rest_curvature"] = np.array([r.rest_curvature for r in results])
+            arrays["muscle_lengths"] = np.array([r.muscle_lengths for r in results])
         else:
-            extra[name] = actuation
-        np.savez(path, targets=points, tips=tips, tip_miss=misses, reached=reached,
-                 ending=endings, time=np.array([r.time for r in results]), **extra)
+            arrays[name] = actuation
+        np.savez(path, **arrays)
         return
     header = ["target_x", "target_y", "target_z", "tip_x", "tip_y", "tip_z", "tip_miss",
               "reached", "ending", *columns]

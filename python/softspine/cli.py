@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -71,7 +72,7 @@ def _save_track(robot: Robot, points: np.ndarray, results, path: str) -> None:
     endings = np.array([str(r.ending) for r in results])
     name, actuation, columns = _actuation_columns(robot, results)
     if _save_format(path) == "npz":
-        arrays: dict[str, np.ndarray] = {
+        arrays: dict[str, Any] = {
             "targets": points, "tips": tips, "tip_miss": misses, "reached": reached,
             "ending": endings, "time": np.array([r.time for r in results]),
         }

@@ -1,11 +1,14 @@
 //! Load-aware inverse kinematics of the default robot (n = 20): one trajectory
-//! point warm from its neighbour, and whole 60-point trajectories.
+//! point warm from its neighbour, and whole 60-point trajectories. Then the
+//! tendon robot and the magnetic catheter of `examples/robots`: a forward
+//! solve of each kind of robot, and a tracked trajectory.
 //!
 //! `cargo bench --bench robot`
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use nalgebra::Vector3;
 use softspine::robot::trajectory;
-use softspine::{IkOptions, InverseSolver, Robot};
+use softspine::{Actuation, IkOptions, InverseSolver, Robot, Settings};
 use std::hint::black_box;
 
 fn ik(c: &mut Criterion) {
@@ -51,12 +54,102 @@ fn ik(c: &mut Criterion) {
     group.finish();
 }
 
+/// Forward solves (from the straight robot) and tracking of the pneumatic,
+/// tendon and magnetic robots.
+fn actuated(c: &mut Criterion) {
+    let tendon =
+        Robot::from_toml_str(include_str!("../examples/robots/tendon_robot.toml")).unwrap();
+    let catheter =
+        Robot::from_toml_str(include_str!("../examples/robots/magnetic_catheter.toml")).unwrap();
+    let pneumatic = Robot::default();
+    let mut group = c.benchmark_group("actuated");
+    let forward = |robot: &Robot, actuation: Actuation, mass: f64| {
+        let scene = robot.actuated_scene(&actuation, mass).unwrap();
+        let settings = Settings {
+            n_elements: Some(robot.n_elements),
+            ..Settings::default()
+        };
+        move || softspine::solve(&scene, settings.clone(), None).unwrap()
+    };
+    let cases = [
+        (
+            "pneumatic",
+            forward(
+                &pneumatic,
+                Actuation {
+                    rest_curvature: vec![[1.0, -0.5]; pneumatic.sections],
+                    ..Actuation::default()
+                },
+                0.02,
+            ),
+        ),
+        (
+            "tendons",
+            forward(
+                &tendon,
+                Actuation {
+                    tensions: vec![12.0, 0.0, 0.0, 0.0, 0.0, 14.0, 0.0, 10.0, 0.0],
+                    ..Actuation::default()
+                },
+                0.02,
+            ),
+        ),
+        (
+            "magnetic",
+            forward(
+                &catheter,
+                Actuation {
+                    field: Vector3::new(0.02, 0.01, 0.0),
+                    ..Actuation::default()
+                },
+                0.0,
+            ),
+        ),
+    ];
+    for (name, solve) in cases {
+        group.bench_function(BenchmarkId::new("forward", name), |bench| {
+            bench.iter(|| black_box(solve()))
+        });
+    }
+    let options = IkOptions {
+        tip_mass: 0.02,
+        ..IkOptions::default()
+    };
+    let circle = trajectory::placed(&trajectory::circle(60), &tendon);
+    group.bench_function(
+        BenchmarkId::new("trajectory_60", "tendons_circle_20g"),
+        |bench| bench.iter(|| black_box(tendon.track(&circle, &options).unwrap())),
+    );
+    // The ring the catheter's tip sweeps as a 20 mT field turns about its axis.
+    let bent = forward(
+        &catheter,
+        Actuation {
+            field: Vector3::new(0.02, 0.0, 0.0),
+            ..Actuation::default()
+        },
+        0.0,
+    )();
+    let tip = bent.tip_position();
+    let ring: Vec<Vector3<f64>> = (0..60)
+        .map(|i| {
+            let a = i as f64 / 60.0 * std::f64::consts::TAU;
+            Vector3::new(tip.x * a.cos(), tip.x * a.sin(), tip.z)
+        })
+        .collect();
+    let unloaded = IkOptions::default();
+    group.bench_function(
+        BenchmarkId::new("trajectory_60", "catheter_ring"),
+        |bench| bench.iter(|| black_box(catheter.track(&ring, &unloaded).unwrap())),
+    );
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default()
         .sample_size(20)
         .warm_up_time(std::time::Duration::from_millis(300))
         .measurement_time(std::time::Duration::from_secs(1));
-    targets = ik
+    targets = ik, actuated
 }
 criterion_main!(benches);

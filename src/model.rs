@@ -489,6 +489,35 @@ impl RodModel {
         }
     }
 
+    /// `d g / d tension` of one tendon (`fd2`): the elements it runs through,
+    /// with its moment per unit tension in place of the elastic moment (the
+    /// equations are linear in a tension).
+    pub fn tension_gradient(
+        &self,
+        q: &[Quat],
+        tendon: &crate::scene::Tendon,
+        out: &mut [Vector3<f64>],
+    ) {
+        debug_assert_eq!(self.scheme, Scheme::Fd2);
+        out.iter_mut().for_each(|x| *x = Vector3::zeros());
+        let unit = [crate::scene::Tendon {
+            tension: 1.0,
+            ..tendon.clone()
+        }];
+        let last = ((tendon.end / self.ds).round() as usize).min(self.n);
+        for i in 1..=last {
+            let c = q[i - 1].conj() * q[i];
+            let omega = (2.0 / self.ds) * c.v;
+            let s = (i as f64 - 0.5) * self.ds;
+            let (_, moment, _) = crate::tendon::density(&unit, 1.0, s, &omega);
+            let amat = Matrix3::identity() * c.w + skew(&c.v);
+            out[i - 1] += amat.transpose() * moment;
+            if i >= 2 {
+                out[i - 2] -= amat * moment;
+            }
+        }
+    }
+
     /// True when nothing loads the rod: the rest shape is the exact equilibrium.
     pub fn is_trivial(&self) -> bool {
         self.mean_force.iter().all(|f| f.norm() == 0.0)

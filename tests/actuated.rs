@@ -293,3 +293,82 @@ fn actuation_the_drives_cannot_apply_is_refused_by_name() {
         .to_string();
     assert!(e.contains("magnetization"), "{e}");
 }
+
+#[test]
+fn the_closed_form_tension_sensitivity_is_the_implicit_function_theorems() {
+    // Solver::tension_sensitivity (each tendon's moment per unit tension, one
+    // back-substitution) against the general path (differences of the
+    // discrete equations at the fixed equilibrium) and a whole solve.
+    let robot = tendon_robot(None);
+    let tensions = vec![3.0, 0.0, 1.0, 0.0, 2.0, 4.0, 0.5, 1.0, 0.0];
+    let actuation = Actuation {
+        tensions: tensions.clone(),
+        ..Actuation::default()
+    };
+    let scene = robot.actuated_scene(&actuation, 0.02).unwrap();
+    let settings = softspine::Settings {
+        n_elements: Some(robot.n_elements),
+        residual_tol: 1e-13,
+        ..Default::default()
+    };
+    let mut solver = softspine::Solver::new(&scene, settings).unwrap();
+    let sol = solver.solve(None).unwrap();
+    assert!(sol.converged());
+    let closed = solver.tension_sensitivity().unwrap();
+    let names: Vec<String> = (0..9).map(|i| format!("tendons[{i}].tension")).collect();
+    let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
+    let general = solver.sensitivity(&names).unwrap();
+    let scale = general.tip_position.norm();
+    // The general path differences a slack tendon with a 1e-9 N step: its
+    // round-off is about 1e-6 of the column there (1e-9 elsewhere).
+    let gap = (&closed.position - &general.tip_position).norm() / scale;
+    assert!(gap < 1e-5, "{gap:e}");
+    let taut = (&closed.position.column(5) - &general.tip_position.column(5)).norm();
+    assert!(taut < 1e-8 * scale, "{taut:e}");
+    // And a whole solve with the sixth tension moved.
+    let h = 1e-4;
+    let mut moved = tensions.clone();
+    moved[5] += h;
+    let tip = tip_of(
+        &robot,
+        &Actuation {
+            tensions: moved,
+            ..Actuation::default()
+        },
+        0.02,
+    );
+    let difference = (tip - sol.tip_position()) / h;
+    assert!((difference - closed.position.column(5)).norm() < 1e-3 * scale);
+}
+
+#[test]
+fn tensions_reach_a_tip_position_and_direction_together() {
+    let robot = tendon_robot(None);
+    let actuation = Actuation {
+        tensions: vec![5.0, 0.0, 2.0, 0.0, 3.0, 0.0, 1.0, 0.0, 4.0],
+        ..Actuation::default()
+    };
+    let scene = robot.actuated_scene(&actuation, 0.01).unwrap();
+    let settings = softspine::Settings {
+        n_elements: Some(robot.n_elements),
+        ..Default::default()
+    };
+    let sol = softspine::solve(&scene, settings, None).unwrap();
+    let direction = sol.tip_quaternion().tangent();
+    let r = robot
+        .inverse(
+            sol.tip_position(),
+            &IkOptions {
+                direction: Some(direction),
+                ..options(0.01)
+            },
+        )
+        .unwrap();
+    assert!(r.reached, "{}", r.message);
+    let reached = r.solution.tip_quaternion().tangent();
+    assert!(
+        (reached - direction).norm() < 1e-8,
+        "{}",
+        (reached - direction).norm()
+    );
+}

@@ -232,6 +232,27 @@ impl ActuatedInverseSolver {
     /// solver's (accepted) state; `None` at a bifurcation.
     fn jacobian(&mut self, goal: &Goal, sol: &Solution) -> Option<DMatrix<f64>> {
         let k = self.x.len();
+        if self.space == ActuationSpace::Tensions
+            && self.solver.model().scheme == crate::model::Scheme::Fd2
+        {
+            // Tensions enter the equations linearly: their columns in closed
+            // form, one back-substitution each.
+            let sens = self.solver.tension_sensitivity().ok()?;
+            let mut jac = DMatrix::zeros(if goal.direction.is_some() { 5 } else { 3 }, k);
+            jac.rows_mut(0, 3).copy_from(&sens.position);
+            if goal.direction.is_some() {
+                let t = sol.tip_quaternion().tangent();
+                let (u, v) = across(t);
+                for c in 0..k {
+                    // The tip's turn across its tangent: phi = t x dt.
+                    let dt: Vector3<f64> = sens.tangent.column(c).into();
+                    let phi = t.cross(&dt);
+                    jac[(3, c)] = phi.dot(&u) * goal.length;
+                    jac[(4, c)] = phi.dot(&v) * goal.length;
+                }
+            }
+            return Some(jac);
+        }
         let names = (0..k).map(|j| format!("actuation[{j}]")).collect();
         let scene = self.solver.scene().clone();
         let space = self.space;

@@ -23,6 +23,37 @@ impl Solver {
     /// O(n) back-substitutions a column with the Jacobian already factored.
     pub fn tip_sensitivity(&mut self, sections: usize) -> Result<TipSensitivity> {
         let n = self.model.n;
+        if sections == 0 || n % sections != 0 {
+            return Err(Error::argument(
+                "sections",
+                format!("{sections} sections do not divide {n} elements"),
+            ));
+        }
+        let per = n / sections;
+        self.tip_sensitivity_with(2 * sections, |model, q, column, out| {
+            let (s, c) = (column / 2, column % 2);
+            model.rest_curvature_gradient(q, s * per + 1, (s + 1) * per, c, out);
+        })
+    }
+
+    /// Sensitivity of the tip of the last (converged, free-tip, `fd2`)
+    /// equilibrium to the tendons' tensions, one column a tendon of the scene.
+    pub fn tension_sensitivity(&mut self) -> Result<TipSensitivity> {
+        let tendons = self.scene.tendons.clone();
+        self.tip_sensitivity_with(tendons.len(), |model, q, column, out| {
+            model.tension_gradient(q, &tendons[column], out);
+        })
+    }
+
+    /// The tip's sensitivity to `columns` parameters of which `gradient`
+    /// writes `d g / d p` at the equilibrium, by the implicit function theorem
+    /// on the factored Jacobian (free tip, `fd2`).
+    fn tip_sensitivity_with(
+        &mut self,
+        columns: usize,
+        mut gradient: impl FnMut(&RodModel, &[crate::quat::Quat], usize, &mut [Vector3<f64>]),
+    ) -> Result<TipSensitivity> {
+        let n = self.model.n;
         if self.model.is_constrained() {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
         }
@@ -30,12 +61,6 @@ impl Solver {
             return Err(Error::argument(
                 "tip_sensitivity",
                 "available for scheme 'fd2' only, for now",
-            ));
-        }
-        if sections == 0 || n % sections != 0 {
-            return Err(Error::argument(
-                "sections",
-                format!("{sections} sections do not divide {n} elements"),
             ));
         }
         let (model, w) = (&self.model, &mut self.work);
@@ -53,21 +78,18 @@ impl Solver {
         let tip = w.q[n];
         // d T_n / d theta_n = -R [e3]x
         let d_tangent = -(tip.rotation() * crate::quat::skew(&Vector3::z()));
-        let per = n / sections;
         let mut out = TipSensitivity {
-            position: nalgebra::Matrix3xX::zeros(2 * sections),
-            tangent: nalgebra::Matrix3xX::zeros(2 * sections),
+            position: nalgebra::Matrix3xX::zeros(columns),
+            tangent: nalgebra::Matrix3xX::zeros(columns),
         };
-        for s in 0..sections {
-            for c in 0..2 {
-                model.rest_curvature_gradient(&w.q, s * per + 1, (s + 1) * per, c, &mut w.step);
-                w.lu.solve_in_place(&mut w.step);
-                // d theta / d kappa = -A^{-1} dg/dkappa
-                let dr: Vector3<f64> = d_tip.iter().zip(&w.step).map(|(b, x)| -(b * x)).sum();
-                let dt = -(d_tangent * w.step[n - 1]);
-                out.position.set_column(2 * s + c, &dr);
-                out.tangent.set_column(2 * s + c, &dt);
-            }
+        for column in 0..columns {
+            gradient(model, &w.q, column, &mut w.step);
+            w.lu.solve_in_place(&mut w.step);
+            // d theta / dp = -A^{-1} dg/dp
+            let dr: Vector3<f64> = d_tip.iter().zip(&w.step).map(|(b, x)| -(b * x)).sum();
+            let dt = -(d_tangent * w.step[n - 1]);
+            out.position.set_column(column, &dr);
+            out.tangent.set_column(column, &dt);
         }
         Ok(out)
     }
@@ -107,6 +129,8 @@ struct TipReport {
 /// `scratch`: with the fourth-order scheme the evaluation with the Jacobian
 /// leaves the internal nodes (loaded by the reactions) in the model's cache,
 /// where the positions and the held points' rows then find them.
+/// (`fd2` has no internal nodes: its residual alone, without the Jacobian's
+/// assembly.)
 fn evaluate_at(
     model: &RodModel,
     q: &[crate::quat::Quat],
@@ -114,19 +138,24 @@ fn evaluate_at(
     g: &mut [Vector3<f64>],
     scratch: &mut crate::blocktri::BlockTridiagonal,
 ) {
-    model.residual_with_reactions(q, 1.0, reactions, g, Some(scratch));
+    let fourth_order = model.scheme == crate::model::Scheme::Fe4;
+    model.residual_with_reactions(q, 1.0, reactions, g, fourth_order.then_some(scratch));
 }
 
-fn tip_report(model: &RodModel, q: &[crate::quat::Quat], reactions: &[Vector3<f64>]) -> TipReport {
+fn tip_report(
+    model: &RodModel,
+    q: &[crate::quat::Quat],
+    reactions: &[Vector3<f64>],
+    scratch: &mut crate::blocktri::BlockTridiagonal,
+) -> TipReport {
     let n = model.n;
-    let mut g = vec![Vector3::zeros(); n];
-    evaluate_at(
-        model,
-        q,
-        reactions,
-        &mut g,
-        &mut crate::blocktri::BlockTridiagonal::zeros(n),
-    );
+    // The residual serves a clamped tip's reaction moment and, with `fe4`,
+    // the internal nodes the positions are drawn through.
+    let mut g = Vec::new();
+    if model.clamped_tip.is_some() || model.scheme == crate::model::Scheme::Fe4 {
+        g = vec![Vector3::zeros(); n];
+        evaluate_at(model, q, reactions, &mut g, scratch);
+    }
     let mut positions = vec![Vector3::zeros(); n + 1];
     model.positions(q, &mut positions);
     let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
@@ -167,7 +196,23 @@ impl Solver {
         for name in &names {
             values.push(*base.clone().number_at_mut(name)?);
         }
+        // A tension is differenced through zero (a slack tendon: the
+        // equations are linear in it), past what a scene may be given.
+        let tensions: Vec<Option<usize>> = names
+            .iter()
+            .map(|name| {
+                name.strip_prefix("tendons[")
+                    .and_then(|rest| rest.strip_suffix("].tension"))
+                    .and_then(|i| i.parse().ok())
+            })
+            .collect();
+        let scene = self.scene.clone();
         self.sensitivity_with(names.clone(), &values, |j, delta| {
+            if let Some(i) = tensions[j] {
+                let mut moved = scene.clone();
+                moved.tendons[i].tension += delta;
+                return Ok(moved);
+            }
             let mut v = base.clone();
             *v.number_at_mut(&names[j])? += delta;
             Scene::from_value(&v)
@@ -308,7 +353,10 @@ impl Solver {
             };
             let (qp, rp) = moved(1.0);
             let (qm, rm) = moved(-1.0);
-            let (a, b) = (tip_report(&plus, &qp, &rp), tip_report(&minus, &qm, &rm));
+            let (a, b) = (
+                tip_report(&plus, &qp, &rp, &mut scratch),
+                tip_report(&minus, &qm, &rm, &mut scratch),
+            );
             let diff = |x: Vector3<f64>, y: Vector3<f64>| (x - y) / (2.0 * eps);
             out.tip_position
                 .set_column(j, &diff(a.position, b.position));

@@ -323,7 +323,7 @@ fn the_closed_form_tension_sensitivity_is_the_implicit_function_theorems() {
     // round-off is about 1e-6 of the column there (1e-9 elsewhere).
     let gap = (&closed.position - &general.tip_position).norm() / scale;
     assert!(gap < 1e-5, "{gap:e}");
-    let taut = (&closed.position.column(5) - &general.tip_position.column(5)).norm();
+    let taut = (closed.position.column(5) - general.tip_position.column(5)).norm();
     assert!(taut < 1e-8 * scale, "{taut:e}");
     // And a whole solve with the sixth tension moved.
     let h = 1e-4;

@@ -5,6 +5,7 @@ block is a doctest (``cargo test --doc``, see ``src/lib.rs``)."""
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -21,6 +22,9 @@ def test_the_readme_has_python_blocks():
 
 
 def test_the_readmes_python_blocks_run(tmp_path):
+    # As a reader runs them from the repository's root, with its example files
+    # (in a copy: the blocks write files).
+    shutil.copytree(README.parent / "examples", tmp_path / "examples")
     script = "\n\n".join(python_blocks(README.read_text()))
     run = subprocess.run(
         [sys.executable, "-c", script],

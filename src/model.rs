@@ -150,6 +150,9 @@ pub struct RodModel {
     tip_magnet: Vector3<f64>,
     /// Uniform external field, world frame [T].
     magnetic_field: Vector3<f64>,
+    /// The tip force and where it acts from the tip (material frame): its
+    /// potential `-F . R(q_n) c` beyond the tip's own `-F . r_n`.
+    tip_force_at: (Vector3<f64>, Vector3<f64>),
     /// Tendons, longest first (an element's tendons are a prefix).
     tendons: Vec<crate::scene::Tendon>,
     /// How many tendons (a prefix of `tendons`) run through element `i`
@@ -293,6 +296,7 @@ impl RodModel {
             magnetization,
             tip_magnet: scene.tip_magnet,
             magnetic_field: scene.magnetic_field,
+            tip_force_at: (scene.tip_force, scene.tip_force_offset),
             tendons,
             tendons_through,
             gauss_rest: Vec::new(),
@@ -323,6 +327,7 @@ impl RodModel {
                         .map(|m| m.norm())
                         .fold(0.0, f64::max));
         let moment = scene.tip_moment.norm()
+            + scene.tip_force.norm() * scene.tip_force_offset.norm()
             + magnetic_moment
             + length * scene.tip_force.norm()
             + 0.5 * length * length * f.norm()
@@ -524,6 +529,7 @@ impl RodModel {
             && self.tendons.iter().all(|t| t.tension == 0.0)
             && self.magnetization.is_empty()
             && (self.tip_magnet == Vector3::zeros() || self.magnetic_field == Vector3::zeros())
+            && (self.tip_force_at.0 == Vector3::zeros() || self.tip_force_at.1 == Vector3::zeros())
             && self.tip_moment.norm() == 0.0
             && self.constraints.iter().all(|c| c.target == c.rest)
             && self.clamped_tip.is_none_or(|q| q == self.rest_tip)
@@ -940,13 +946,17 @@ impl RodModel {
                 }
             }
         }
-        // A tip magnet: the potential -B . R(q_n) mu.
-        if self.tip_magnet != Vector3::zeros() && self.magnetic_field != Vector3::zeros() {
-            let c = -load * self.magnetic_field;
-            let (_, grad, block) = body_vector_terms(q[self.n], &c, &self.tip_magnet);
-            g[self.n - 1] += grad;
-            if let Some(jac) = jac.as_deref_mut() {
-                jac.diag[self.n - 1] += block;
+        // A tip magnet, -B . R(q_n) mu, and a tip force off the tip, -F . R(q_n) c:
+        // the same form.
+        let (force, offset) = self.tip_force_at;
+        for (world, body) in [(self.magnetic_field, self.tip_magnet), (force, offset)] {
+            if world != Vector3::zeros() && body != Vector3::zeros() {
+                let c = -load * world;
+                let (_, grad, block) = body_vector_terms(q[self.n], &c, &body);
+                g[self.n - 1] += grad;
+                if let Some(jac) = jac.as_deref_mut() {
+                    jac.diag[self.n - 1] += block;
+                }
             }
         }
         // Tip moment (a dead load in the world frame, no potential in 3D).
@@ -1175,9 +1185,11 @@ impl RodModel {
     /// `Pi` at load scale `lambda` (the applied loads scaled).
     pub fn energy_at(&self, q: &[Quat], lambda: f64) -> f64 {
         let load = self.load_scale(lambda);
-        // A tip magnet: -B . R(q_n) mu.
+        // A tip magnet, -B . R(q_n) mu, and a tip force off the tip, -F . R(q_n) c.
+        let (force, offset) = self.tip_force_at;
         let mut total =
-            body_vector_terms(q[self.n], &(-load * self.magnetic_field), &self.tip_magnet).0;
+            body_vector_terms(q[self.n], &(-load * self.magnetic_field), &self.tip_magnet).0
+                + body_vector_terms(q[self.n], &(-load * force), &offset).0;
         if self.scheme == Scheme::Fe4 {
             let mut mids = self.mids.lock();
             return total

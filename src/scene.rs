@@ -12,6 +12,7 @@
 //! gravity           {linear_density kg/m, vector [gx, gy, gz] m/s^2}
 //! tip_force         [Px, Py, Pz] N, world frame
 //! tip_moment        [Mx, My, Mz] N m, world frame
+//! tip_force_offset  [x, y, z] m, the tip frame: where tip_force acts (a tool)
 //! base_quaternion   [w, x, y, z] or a 3x3 rotation matrix, default identity (tangent +z)
 //! base_position     [x, y, z] m, world frame, default the origin
 //! tip               {type: "free"}
@@ -132,6 +133,9 @@ pub struct Scene {
     pub gravity: Option<Gravity>,
     pub tip_force: Vector3<f64>,
     pub tip_moment: Vector3<f64>,
+    /// Where `tip_force` acts, from the tip in its material frame [m] (a
+    /// tool's weight): its moment turns with the tip.
+    pub tip_force_offset: Vector3<f64>,
     /// Base orientation `Q0`, unit.
     pub base_quaternion: Quat,
     /// Base position `r_0` [m], world frame (default the origin): every node
@@ -166,6 +170,7 @@ impl Scene {
             gravity: None,
             tip_force: Vector3::zeros(),
             tip_moment: Vector3::zeros(),
+            tip_force_offset: Vector3::zeros(),
             base_quaternion: Quat::IDENTITY,
             base_position: Vector3::zeros(),
             tip: TipCondition::Free,
@@ -223,6 +228,7 @@ impl Scene {
             "gravity",
             "tip_force",
             "tip_moment",
+            "tip_force_offset",
             "base_quaternion",
             "base_position",
             "tip",
@@ -292,6 +298,7 @@ impl Scene {
             gravity,
             tip_force: vec3_or_zero("tip_force")?,
             tip_moment: vec3_or_zero("tip_moment")?,
+            tip_force_offset: vec3_or_zero("tip_force_offset")?,
             base_quaternion,
             base_position: vec3_or_zero("base_position")?,
             tip,
@@ -366,6 +373,11 @@ impl Scene {
             let key = format!("magnetization[{i}]");
             check(&key, "|m| |B| L^2 / k", m.norm() * b * l / k_min * l)?;
         }
+        check(
+            "tip_force_offset",
+            "|F| |c| L / k",
+            self.tip_force.norm() * self.tip_force_offset.norm() * l / k_min,
+        )?;
         check(
             "tip_magnet",
             "|mu| |B| L / k",
@@ -470,6 +482,9 @@ impl Scene {
                 "magnetization".into(),
                 Value::List(self.magnetization.iter().map(v3).collect()),
             ));
+        }
+        if self.tip_force_offset != Vector3::zeros() {
+            m.push(("tip_force_offset".into(), v3(&self.tip_force_offset)));
         }
         if self.tip_magnet != Vector3::zeros() {
             m.push(("tip_magnet".into(), v3(&self.tip_magnet)));

@@ -23,9 +23,10 @@
 //! A backtracking line search on the tip error accepts only converged,
 //! stable equilibria.
 
-use super::ik::{IkEnding, IkResult};
+use super::ik::{tool_point, IkEnding, IkResult};
 use super::{Actuation, Robot};
 use crate::error::{Error, Result};
+use crate::quat::skew;
 use crate::quat::Quat;
 use crate::solver::{Settings, Solution, Solver};
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -90,6 +91,8 @@ struct Goal {
     direction: Option<Vector3<f64>>,
     tol: f64,
     length: f64,
+    /// The point aimed, from the tip in its frame (the tool's; zero: the tip).
+    offset: Vector3<f64>,
 }
 
 impl Goal {
@@ -98,7 +101,7 @@ impl Goal {
     fn error(&self, sol: &Solution) -> DVector<f64> {
         let mut e = DVector::zeros(if self.direction.is_some() { 5 } else { 3 });
         e.rows_mut(0, 3)
-            .copy_from(&(self.target - sol.tip_position()));
+            .copy_from(&(self.target - tool_point(sol, self.offset)));
         if let Some(d) = self.direction {
             let t = sol.tip_quaternion().tangent();
             let (u, v) = across(t);
@@ -239,7 +242,10 @@ impl ActuatedInverseSolver {
             // form, one back-substitution each.
             let sens = self.solver.tension_sensitivity().ok()?;
             let mut jac = DMatrix::zeros(if goal.direction.is_some() { 5 } else { 3 }, k);
-            jac.rows_mut(0, 3).copy_from(&sens.position);
+            // The tool point moves with the tip's turn too: phi x (R c).
+            let arm = sol.tip_quaternion().rotate(goal.offset);
+            jac.rows_mut(0, 3)
+                .copy_from(&(&sens.position - skew(&arm) * &sens.rotation));
             if goal.direction.is_some() {
                 let t = sol.tip_quaternion().tangent();
                 let (u, v) = across(t);
@@ -272,7 +278,9 @@ impl ActuatedInverseSolver {
             })
             .ok()?;
         let mut jac = DMatrix::zeros(if goal.direction.is_some() { 5 } else { 3 }, k);
-        jac.rows_mut(0, 3).copy_from(&sens.tip_position);
+        let arm = sol.tip_quaternion().rotate(goal.offset);
+        jac.rows_mut(0, 3)
+            .copy_from(&(&sens.tip_position - skew(&arm) * &sens.tip_rotation));
         if goal.direction.is_some() {
             // The tip tangent turns by phi x t; the error's rows shrink by it.
             let t = sol.tip_quaternion().tangent();
@@ -303,7 +311,8 @@ impl ActuatedInverseSolver {
         self.iterations = 0;
         self.unrefined = false;
         let (state, mut ending) = self.descend(&goal, &pull, max_iterations)?;
-        let beyond = (target - self.robot.base_position).norm() > self.robot.length;
+        let reach = self.robot.length + self.robot.tool_offset.norm();
+        let beyond = (target - self.robot.base_position).norm() > reach;
         if beyond && ending != IkEnding::Reached {
             ending = IkEnding::OutOfReach;
         }
@@ -338,6 +347,7 @@ impl ActuatedInverseSolver {
             direction,
             tol,
             length,
+            offset: self.robot.tool_offset,
         })
     }
 
@@ -630,7 +640,7 @@ impl ActuatedInverseSolver {
             rest_curvature: kappa,
             tensions,
             field,
-            tip_position: state.sol.tip_position(),
+            tip_position: tool_point(&state.sol, self.robot.tool_offset),
             solution: state.sol,
             tip_miss: miss,
             reached: ending == IkEnding::Reached,

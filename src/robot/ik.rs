@@ -299,6 +299,8 @@ struct Goal {
     tol: f64,
     /// Robot length: weight of the direction rows.
     length: f64,
+    /// The point aimed, from the tip in its frame (the tool's; zero: the tip).
+    offset: Vector3<f64>,
 }
 
 impl Goal {
@@ -306,7 +308,7 @@ impl Goal {
     fn error(&self, sol: &Solution) -> DVector<f64> {
         let mut e = DVector::zeros(if self.direction.is_some() { 6 } else { 3 });
         e.rows_mut(0, 3)
-            .copy_from(&(self.target - sol.tip_position()));
+            .copy_from(&(self.target - tool_point(sol, self.offset)));
         if let Some(dir) = self.direction {
             let t = sol.tip_quaternion().tangent();
             e.rows_mut(3, 3).copy_from(&((dir - t) * self.length));
@@ -333,8 +335,9 @@ impl Goal {
                     .unwrap_or(Vector3::y())
             }
         });
+        let start = tool_point(from, self.offset);
         Goal {
-            target: from.tip_position() + (self.target - from.tip_position()) * t,
+            target: start + (self.target - start) * t,
             direction,
             reference: self.reference.clone(),
             tol: if t < 1.0 {
@@ -343,6 +346,7 @@ impl Goal {
                 self.tol
             },
             length: self.length,
+            offset: self.offset,
         }
     }
 }
@@ -455,11 +459,17 @@ impl InverseSolver {
     }
 
     /// Tip sensitivity at the forward solver's state (`None` at a bifurcation).
-    fn jacobian(&mut self, goal: &Goal) -> Option<DMatrix<f64>> {
+    fn jacobian(&mut self, goal: &Goal, sol: &Solution) -> Option<DMatrix<f64>> {
         let sens = self.solver.tip_sensitivity(self.robot.sections).ok()?;
         let cols = 2 * self.robot.sections;
         let mut j = DMatrix::zeros(if goal.direction.is_some() { 6 } else { 3 }, cols);
         j.rows_mut(0, 3).copy_from(&sens.position);
+        if goal.offset != Vector3::zeros() {
+            // The tool point moves with the tip's turn too: phi x (R c).
+            let arm = sol.tip_quaternion().rotate(goal.offset);
+            j.rows_mut(0, 3)
+                .copy_from(&(&sens.position - crate::quat::skew(&arm) * &sens.rotation));
+        }
         if goal.direction.is_some() {
             j.rows_mut(3, 3)
                 .copy_from(&(sens.tangent * self.robot.length));
@@ -570,12 +580,14 @@ impl InverseSolver {
             reference,
             tol,
             length: self.robot.length,
+            offset: self.robot.tool_offset,
         })
     }
 
     /// An inextensible backbone cannot put its tip farther from the base than its length.
     fn beyond_length(&self, goal: &Goal) -> bool {
-        goal.target.norm() > self.robot.length + goal.tol
+        let reach = self.robot.length + goal.offset.norm();
+        (goal.target - self.robot.base_position).norm() > reach + goal.tol
     }
 
     /// One descent from `start` by minimum-norm Gauss-Newton within range, in
@@ -659,7 +671,7 @@ impl InverseSolver {
         let mut slow = 0;
         while self.iterations < end {
             self.iterations += 1;
-            let Some(j) = self.jacobian(goal) else {
+            let Some(j) = self.jacobian(goal, &st.sol) else {
                 return Ok(PhaseEnd::Stalled { unusable: false });
             };
             let r = match pull {
@@ -717,7 +729,7 @@ impl InverseSolver {
         let mut unusable = false;
         while self.iterations < end {
             self.iterations += 1;
-            let Some(j) = self.jacobian(goal) else {
+            let Some(j) = self.jacobian(goal, &st.sol) else {
                 return Ok(PhaseEnd::Stalled { unusable });
             };
             let scale = j.norm_squared() / j.ncols() as f64;
@@ -760,7 +772,7 @@ impl InverseSolver {
         // Bounds hold the tip back if the undamped step toward the target
         // runs into them.
         self.restore(st)?;
-        let Some(j) = self.jacobian(goal) else {
+        let Some(j) = self.jacobian(goal, &st.sol) else {
             return Ok(IkEnding::OutOfReach);
         };
         let zero = DVector::zeros(j.ncols());
@@ -906,7 +918,9 @@ impl InverseSolver {
         let distance = |k: &[[f64; 2]]| (flatten(&goal.reference) - flatten(k)).norm();
         while self.iterations < end {
             self.iterations += 1;
-            let Some(j) = self.jacobian(goal) else { break };
+            let Some(j) = self.jacobian(goal, &st.sol) else {
+                break;
+            };
             let r = flatten(&goal.reference) - flatten(&st.kappa);
             let c = 1e-14 * j.norm_squared().max(f64::MIN_POSITIVE);
             let Some(step) = self.bounds.step(&st.kappa, &j, &st.e, &r, c) else {
@@ -1001,7 +1015,7 @@ impl InverseSolver {
             IkEnding::Reached => "reached".to_string(),
             IkEnding::OutOfReach if self.beyond_length(goal) => format!(
                 "not reached: the target is out of reach, {:.4} m from the base of a {length} m robot; the closest tip found misses by {miss:.3e} m",
-                goal.target.norm()
+                (goal.target - self.robot.base_position).norm()
             ),
             IkEnding::OutOfReach => format!(
                 "not reached: the target is out of reach{from}; the closest tip found misses by {miss:.3e} m with no muscle at a length limit"
@@ -1030,7 +1044,7 @@ impl InverseSolver {
         let started = std::time::Instant::now();
         let sol = self.forward(&fit.rest_curvature)?;
         self.q = usable(&sol).then(|| sol.quaternions.clone());
-        let miss = (sol.tip_position() - target).norm();
+        let miss = (tool_point(&sol, self.robot.tool_offset) - target).norm();
         let ending = if miss <= tol && usable(&sol) {
             IkEnding::Reached
         } else {
@@ -1060,7 +1074,7 @@ impl InverseSolver {
             rest_curvature: kappa,
             tensions: Vec::new(),
             field: Vector3::zeros(),
-            tip_position: sol.tip_position(),
+            tip_position: tool_point(&sol, self.robot.tool_offset),
             solution: sol,
             tip_miss: miss,
             reached: ending == IkEnding::Reached,
@@ -1110,6 +1124,12 @@ fn uniform(state: &mut u64) -> f64 {
 
 fn flatten(k: &[[f64; 2]]) -> DVector<f64> {
     DVector::from_iterator(2 * k.len(), k.iter().flat_map(|x| x.iter().copied()))
+}
+
+/// The point an inverse solve aims: `offset` from the tip in its frame (a
+/// tool's point), the tip itself for a zero offset.
+pub(crate) fn tool_point(sol: &Solution, offset: Vector3<f64>) -> Vector3<f64> {
+    sol.tip_position() + sol.tip_quaternion().rotate(offset)
 }
 
 /// Refuse a warm start that does not fit the robot's discretisation.

@@ -98,6 +98,11 @@ pub struct Robot {
     pub tip_magnet: Vector3<f64>,
     /// Largest field the magnetic system makes, |B| [T] (default none: unbounded).
     pub max_field: Option<f64>,
+    /// Mass of a tool at the tip [kg] (default 0).
+    pub tool_mass: f64,
+    /// Where the tool's weight, and the payload it holds (the `load`), act:
+    /// from the tip in its material frame [m] (default the tip itself).
+    pub tool_offset: Vector3<f64>,
 }
 
 /// How a tendon runs through the robot: routed at an offset from the
@@ -171,6 +176,8 @@ impl Default for Robot {
             magnetization: Vec::new(),
             tip_magnet: Vector3::zeros(),
             max_field: None,
+            tool_mass: 0.0,
+            tool_offset: Vector3::zeros(),
         }
     }
 }
@@ -406,7 +413,8 @@ impl Robot {
         });
         s.base_quaternion = self.base_quaternion;
         s.base_position = self.base_position;
-        s.tip_force = tip_mass * self.gravity;
+        s.tip_force = (tip_mass + self.tool_mass) * self.gravity;
+        s.tip_force_offset = self.tool_offset;
         s.point_loads = (1..=self.sections)
             .map(|k| PointLoad {
                 s: k as f64 * self.section_length(),
@@ -561,6 +569,7 @@ impl Robot {
         for (name, x) in [
             ("linear_density", self.linear_density),
             ("disk_mass", self.disk_mass),
+            ("tool_mass", self.tool_mass),
         ] {
             if !(x.is_finite() && x >= 0.0) {
                 return Err(Error::scene(
@@ -587,6 +596,9 @@ impl Robot {
         }
         if self.gravity.iter().any(|g| !g.is_finite()) {
             return Err(Error::scene("gravity", "must be finite"));
+        }
+        if self.tool_offset.iter().any(|x| !x.is_finite()) {
+            return Err(Error::scene("tool_offset", "must be finite"));
         }
         if let Stiffness::RoundRod { e, g, diameter } = self.stiffness {
             positive("stiffness.E", e)?;
@@ -783,6 +795,10 @@ impl Robot {
                 entries.push((name.into(), num(x)));
             }
         }
+        if self.tool_mass != 0.0 || self.tool_offset != Vector3::zeros() {
+            entries.push(("tool_mass".into(), num(self.tool_mass)));
+            entries.push(("tool_offset".into(), list(self.tool_offset.as_slice())));
+        }
         value
     }
 
@@ -890,8 +906,10 @@ impl Robot {
             }
             "tip_magnet" => self.tip_magnet = vec3(value, key)?,
             "max_field" => self.max_field = Some(num(value)?),
+            "tool_mass" => self.tool_mass = num(value)?,
+            "tool_offset" => self.tool_offset = vec3(value, key)?,
             other => {
-                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements, tendons, max_tension, magnetization, tip_magnet, max_field)"))
+                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements, tendons, max_tension, magnetization, tip_magnet, max_field, tool_mass, tool_offset)"))
             }
         }
         Ok(())

@@ -90,6 +90,20 @@ impl Solver {
                 ),
             ));
         }
+        if scene.tip_force_offset != Vector3::zeros()
+            && matches!(
+                settings.method,
+                Method::Shooting | Method::Paper | Method::PaperLiteral
+            )
+        {
+            return Err(Error::argument(
+                "method",
+                format!(
+                    "{} does not model a tip force off the tip (tip_force_offset); use 'newton' or 'lm'",
+                    settings.method.name()
+                ),
+            ));
+        }
         if settings.method == Method::Shooting && !scene.guides.is_empty() {
             return Err(Error::argument(
                 "method",

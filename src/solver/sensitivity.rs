@@ -14,6 +14,8 @@ pub struct TipSensitivity {
     pub position: nalgebra::Matrix3xX<f64>,
     /// `d T_tip / d kappa` (tip tangent) [m], 3 x 2m.
     pub tangent: nalgebra::Matrix3xX<f64>,
+    /// `d phi_tip / d kappa`: the tip frame's turn, a world rotation vector [m].
+    pub rotation: nalgebra::Matrix3xX<f64>,
 }
 
 impl Solver {
@@ -81,7 +83,9 @@ impl Solver {
         let mut out = TipSensitivity {
             position: nalgebra::Matrix3xX::zeros(columns),
             tangent: nalgebra::Matrix3xX::zeros(columns),
+            rotation: nalgebra::Matrix3xX::zeros(columns),
         };
+        let turn = tip.rotation();
         for column in 0..columns {
             gradient(model, &w.q, column, &mut w.step);
             w.lu.solve_in_place(&mut w.step);
@@ -90,6 +94,8 @@ impl Solver {
             let dt = -(d_tangent * w.step[n - 1]);
             out.position.set_column(column, &dr);
             out.tangent.set_column(column, &dt);
+            // The tip turns by R d theta_n (body to world).
+            out.rotation.set_column(column, &-(turn * w.step[n - 1]));
         }
         Ok(out)
     }

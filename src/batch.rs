@@ -419,6 +419,15 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<(Vec<[f64; 2]>, Vec<Sample>)> {
+        if self.actuation_space() != crate::robot::ActuationSpace::Curvature {
+            return Err(Error::argument(
+                "robot",
+                format!(
+                    "the workspace samples muscle lengths; this robot's actuation is its {}",
+                    self.actuation_space().name()
+                ),
+            ));
+        }
         let indices: Vec<u64> = (first..first + samples as u64).collect();
         let start = self.chunk_solver(tip_mass)?;
         let out = run_chunks(&indices, settings, control, start, |state, index| {

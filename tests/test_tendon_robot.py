@@ -245,6 +245,9 @@ def test_actuation_the_drives_cannot_apply_is_refused_by_name():
     assert "strategy" in message(lambda: robot.inverse([0, 0, 0.2], strategy="geometric"))
     assert "pretension" in message(lambda: softspine.Robot().inverse([0, 0, -0.9], pretension=[]))
     assert "use track" in message(lambda: robot.inverse_batch([[0, 0, 0.2]]))
+    assert "tensions" in message(lambda: robot.inverse_solver(0.0))
+    assert "muscle lengths" in message(lambda: robot.workspace(10))
+    assert "field" in message(lambda: catheter().workspace(10))
     bad = {"sections": 2, "tendons": [{"offset": [0.01, 0], "section": 3}]}
     assert "tendons[0].section" in message(lambda: softspine.Robot(bad))
     bad = {"tendons": [{"offset": [0.01, 0], "tension": 2.0}]}

@@ -427,6 +427,15 @@ pub struct InverseSolver {
 
 impl InverseSolver {
     pub fn new(robot: &Robot, tip_mass: f64) -> Result<Self> {
+        if robot.actuation_space() != ActuationSpace::Curvature {
+            return Err(Error::argument(
+                "robot",
+                format!(
+                    "an InverseSolver searches muscle curvatures; this robot's actuation is its {} (use Robot::inverse or track)",
+                    robot.actuation_space().name()
+                ),
+            ));
+        }
         let zero = vec![[0.0; 2]; robot.sections];
         let scene = robot.scene(&zero, tip_mass)?;
         let settings = Settings {

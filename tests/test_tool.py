@@ -100,3 +100,14 @@ def test_inverse_kinematics_puts_the_tools_point_on_the_target():
     r = arm.inverse(target)
     assert r.reached, r.message
     assert np.linalg.norm(tool_point(r.solution, [0.0, 0.01, 0.03]) - target) <= 1e-9
+
+
+def test_a_target_out_of_reach_is_measured_from_the_robots_base():
+    # Regression: the distance was measured from the origin (3.5 m here).
+    robot = softspine.Robot({"base_position": [0.0, 0.0, 5.0]})
+    r = robot.inverse([0.0, 0.0, 3.5])
+    assert r.ending == softspine.IkEnding.OUT_OF_REACH
+    assert "1.5000 m from the base" in r.message, r.message
+    # A target within reach of the moved base is reached.
+    target = softspine.trajectories.circle(3, robot)[0]
+    assert robot.inverse(target, load=0.03).reached

@@ -148,7 +148,9 @@ class IkResult:
     @property
     def solution(self) -> Solution: ...
     @property
-    def tip_position(self) -> _Array: ...
+    def tip_position(self) -> _Array:
+        """The point aimed at the target: the tool's (``tool_offset`` from the
+        tip), or the tip without a tool."""
     @property
     def tip_miss(self) -> float: ...
     @property

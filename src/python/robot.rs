@@ -69,7 +69,8 @@ impl PyIkResult {
             inner: self.inner.solution.clone(),
         }
     }
-    /// The tip of the loaded equilibrium, shape (3,), m.
+    /// The point aimed at the target, shape (3,), m: the tool's (`tool_offset`
+    /// from the tip) or the tip without a tool.
     #[getter]
     fn tip_position<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         vec3_array(py, &self.inner.tip_position)

@@ -275,8 +275,9 @@ pub struct IkResult {
     pub field: Vector3<f64>,
     /// The loaded equilibrium with this actuation.
     pub solution: Solution,
+    /// The point aimed at the target: the tool's, or the tip without a tool [m].
     pub tip_position: Vector3<f64>,
-    /// Distance from the tip to the target [m].
+    /// Distance from the aimed point (the tool's, or the tip) to the target [m].
     pub tip_miss: f64,
     /// Whether the target (and direction) was reached within the tolerance on
     /// a stable equilibrium.

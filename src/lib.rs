@@ -60,9 +60,11 @@ pub use model::{RodModel, Scheme};
 pub use quat::Quat;
 pub use robot::{
     ActuatedInverseSolver, Actuation, ActuationSpace, Calibration, CalibrationSettings, IkEnding,
-    IkOptions, IkResult, IkSettings, InverseSolver, Robot, Strategy, TendonRoute,
+    IkOptions, IkResult, IkSettings, InverseSolver, Robot, SectionSpec, Strategy, TendonRoute,
 };
-pub use scene::{Gravity, Guide, PointLoad, Scene, Stiffness, Tendon, TipCondition};
+pub use scene::{
+    Gravity, Guide, PointLoad, Scene, SectionProperties, Stiffness, Tendon, TipCondition,
+};
 pub use solver::{
     default_elements, solve, solve_to_accuracy, Accuracy, Method, Sensitivity, Settings, Solution,
     Solver, Status, TipSensitivity, DEFAULT_ELEMENTS,

@@ -136,8 +136,15 @@ pub struct RodModel {
     mids: fe4::MidCache,
     pub length: f64,
     pub ds: f64,
-    /// Diagonal stiffness `(kx, ky, kz)` [N m^2].
+    /// Diagonal stiffness `(kx, ky, kz)` [N m^2]; with per-section
+    /// stiffness, the softest section's in each component (it sets the
+    /// residual's scale).
     pub stiffness: Vector3<f64>,
+    /// Per-section stiffness, element `i` at index `i - 1`; empty: `stiffness`.
+    element_stiffness: Vec<Vector3<f64>>,
+    /// Per-section distributed force [N/m], element `i` at index `i - 1`;
+    /// empty: `distributed_force`.
+    element_force: Vec<Vector3<f64>>,
     pub base: Quat,
     /// Position of node 0 [m], world frame.
     pub base_position: Vector3<f64>,
@@ -205,6 +212,32 @@ impl RodModel {
             )
             .collect();
         let f = scene.distributed_force();
+        let sections = scene.sections();
+        let per_section = !scene.sections.is_empty();
+        let element_stiffness: Vec<Vector3<f64>> = if per_section {
+            (0..n)
+                .map(|i| scene.section_stiffness(section_of(i, sections, n)))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let element_force: Vec<Vector3<f64>> = if per_section {
+            (0..n)
+                .map(|i| scene.section_force(section_of(i, sections, n)))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let force_of = |i: usize| element_force.get(i - 1).copied().unwrap_or(f);
+        let largest_force = element_force
+            .iter()
+            .map(|x| x.norm())
+            .fold(f.norm(), f64::max);
+        // The distributed force beyond node j: sum over the elements past it.
+        let mut beyond = vec![Vector3::zeros(); n + 1];
+        for j in (0..n).rev() {
+            beyond[j] = beyond[j + 1] + force_of(j + 1) * ds;
+        }
         // Point loads by node: a load at node k acts on every element i <= k.
         let point_loads: Vec<(usize, Vector3<f64>)> = scene
             .point_loads
@@ -225,12 +258,12 @@ impl RodModel {
                 .sum()
         };
         let node_force: Vec<Vector3<f64>> = (0..=n)
-            .map(|j| scene.tip_force + f * (length - j as f64 * ds) + point_loads_from(j, true))
+            .map(|j| scene.tip_force + beyond[j] + point_loads_from(j, true))
             .collect();
         let mean_force: Vec<Vector3<f64>> = (1..=n)
             .map(|i| {
-                let s_mid = (i as f64 - 0.5) * ds;
-                scene.tip_force + f * (length - s_mid) + point_loads_from(i, false)
+                let to_mid = beyond[i] + force_of(i) * (0.5 * ds);
+                scene.tip_force + to_mid + point_loads_from(i, false)
             })
             .collect();
         let node_force_weight = (1..=n)
@@ -290,6 +323,8 @@ impl RodModel {
             length,
             ds,
             stiffness,
+            element_stiffness,
+            element_force,
             base: scene.base_quaternion,
             base_position: scene.base_position,
             rest_curvature,
@@ -330,7 +365,7 @@ impl RodModel {
             + scene.tip_force.norm() * scene.tip_force_offset.norm()
             + magnetic_moment
             + length * scene.tip_force.norm()
-            + 0.5 * length * length * f.norm()
+            + 0.5 * length * length * largest_force
             + point_moment
             + tendon_moment;
         model.load_parameter = moment * length / stiffness.min();
@@ -355,6 +390,24 @@ impl RodModel {
         self
     }
 
+    /// Stiffness of element `i`.
+    #[inline]
+    fn stiffness_of(&self, i: usize) -> Vector3<f64> {
+        self.element_stiffness
+            .get(i - 1)
+            .copied()
+            .unwrap_or(self.stiffness)
+    }
+
+    /// Distributed force on element `i` (unscaled).
+    #[inline]
+    fn force_of(&self, i: usize) -> Vector3<f64> {
+        self.element_force
+            .get(i - 1)
+            .copied()
+            .unwrap_or(self.distributed_force)
+    }
+
     /// The tendons that run through element `i` (from 1).
     #[inline(always)]
     fn element_tendons(&self, i: usize) -> &[crate::scene::Tendon] {
@@ -368,14 +421,14 @@ impl RodModel {
     /// The reactions of held points act on it as point forces beyond it.
     fn fe4_element(&self, i: usize, load: f64, reactions: &[Vector3<f64>]) -> fe4::Element<'_> {
         // The internal force changes by the distributed force along the element.
-        let half = load * self.distributed_force * (0.5 * self.ds);
+        let half = load * self.force_of(i) * (0.5 * self.ds);
         let mut mean = load * self.mean_force[i - 1];
         if !reactions.is_empty() {
             mean += self.reactions_from(reactions, i);
         }
         fe4::Element {
             h: self.ds,
-            stiffness: self.stiffness,
+            stiffness: self.stiffness_of(i),
             rest: self.gauss_rest[i - 1],
             force: [mean + half, mean, mean - half],
             tendons: self.element_tendons(i),
@@ -483,8 +536,8 @@ impl RodModel {
         out: &mut [Vector3<f64>],
     ) {
         out.iter_mut().for_each(|x| *x = Vector3::zeros());
-        let dk = Vector3::ith(component, self.stiffness[component]);
         for i in first..=last {
+            let dk = Vector3::ith(component, self.stiffness_of(i)[component]);
             let c = q[i - 1].conj() * q[i];
             let amat = Matrix3::identity() * c.w + skew(&c.v);
             out[i - 1] -= amat.transpose() * dk;
@@ -664,7 +717,7 @@ impl RodModel {
         reactions: &[Vector3<f64>],
         with_jacobian: bool,
     ) -> ElementTerms {
-        let (ds, k) = (self.ds, self.stiffness);
+        let (ds, k) = (self.ds, self.stiffness_of(i));
         let (a, b) = (q[i - 1], q[i]);
         let c = a.conj() * b;
         let (c0, cv) = (c.w, c.v);
@@ -1205,7 +1258,7 @@ impl RodModel {
             let (a, b) = (q[i - 1], q[i]);
             let cv = (a.conj() * b).v;
             let e = (2.0 / self.ds) * cv - self.rest_curvature[i - 1];
-            let mut elastic = 0.5 * e.dot(&self.stiffness.component_mul(&e));
+            let mut elastic = 0.5 * e.dot(&self.stiffness_of(i).component_mul(&e));
             let tendons = self.element_tendons(i);
             if !tendons.is_empty() {
                 let omega = (2.0 / self.ds) * cv;

@@ -8,6 +8,7 @@
 //! length            m
 //! stiffness         {kx, ky, kz} N m^2  |  {E, G, diameter} of a round rod
 //! rest_curvature    [[kappa_x, kappa_y], ...] 1/m, one per equal section
+//! sections          [{stiffness, linear_density}, ...] per equal section (each optional)
 //! distributed_force [fx, fy, fz] N/m, world frame
 //! gravity           {linear_density kg/m, vector [gx, gy, gz] m/s^2}
 //! tip_force         [Px, Py, Pz] N, world frame
@@ -109,6 +110,15 @@ impl Tendon {
     }
 }
 
+/// What one of a rod's equal sections changes of the rod's own properties
+/// (each `None`: the rod's).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SectionProperties {
+    pub stiffness: Option<Stiffness>,
+    /// Mass per length [kg/m] (weighs under the scene's gravity).
+    pub linear_density: Option<f64>,
+}
+
 /// A point of the backbone held at a position (a port or a ring the robot
 /// passes through); the guide's force on the rod is an unknown reaction.
 #[derive(Debug, Clone, PartialEq)]
@@ -128,6 +138,9 @@ pub struct Scene {
     pub stiffness_spec: Stiffness,
     /// Rest curvature `[kappa_x, kappa_y]` per equal section [1/m]; empty: straight.
     pub rest_curvature: Vec<[f64; 2]>,
+    /// Per equal section, its own stiffness or linear density; empty: the
+    /// rod's everywhere.
+    pub sections: Vec<SectionProperties>,
     /// Distributed dead force [N/m], world frame, in addition to gravity.
     pub distributed_force: Vector3<f64>,
     pub gravity: Option<Gravity>,
@@ -166,6 +179,7 @@ impl Scene {
             length,
             stiffness_spec: Stiffness::Diagonal { kx, ky, kz },
             rest_curvature: Vec::new(),
+            sections: Vec::new(),
             distributed_force: Vector3::zeros(),
             gravity: None,
             tip_force: Vector3::zeros(),
@@ -183,9 +197,30 @@ impl Scene {
         }
     }
 
-    /// `(kx, ky, kz)` [N m^2].
+    /// `(kx, ky, kz)` [N m^2]; with per-section stiffness, the softest
+    /// section's in each component.
     pub fn stiffness(&self) -> Vector3<f64> {
-        self.stiffness_spec.diagonal()
+        (0..self.sections.len()).fold(self.stiffness_spec.diagonal(), |k, s| {
+            k.zip_map(&self.section_stiffness(s), f64::min)
+        })
+    }
+
+    /// `(kx, ky, kz)` of section `s` of [`Scene::sections`] [N m^2].
+    pub fn section_stiffness(&self, s: usize) -> Vector3<f64> {
+        self.sections
+            .get(s)
+            .and_then(|p| p.stiffness.as_ref())
+            .unwrap_or(&self.stiffness_spec)
+            .diagonal()
+    }
+
+    /// The distributed force on section `s` [N/m], gravity on its own density included.
+    pub fn section_force(&self, s: usize) -> Vector3<f64> {
+        let own = self.sections.get(s).and_then(|p| p.linear_density);
+        match (&self.gravity, own) {
+            (Some(g), Some(density)) => self.distributed_force + density * g.vector,
+            _ => self.distributed_force(),
+        }
     }
 
     /// Total distributed force, gravity included [N/m].
@@ -197,9 +232,10 @@ impl Scene {
         self.distributed_force + g
     }
 
-    /// Number of equal sections (1 for a rod without rest curvature).
+    /// Number of equal sections (1 for a rod without rest curvature or
+    /// per-section properties).
     pub fn sections(&self) -> usize {
-        self.rest_curvature.len().max(1)
+        self.rest_curvature.len().max(self.sections.len()).max(1)
     }
 
     /// Read a scene from JSON text (duplicate keys refused, see [`Value::from_json_str`]).
@@ -224,6 +260,7 @@ impl Scene {
             "length",
             "stiffness",
             "rest_curvature",
+            "sections",
             "distributed_force",
             "gravity",
             "tip_force",
@@ -260,6 +297,23 @@ impl Scene {
             None => None,
             Some(v) => Some(gravity(v)?),
         };
+        let sections = match top.get("sections") {
+            None => Vec::new(),
+            Some(v) => section_properties(v, gravity.is_some())?,
+        };
+        if !sections.is_empty()
+            && !rest_curvature.is_empty()
+            && sections.len() != rest_curvature.len()
+        {
+            return Err(Error::scene(
+                "sections",
+                format!(
+                    "{} sections, but rest_curvature has {}: one entry a section in both",
+                    sections.len(),
+                    rest_curvature.len()
+                ),
+            ));
+        }
         let base_quaternion = match top.get("base_quaternion") {
             None => Quat::IDENTITY,
             Some(v) => orientation(v, "base_quaternion")?,
@@ -294,6 +348,7 @@ impl Scene {
             length,
             stiffness_spec,
             rest_curvature,
+            sections,
             distributed_force: vec3_or_zero("distributed_force")?,
             gravity,
             tip_force: vec3_or_zero("tip_force")?,
@@ -318,6 +373,19 @@ impl Scene {
     /// parameters (`|f| L^3 / k`, `|P| L^2 / k`, `|M| L / k`, `L |kappa0|`)
     /// that the solver works with. Each must be finite, the stiffness nonzero.
     pub fn check_derived(&self) -> Result<()> {
+        for (s, p) in self.sections.iter().enumerate() {
+            let k = self.section_stiffness(s);
+            if p.stiffness.is_some() && !k.iter().all(|v| v.is_finite() && *v >= f64::MIN_POSITIVE)
+            {
+                return Err(Error::scene(
+                    format!("sections[{s}].stiffness"),
+                    format!(
+                        "(kx, ky, kz) = ({:e}, {:e}, {:e}) N m^2 overflows or underflows",
+                        k.x, k.y, k.z
+                    ),
+                ));
+            }
+        }
         let k = self.stiffness();
         let stiffness_key = match self.stiffness_spec {
             Stiffness::Diagonal { .. } => "stiffness",
@@ -343,7 +411,9 @@ impl Scene {
                 format!("the load parameter {what} = {value:e} overflows (length {l:e} m, smallest stiffness {k_min:e} N m^2)"),
             ))
         };
-        let f = self.distributed_force().norm();
+        let f = (0..self.sections())
+            .map(|k| self.section_force(k).norm())
+            .fold(self.distributed_force().norm(), f64::max);
         let force_key = if self.gravity.is_some() {
             "gravity"
         } else {
@@ -404,21 +474,24 @@ impl Scene {
             m.push(("name".into(), Value::String(n.clone())));
         }
         m.push(("length".into(), num(self.length)));
-        let stiff = match self.stiffness_spec {
-            Stiffness::Diagonal { kx, ky, kz } => vec![("kx", kx), ("ky", ky), ("kz", kz)],
-            Stiffness::RoundRod { e, g, diameter } => {
-                vec![("E", e), ("G", g), ("diameter", diameter)]
-            }
-        };
-        m.push((
-            "stiffness".into(),
-            Value::Map(
-                stiff
-                    .into_iter()
-                    .map(|(k, x)| (k.to_string(), num(x)))
-                    .collect(),
-            ),
-        ));
+        m.push(("stiffness".into(), stiffness_value(&self.stiffness_spec)));
+        if !self.sections.is_empty() {
+            let sections = self
+                .sections
+                .iter()
+                .map(|p| {
+                    let mut entries = Vec::new();
+                    if let Some(k) = &p.stiffness {
+                        entries.push(("stiffness".to_string(), stiffness_value(k)));
+                    }
+                    if let Some(d) = p.linear_density {
+                        entries.push(("linear_density".to_string(), num(d)));
+                    }
+                    Value::Map(entries)
+                })
+                .collect();
+            m.push(("sections".into(), Value::List(sections)));
+        }
         if !self.rest_curvature.is_empty() {
             let rc = self
                 .rest_curvature
@@ -818,6 +891,80 @@ fn stiffness(v: &Value) -> Result<Stiffness> {
             "stiffness",
             "expected {kx, ky, kz} or {E, G, diameter}",
         )),
+    }
+}
+
+/// A stiffness as the table it is read from.
+fn stiffness_value(k: &Stiffness) -> Value {
+    let entries = match *k {
+        Stiffness::Diagonal { kx, ky, kz } => vec![("kx", kx), ("ky", ky), ("kz", kz)],
+        Stiffness::RoundRod { e, g, diameter } => {
+            vec![("E", e), ("G", g), ("diameter", diameter)]
+        }
+    };
+    Value::Map(
+        entries
+            .into_iter()
+            .map(|(k, x)| (k.to_string(), Value::Number(x)))
+            .collect(),
+    )
+}
+
+/// Per-section properties: a list of `{stiffness, linear_density}` tables
+/// (each key optional; a density weighs only under the scene's gravity).
+fn section_properties(v: &Value, has_gravity: bool) -> Result<Vec<SectionProperties>> {
+    let Value::List(items) = v else {
+        return Err(Error::scene(
+            "sections",
+            format!(
+                "expected a list of {{stiffness, linear_density}} tables, one a section, got {}",
+                v.kind()
+            ),
+        ));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| {
+            let path = format!("sections[{i}]");
+            let t = Table::new(item, &path)?;
+            t.only(&["stiffness", "linear_density"])?;
+            let stiffness = t
+                .get("stiffness")
+                .map(|k| stiffness(k).map_err(|e| prefixed(e, &path)))
+                .transpose()?;
+            let linear_density = match t.get("linear_density") {
+                None => None,
+                Some(x) => {
+                    let d = finite(x, &t.key("linear_density"))?;
+                    if d < 0.0 {
+                        return Err(Error::scene(
+                            t.key("linear_density"),
+                            format!("must not be negative, got {d}"),
+                        ));
+                    }
+                    if !has_gravity {
+                        return Err(Error::scene(
+                            t.key("linear_density"),
+                            "weighs only under gravity: give the scene's gravity (its vector)",
+                        ));
+                    }
+                    Some(d)
+                }
+            };
+            Ok(SectionProperties {
+                stiffness,
+                linear_density,
+            })
+        })
+        .collect()
+}
+
+/// An error of a nested table, its key under `path`.
+fn prefixed(e: Error, path: &str) -> Error {
+    match e {
+        Error::InvalidScene { key, reason } => Error::scene(format!("{path}.{key}"), reason),
+        other => other,
     }
 }
 

@@ -43,14 +43,28 @@ def routing(tendon, s):
 def solve_reference(scene, samples, rtol=1e-12):
     """Node positions at the arc lengths ``samples`` of the tendon scene
     (a dict as softspine reads it: diagonal stiffness, rest curvature per
-    equal section, gravity, tip force and moment, tendons; a free tip)."""
+    equal section, gravity, tip force and moment, tendons, per-section
+    ``sections`` with their own diagonal stiffness or linear density; a free
+    tip)."""
     length = scene["length"]
-    k = np.array([scene["stiffness"][c] for c in ("kx", "ky", "kz")])
-    sections = scene.get("rest_curvature", [[0.0, 0.0]])
+
+    def diagonal(table):
+        return np.array([table[c] for c in ("kx", "ky", "kz")], dtype=float)
+
     grav = scene.get("gravity")
-    f_ext = np.zeros(3)
-    if grav:
-        f_ext = grav["linear_density"] * np.array(grav["vector"], dtype=float)
+    vector = np.array(grav["vector"], dtype=float) if grav else np.zeros(3)
+    density = grav["linear_density"] if grav else 0.0
+    own = scene.get("sections", [{}])
+    stiffnesses = [diagonal(p.get("stiffness", scene["stiffness"])) for p in own]
+    forces = [p.get("linear_density", density) * vector for p in own]
+
+    def stiff(s):
+        return stiffnesses[min(int(s / length * len(own)), len(own) - 1)]
+
+    def weight(s):
+        return forces[min(int(s / length * len(own)), len(own) - 1)]
+
+    sections = scene.get("rest_curvature", [[0.0, 0.0]])
     tendons = scene.get("tendons", [])
     field = np.array(scene.get("magnetic_field", [0, 0, 0]), dtype=float)
     magnetization = np.array(scene.get("magnetization", [[0, 0, 0]]), dtype=float).reshape(-1, 3)
@@ -60,6 +74,7 @@ def solve_reference(scene, samples, rtol=1e-12):
     ends = sorted({t.get("end", length) for t in tendons})
     breaks = sorted(
         {length * i / len(sections) for i in range(1, len(sections))}
+        | {length * i / len(own) for i in range(1, len(own))}
         | {length * i / len(magnetization) for i in range(1, len(magnetization))}
         | {e for e in ends if e < length}
     )
@@ -75,7 +90,7 @@ def solve_reference(scene, samples, rtol=1e-12):
     def active(s):
         return [t for t in tendons if t.get("end", length) > s]
 
-    def derivative(s, y, u0):
+    def derivative(s, y, u0, k, f_ext):
         r = y[3:12].reshape(3, 3)
         n, m = y[12:15], y[15:18]
         u = u0 + (r.T @ m) / k
@@ -119,7 +134,7 @@ def solve_reference(scene, samples, rtol=1e-12):
         dpi = r @ (np.cross(u, rho) + d1 + np.array([0, 0, 1.0]))
         return r @ rho, dpi / np.linalg.norm(dpi)
 
-    def across(y, b, u0_before, u0_after):
+    def across(y, b, u0_before, u0_after, k_before, k_after):
         """The force and moment just past a break at ``b``: an anchor's point
         load (its tendon pulls back along its last direction), and, where the
         curvature jumps (a section end, an anchor), the kink force
@@ -128,7 +143,7 @@ def solve_reference(scene, samples, rtol=1e-12):
         tau |rho|^2 / k)."""
         r = y[3:12].reshape(3, 3)
         n, m = y[12:15].copy(), y[15:18].copy()
-        u_before = u0_before + (r.T @ m) / k
+        u_before = u0_before + (r.T @ m) / k_before
         for t in tendons:
             if abs(t.get("end", length) - b) < 1e-12:
                 arm, unit = tangent(t, r, u_before, b)
@@ -138,7 +153,7 @@ def solve_reference(scene, samples, rtol=1e-12):
         running = [t for t in tendons if t.get("end", length) > b + 1e-12]
         n_after, m_after = n, m
         for _ in range(100):
-            u_after = u0_after + (r.T @ m_after) / k
+            u_after = u0_after + (r.T @ m_after) / k_after
             n_next, m_next = n.copy(), m.copy()
             for t in running:
                 arm, before = tangent(t, r, u_before, b)
@@ -157,12 +172,13 @@ def solve_reference(scene, samples, rtol=1e-12):
         points = [0.0, *breaks, length]
         out = {}
         for a, b in zip(points[:-1], points[1:], strict=True):
-            u0 = rest(0.5 * (a + b))
+            mid = 0.5 * (a + b)
+            u0, k, f_ext = rest(mid), stiff(mid), weight(mid)
             t_eval = None
             if keep is not None:
                 t_eval = [x for x in keep if a <= x <= b]
             sol = solve_ivp(
-                lambda s, y, u0=u0: derivative(s, y, u0),
+                lambda s, y, u0=u0, k=k, f_ext=f_ext: derivative(s, y, u0, k, f_ext),
                 (a, b),
                 y,
                 method="DOP853",
@@ -175,11 +191,11 @@ def solve_reference(scene, samples, rtol=1e-12):
                     out.setdefault(round(x, 12), col[:3])
             y = sol.y[:, -1].copy()
             if b < length:
-                y[12:18] = across(y, b, rest(0.5 * (a + b)), rest(b + 1e-9))
+                y[12:18] = across(y, b, u0, rest(b + 1e-9), k, stiff(b + 1e-9))
 
         # Tendons anchored at the tip load it too.
         r = y[3:12].reshape(3, 3)
-        u = rest(length - 1e-9) + (r.T @ y[15:18]) / k
+        u = rest(length - 1e-9) + (r.T @ y[15:18]) / stiff(length - 1e-9)
         n_tip, m_tip = y[12:15].copy(), y[15:18].copy()
         for t in tendons:
             if abs(t.get("end", length) - length) < 1e-12:

@@ -192,6 +192,7 @@ impl PySolution {
         d.set_item("quaternions", rows4(py, &s.quaternions))?;
         d.set_item("forces", rows3(py, &s.forces))?;
         d.set_item("stiffness", vec3_array(py, &s.stiffness))?;
+        d.set_item("section_stiffness", rows3(py, &s.section_stiffness))?;
         d.set_item("rest_curvature", rows_n(py, &s.rest_curvature))?;
         d.set_item("tip_moment", vec3_array(py, &s.tip_moment))?;
         let optional = |v: Option<Vector3<f64>>| v.map(|v| vec3_array(py, &v));
@@ -242,6 +243,7 @@ impl PySolution {
                 .collect(),
             forces: d.vectors("forces")?,
             stiffness: d.vector("stiffness")?,
+            section_stiffness: d.vectors("section_stiffness")?,
             rest_curvature: d.rows::<2>("rest_curvature")?,
             tip_moment: d.vector("tip_moment")?,
             tip_reaction_force: d.optional_vector("tip_reaction_force")?,

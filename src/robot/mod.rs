@@ -98,11 +98,25 @@ pub struct Robot {
     pub tip_magnet: Vector3<f64>,
     /// Largest field the magnetic system makes, |B| [T] (default none: unbounded).
     pub max_field: Option<f64>,
+    /// Per section, its own stiffness, linear density or disk mass (default
+    /// none: the robot's everywhere; else one entry a section).
+    pub section_properties: Vec<SectionSpec>,
     /// Mass of a tool at the tip [kg] (default 0).
     pub tool_mass: f64,
     /// Where the tool's weight, and the payload it holds (the `load`), act:
     /// from the tip in its material frame [m] (default the tip itself).
     pub tool_offset: Vector3<f64>,
+}
+
+/// What one section changes of the robot's own properties (each `None`:
+/// the robot's).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SectionSpec {
+    pub stiffness: Option<Stiffness>,
+    /// Mass per length [kg/m].
+    pub linear_density: Option<f64>,
+    /// Mass of the disk at the section's end [kg].
+    pub disk_mass: Option<f64>,
 }
 
 /// How a tendon runs through the robot: routed at an offset from the
@@ -176,6 +190,7 @@ impl Default for Robot {
             magnetization: Vec::new(),
             tip_magnet: Vector3::zeros(),
             max_field: None,
+            section_properties: Vec::new(),
             tool_mass: 0.0,
             tool_offset: Vector3::zeros(),
         }
@@ -415,10 +430,18 @@ impl Robot {
         s.base_position = self.base_position;
         s.tip_force = (tip_mass + self.tool_mass) * self.gravity;
         s.tip_force_offset = self.tool_offset;
+        s.sections = self
+            .section_properties
+            .iter()
+            .map(|p| crate::scene::SectionProperties {
+                stiffness: p.stiffness.clone(),
+                linear_density: p.linear_density,
+            })
+            .collect();
         s.point_loads = (1..=self.sections)
             .map(|k| PointLoad {
-                s: k as f64 * self.section_length(),
-                force: self.disk_mass * self.gravity,
+                s: self.section_end(k),
+                force: self.disk_mass_of(k) * self.gravity,
             })
             .filter(|p| p.force.norm() > 0.0)
             .collect();
@@ -437,6 +460,14 @@ impl Robot {
         s.tip_magnet = self.tip_magnet;
         s.magnetic_field = field;
         Ok(s)
+    }
+
+    /// Mass of the disk at the end of section `k` (1-based) [kg].
+    pub fn disk_mass_of(&self, k: usize) -> f64 {
+        self.section_properties
+            .get(k - 1)
+            .and_then(|p| p.disk_mass)
+            .unwrap_or(self.disk_mass)
     }
 
     /// Arc length of the end of section `k` (1-based) [m].
@@ -507,6 +538,26 @@ impl Robot {
                         self.sections, t.section
                     ),
                 ));
+            }
+        }
+        let p = self.section_properties.len();
+        if p > 0 && p != self.sections {
+            return Err(Error::scene(
+                "section_properties",
+                format!("expected one entry a section ({}), got {p}", self.sections),
+            ));
+        }
+        for (i, spec) in self.section_properties.iter().enumerate() {
+            for (name, x) in [
+                ("linear_density", spec.linear_density),
+                ("disk_mass", spec.disk_mass),
+            ] {
+                if let Some(x) = x.filter(|x| !(x.is_finite() && *x >= 0.0)) {
+                    return Err(Error::scene(
+                        format!("section_properties[{i}].{name}"),
+                        format!("must be >= 0 and finite, got {x}"),
+                    ));
+                }
             }
         }
         let k = self.magnetization.len();
@@ -795,6 +846,28 @@ impl Robot {
                 entries.push((name.into(), num(x)));
             }
         }
+        if !self.section_properties.is_empty() {
+            let specs = self
+                .section_properties
+                .iter()
+                .map(|p| {
+                    let mut fields = Vec::new();
+                    if let Some(k) = &p.stiffness {
+                        fields.push(("stiffness".to_string(), stiffness_table(k)));
+                    }
+                    for (name, x) in [
+                        ("linear_density", p.linear_density),
+                        ("disk_mass", p.disk_mass),
+                    ] {
+                        if let Some(x) = x {
+                            fields.push((name.to_string(), num(x)));
+                        }
+                    }
+                    Value::Map(fields)
+                })
+                .collect();
+            entries.push(("section_properties".into(), Value::List(specs)));
+        }
         if self.tool_mass != 0.0 || self.tool_offset != Vector3::zeros() {
             entries.push(("tool_mass".into(), num(self.tool_mass)));
             entries.push(("tool_offset".into(), list(self.tool_offset.as_slice())));
@@ -907,9 +980,10 @@ impl Robot {
             "tip_magnet" => self.tip_magnet = vec3(value, key)?,
             "max_field" => self.max_field = Some(num(value)?),
             "tool_mass" => self.tool_mass = num(value)?,
+            "section_properties" => self.section_properties = section_specs(value)?,
             "tool_offset" => self.tool_offset = vec3(value, key)?,
             other => {
-                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements, tendons, max_tension, magnetization, tip_magnet, max_field, tool_mass, tool_offset)"))
+                return Err(Error::scene(other, "unknown key (expected one of: length, stiffness, linear_density, sections, muscle_radius, muscle_angles, disk_mass, gravity, base_quaternion, base_position, muscle_rest_length, inflation_rate, muscle_length_range, n_elements, tendons, max_tension, magnetization, tip_magnet, max_field, section_properties, tool_mass, tool_offset)"))
             }
         }
         Ok(())
@@ -953,3 +1027,69 @@ fn tendon_routes(v: &Value) -> Result<Vec<TendonRoute>> {
 /// Placeholder of a route read without `section`: the robot's last section,
 /// set once the number of sections is known.
 const LAST_SECTION: usize = usize::MAX;
+
+/// A stiffness as the table a scene or robot reads.
+fn stiffness_table(k: &Stiffness) -> Value {
+    let scene = Scene {
+        stiffness_spec: k.clone(),
+        ..Scene::new(1.0, 1.0, 1.0, 1.0)
+    };
+    match scene.to_value() {
+        Value::Map(entries) => entries
+            .into_iter()
+            .find(|(key, _)| key == "stiffness")
+            .map(|(_, v)| v)
+            .expect("a scene has a stiffness"),
+        _ => unreachable!("a scene is a table"),
+    }
+}
+
+/// Per-section properties from a list of `{stiffness, linear_density,
+/// disk_mass}` tables (each key optional).
+fn section_specs(v: &Value) -> Result<Vec<SectionSpec>> {
+    let Value::List(items) = v else {
+        return Err(Error::scene(
+            "section_properties",
+            format!(
+                "expected a list of {{stiffness, linear_density, disk_mass}} tables, one a section, got {}",
+                v.kind()
+            ),
+        ));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| {
+            let path = format!("section_properties[{i}]");
+            let t = Table::new(item, &path)?;
+            t.only(&["stiffness", "linear_density", "disk_mass"])?;
+            let stiffness = match t.get("stiffness") {
+                None => None,
+                Some(k) => {
+                    let probe = Value::Map(vec![
+                        ("length".into(), Value::Number(1.0)),
+                        ("stiffness".into(), k.clone()),
+                    ]);
+                    Some(
+                        Scene::from_value(&probe)
+                            .map_err(|e| match e {
+                                Error::InvalidScene { key, reason } => {
+                                    Error::scene(format!("{path}.{key}"), reason)
+                                }
+                                other => other,
+                            })?
+                            .stiffness_spec,
+                    )
+                }
+            };
+            let number = |name: &str| -> Result<Option<f64>> {
+                t.get(name).map(|x| finite(x, &t.key(name))).transpose()
+            };
+            Ok(SectionSpec {
+                stiffness,
+                linear_density: number("linear_density")?,
+                disk_mass: number("disk_mass")?,
+            })
+        })
+        .collect()
+}

@@ -90,6 +90,20 @@ impl Solver {
                 ),
             ));
         }
+        if !scene.sections.is_empty()
+            && matches!(
+                settings.method,
+                Method::Shooting | Method::Paper | Method::PaperLiteral
+            )
+        {
+            return Err(Error::argument(
+                "method",
+                format!(
+                    "{} does not model sections with their own stiffness or density; use 'newton' or 'lm'",
+                    settings.method.name()
+                ),
+            ));
+        }
         if scene.tip_force_offset != Vector3::zeros()
             && matches!(
                 settings.method,
@@ -474,6 +488,9 @@ impl Solver {
             forces: model.node_forces(reactions),
             stiffness: model.stiffness,
             rest_curvature: self.scene.rest_curvature.clone(),
+            section_stiffness: (0..self.scene.sections.len())
+                .map(|k| self.scene.section_stiffness(k))
+                .collect(),
             tip_moment: model.tip_moment,
             tip_reaction_force: tip_held.then(|| reactions[guides]),
             tip_reaction_moment,

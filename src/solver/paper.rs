@@ -70,6 +70,7 @@ impl Solver {
             positions: out.positions,
             forces: out.forces.clone(),
             stiffness: model.stiffness,
+            section_stiffness: Vec::new(),
             rest_curvature: self.scene.rest_curvature.clone(),
             tip_moment: model.tip_moment,
             tip_reaction_force: tip_held.then(|| out.forces[n] - self.scene.tip_force),

@@ -545,6 +545,7 @@ impl Solver {
             positions,
             forces: model.node_forces(&reactions),
             stiffness: model.stiffness,
+            section_stiffness: Vec::new(),
             rest_curvature: self.scene.rest_curvature.clone(),
             tip_moment: model.tip_moment,
             tip_reaction_force: held.then(|| reactions[reactions.len() - 1]),

@@ -99,6 +99,8 @@ pub struct Solution {
     /// (on demand: a control loop that never reads them never pays for them).
     pub stiffness: Vector3<f64>,
     pub rest_curvature: Vec<[f64; 2]>,
+    /// Stiffness per equal section where the sections differ (empty: `stiffness`).
+    pub section_stiffness: Vec<Vector3<f64>>,
     /// The moment applied at the tip, world frame [N m].
     pub tip_moment: Vector3<f64>,
     /// Force that a pinned or clamped tip's support exerts on the rod, world frame [N].
@@ -184,6 +186,7 @@ impl Solution {
     pub fn moments(&self) -> Vec<Vector3<f64>> {
         let n = self.n_elements;
         let sections = self.rest_curvature.len().max(1);
+        let stiffness_sections = self.section_stiffness.len().max(1);
         let element: Vec<Vector3<f64>> = self
             .curvatures()
             .iter()
@@ -193,7 +196,11 @@ impl Solution {
                     .rest_curvature
                     .get(section_of(i, sections, n))
                     .map_or(Vector3::zeros(), |k| Vector3::new(k[0], k[1], 0.0));
-                let w = self.stiffness.component_mul(&(u - rest));
+                let k = self
+                    .section_stiffness
+                    .get(section_of(i, stiffness_sections, n))
+                    .unwrap_or(&self.stiffness);
+                let w = k.component_mul(&(u - rest));
                 let (a, b) = (self.quaternions[i], self.quaternions[i + 1]);
                 let c = a.conj() * b;
                 a.rotate(c.w * w + c.v.cross(&w))

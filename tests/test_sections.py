@@ -1,0 +1,120 @@
+"""Sections with their own stiffness and linear density (the scene's
+``sections``; the robot's ``section_properties``) against shooting on the
+Cosserat rod (tests/tendon_reference.py), and their input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from tendon_reference import solve_reference
+
+import softspine
+
+from closed_forms import observed_orders
+
+SCENE = {
+    "length": 0.9,
+    "stiffness": {"kx": 0.5, "ky": 0.6, "kz": 0.4},
+    "rest_curvature": [[0.4, -0.2], [0.0, 0.0], [-0.5, 0.3]],
+    "sections": [
+        {"stiffness": {"kx": 1.5, "ky": 1.2, "kz": 1.0}, "linear_density": 0.6},
+        {},
+        {"stiffness": {"kx": 0.2, "ky": 0.25, "kz": 0.15}, "linear_density": 0.1},
+    ],
+    "gravity": {"linear_density": 0.3, "vector": [0.0, 0.2, -9.81]},
+    "tip_force": [0.3, -0.1, -0.2],
+    "tendons": [{"tension": 2.0, "offset": [0.01, 0.004], "end": 0.6}],
+}
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return solve_reference(SCENE, list(np.linspace(0, 0.9, 49)), rtol=1e-11)
+
+
+def test_sections_of_their_own_converge_to_the_cosserat_rod_at_the_schemes_orders(reference):
+    errors = {}
+    for scheme, sizes in (("fd2", (12, 24, 48)), ("fe4", (6, 12, 24))):
+        errors[scheme] = []
+        for n in sizes:
+            sol = softspine.solve(SCENE, n_elements=n, scheme=scheme, residual_tol=1e-13)
+            assert sol.converged and sol.stable, sol.message
+            errors[scheme].append(np.abs(sol.positions - reference[:: 48 // n]).max() / 0.9)
+    assert all(1.8 < p < 2.2 for p in observed_orders(errors["fd2"])), errors
+    assert all(3.6 < p < 4.4 for p in observed_orders(errors["fe4"])), errors
+    # The sections matter: the rod with uniform properties is elsewhere.
+    uniform = softspine.solve({k: v for k, v in SCENE.items() if k != "sections"},
+                              n_elements=24)
+    assert np.abs(uniform.positions - reference[::2]).max() > 1e-2
+
+
+def test_sections_that_change_nothing_give_the_uniform_rod_exactly():
+    base = {k: v for k, v in SCENE.items() if k != "sections"}
+    plain = softspine.solve(base, n_elements=12)
+    same = softspine.solve({**base, "sections": [{}, {}, {}]}, n_elements=12)
+    assert np.array_equal(plain.positions, same.positions)
+
+
+def test_the_moments_read_each_sections_stiffness():
+    sol = softspine.solve(SCENE, n_elements=48, scheme="fd2")
+    back = softspine.Solution.from_dict(sol.to_dict())
+    assert np.array_equal(back.moments, sol.moments)
+    assert sol.to_dict()["section_stiffness"].shape == (3, 3)
+    # The internal moment is continuous across a change of stiffness (the
+    # curvature jumps): the readings on both sides of s = 0.3 agree to O(h).
+    s = sol.arc_length
+    j = int(np.argmin(np.abs(s - 0.3)))
+    jump = np.linalg.norm(sol.moments[j + 1] - sol.moments[j - 1])
+    scale = np.abs(sol.moments).max()
+    assert jump < 0.1 * scale, (jump, scale)
+
+
+def message(scene) -> str:
+    with pytest.raises(ValueError) as e:
+        softspine.solve(scene)
+    return str(e.value)
+
+
+def test_bad_sections_are_refused_by_name():
+    assert "rest_curvature has 3" in message({**SCENE, "sections": [{}, {}]})
+    bad = {**SCENE, "sections": [{}, {"stiffness": {"kx": -1, "ky": 1, "kz": 1}}, {}]}
+    assert "sections[1].stiffness.kx" in message(bad)
+    bad = {**SCENE, "sections": [{}, {"linear_density": -0.1}, {}]}
+    assert "sections[1].linear_density" in message(bad)
+    no_gravity = {k: v for k, v in SCENE.items() if k != "gravity"}
+    assert "gravity" in message(no_gravity)
+    assert "sections[0]" in message({**SCENE, "sections": [{"length": 0.2}, {}, {}]})
+    with pytest.raises(ValueError, match="sections"):
+        softspine.solve({k: v for k, v in SCENE.items() if k != "tendons"}, method="shooting")
+
+
+def test_a_robots_sections_carry_their_own_stiffness_density_and_disks():
+    stiff = {"E": 200e9, "G": 77e9, "diameter": 0.004}
+    specs = [{"stiffness": stiff, "linear_density": 0.4, "disk_mass": 0.02}] * 3 + [{}] * 7
+    robot = softspine.Robot({"section_properties": specs})
+    d = robot.to_dict()
+    assert d["section_properties"][0]["disk_mass"] == 0.02 and d["section_properties"][5] == {}
+    assert softspine.Robot(d).to_dict() == d
+    kappa = [[1.0, 0.5]] * 10
+    scene = robot.scene(kappa, load=0.03)
+    sections = scene.to_dict()["sections"]
+    assert sections[0] == {"stiffness": stiff, "linear_density": 0.4} and sections[9] == {}
+    disks = [p["force"][2] for p in scene.to_dict()["point_loads"]]
+    assert np.allclose(disks, [-0.02 * 9.81] * 3 + [-0.01 * 9.81] * 7)
+    sol = robot.forward(kappa, load=0.03)
+    assert np.array_equal(sol.positions,
+                          softspine.solve(scene, n_elements=robot.n_elements).positions)
+    plain = softspine.Robot({"section_properties": [{}] * 10}).forward(kappa, load=0.03)
+    assert np.array_equal(plain.positions, softspine.Robot().forward(kappa, load=0.03).positions)
+    assert np.linalg.norm(sol.tip_position - plain.tip_position) > 1e-2
+    # Its inverse kinematics sees them.
+    target = softspine.trajectories.circle(3)[0]
+    r = robot.inverse(target, load=0.03)
+    assert r.reached, r.message
+    with pytest.raises(ValueError, match="section_properties"):
+        softspine.Robot({"section_properties": [{}] * 3})
+    with pytest.raises(ValueError, match=r"section_properties\[1\].disk_mass"):
+        softspine.Robot({"section_properties": [{}, {"disk_mass": -1}] + [{}] * 8})
+    with pytest.raises(ValueError, match=r"section_properties\[0\].stiffness.E"):
+        softspine.Robot({"section_properties": [{"stiffness": {"E": 0, "G": 1, "diameter": 1}}]
+                         + [{}] * 9})

@@ -1,27 +1,28 @@
 //! Inverse kinematics of tendon-driven and magnetic robots: the tendon
 //! tensions, or the uniform field, whose *loaded* equilibrium puts the tip
-//! at the target (and, optionally, along a direction).
+//! (or the tool's point) at the target, and optionally along a direction.
 //!
 //! Each iteration solves the forward statics (warm) and takes the tip's
-//! sensitivity to the actuation from the factored equilibrium Jacobian
-//! ([`Solver::sensitivity_with`]: O(n) a column). Then:
+//! sensitivity to the actuation from the factored equilibrium Jacobian: in
+//! closed form for tensions with `fd2` ([`Solver::tension_sensitivity`], one
+//! back-substitution a tendon), else by [`Solver::sensitivity_with`]. Then:
 //!
-//! * **Tensions** (never negative, at most `max_tension`): the step goes to the
-//!   minimiser of `|t - p|^2` (`p` the pretension, default zero) over the
-//!   tensions that reach the target to first order, `J t = e + J t_k`. That
-//!   small QP is solved exactly through its dual, `t = clip(p + J^T y)`, by a
-//!   semismooth Newton method on `y`. At a fixed point the tip is on target
-//!   and `t = clip(p + J^T y)` with `J` the sensitivity *there*: the KKT
-//!   conditions of the minimum-norm choice on the nonlinear problem. When no
-//!   admissible tensions reach the linearised target, the step is a bounded
-//!   Levenberg-Marquardt step on the tip error instead (closest tip).
-//! * **Field** (`|B|` at most `max_field`): a Levenberg-Marquardt step on the
-//!   tip error inside the ball. A magnet at the tip of an otherwise passive
-//!   rod only feels the part of `B` across it, so its tips form a surface: a
-//!   target off it ends as the closest tip, `out_of_reach`.
-//!
-//! A backtracking line search on the tip error accepts only converged,
-//! stable equilibria.
+//! * Far from the target (more than `POLISH_RADIUS` L): Levenberg-Marquardt
+//!   steps on the tip error inside the drives' limits (`0 <= t <= max_tension`,
+//!   `|B| <= max_field`), the damping adapted as a trust region; only
+//!   converged, stable equilibria are accepted.
+//! * Near it, the minimum-norm step. Tensions: the minimiser of `|t - p|^2`
+//!   (`p` the pretension, default zero) over the tensions that reach the
+//!   linearised target `J t = e + J t_k`, a small QP solved exactly through its
+//!   dual `t = clip(p + J^T y)` by semismooth Newton, and backtracked on the
+//!   merit `|t - p|^2 / 2 + rho |e|`. At a fixed point the tip is on target and
+//!   `t = clip(p + J^T y)` with `J` the sensitivity *there*: the KKT conditions
+//!   of the minimum-norm choice on the nonlinear problem. Field: the smallest
+//!   field among those that reach the linearised target.
+//! * A descent that gains too little for `SLOW_STEPS` steps is at the closest
+//!   tip: `bounds_active` if a drive at its limit holds it back, else
+//!   `out_of_reach` (a magnet at the tip of a passive rod only turns it, and
+//!   its tips form a surface).
 
 use super::ik::{tool_point, IkEnding, IkResult};
 use super::{Actuation, Robot};

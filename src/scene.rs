@@ -102,8 +102,12 @@ pub struct Tendon {
 impl Tendon {
     /// The routing offset `rho(s)` and its derivative `rho'(s)`, material frame.
     pub fn routing(&self, s: f64) -> (Vector3<f64>, Vector3<f64>) {
-        let (sin, cos) = (self.twist * s).sin_cos();
         let [x, y] = self.offset;
+        if self.twist == 0.0 {
+            // Straight routing, the common case: no trigonometry.
+            return (Vector3::new(x, y, 0.0), Vector3::zeros());
+        }
+        let (sin, cos) = (self.twist * s).sin_cos();
         let rho = Vector3::new(cos * x - sin * y, sin * x + cos * y, 0.0);
         let drho = Vector3::new(-rho.y, rho.x, 0.0) * self.twist;
         (rho, drho)

@@ -35,6 +35,11 @@ impl<'a> Table<'a> {
         Ok(table)
     }
 
+    /// The table's own path (`tendons[2]`).
+    pub(crate) fn path(&self) -> &str {
+        &self.path
+    }
+
     pub(crate) fn key(&self, k: &str) -> String {
         if self.path.is_empty() {
             k.to_string()
@@ -175,4 +180,35 @@ pub(crate) fn as_argument(e: Error) -> Error {
         Error::InvalidScene { key, reason } => Error::InvalidArgument { name: key, reason },
         other => other,
     }
+}
+
+/// A list of tables under `key` (`key[i]` each), each holding only the keys
+/// `allowed` and read by `item`; `about` follows the list's description in
+/// the error for anything but a list (", one a section").
+pub(crate) fn table_list<T>(
+    v: &Value,
+    key: &str,
+    allowed: &[&str],
+    about: &str,
+    item: impl Fn(&Table) -> Result<T>,
+) -> Result<Vec<T>> {
+    let Value::List(items) = v else {
+        return Err(Error::scene(
+            key,
+            format!(
+                "expected a list of {{{}}} tables{about}, got {}",
+                allowed.join(", "),
+                v.kind()
+            ),
+        ));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let t = Table::new(x, &format!("{key}[{i}]"))?;
+            t.only(allowed)?;
+            item(&t)
+        })
+        .collect()
 }

@@ -23,7 +23,7 @@
 use crate::error::{Error, Result};
 use crate::model::clamped_end_deficit;
 use crate::quat::Quat;
-use crate::read::{finite, numbers, positive, vec3, Table};
+use crate::read::{finite, numbers, positive, table_list, vec3, Table};
 use crate::value::Value;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
@@ -291,7 +291,7 @@ impl Scene {
             }
         };
         let length = positive(top.require("length")?, "length")?;
-        let stiffness_spec = stiffness(top.require("stiffness")?)?;
+        let stiffness_spec = read_stiffness(top.require("stiffness")?)?;
         let rest_curvature = match top.get("rest_curvature") {
             None => Vec::new(),
             Some(v) => rest_curvature(v)?,
@@ -870,7 +870,7 @@ fn rotation_matrix(m: Matrix3<f64>, key: &str) -> Result<Quat> {
     Ok(Quat::new(q.w, q.i, q.j, q.k).normalized())
 }
 
-fn stiffness(v: &Value) -> Result<Stiffness> {
+pub(crate) fn read_stiffness(v: &Value) -> Result<Stiffness> {
     let t = Table::new(v, "stiffness")?;
     t.only(&["kx", "ky", "kz", "E", "G", "diameter"])?;
     let p = |k: &str| -> Result<f64> { positive(t.require(k)?, &t.key(k)) };
@@ -899,7 +899,7 @@ fn stiffness(v: &Value) -> Result<Stiffness> {
 }
 
 /// A stiffness as the table it is read from.
-fn stiffness_value(k: &Stiffness) -> Value {
+pub(crate) fn stiffness_value(k: &Stiffness) -> Value {
     let entries = match *k {
         Stiffness::Diagonal { kx, ky, kz } => vec![("kx", kx), ("ky", ky), ("kz", kz)],
         Stiffness::RoundRod { e, g, diameter } => {
@@ -917,55 +917,40 @@ fn stiffness_value(k: &Stiffness) -> Value {
 /// Per-section properties: a list of `{stiffness, linear_density}` tables
 /// (each key optional; a density weighs only under the scene's gravity).
 fn section_properties(v: &Value, has_gravity: bool) -> Result<Vec<SectionProperties>> {
-    let Value::List(items) = v else {
-        return Err(Error::scene(
-            "sections",
-            format!(
-                "expected a list of {{stiffness, linear_density}} tables, one a section, got {}",
-                v.kind()
-            ),
-        ));
-    };
-    items
-        .iter()
-        .enumerate()
-        .map(|(i, item)| {
-            let path = format!("sections[{i}]");
-            let t = Table::new(item, &path)?;
-            t.only(&["stiffness", "linear_density"])?;
-            let stiffness = t
-                .get("stiffness")
-                .map(|k| stiffness(k).map_err(|e| prefixed(e, &path)))
-                .transpose()?;
-            let linear_density = match t.get("linear_density") {
-                None => None,
-                Some(x) => {
-                    let d = finite(x, &t.key("linear_density"))?;
-                    if d < 0.0 {
-                        return Err(Error::scene(
-                            t.key("linear_density"),
-                            format!("must not be negative, got {d}"),
-                        ));
-                    }
-                    if !has_gravity {
-                        return Err(Error::scene(
-                            t.key("linear_density"),
-                            "weighs only under gravity: give the scene's gravity (its vector)",
-                        ));
-                    }
-                    Some(d)
+    let allowed = ["stiffness", "linear_density"];
+    table_list(v, "sections", &allowed, ", one a section", |t| {
+        let stiffness = t
+            .get("stiffness")
+            .map(|k| read_stiffness(k).map_err(|e| prefixed(e, t.path())))
+            .transpose()?;
+        let linear_density = match t.get("linear_density") {
+            None => None,
+            Some(x) => {
+                let d = finite(x, &t.key("linear_density"))?;
+                if d < 0.0 {
+                    return Err(Error::scene(
+                        t.key("linear_density"),
+                        format!("must not be negative, got {d}"),
+                    ));
                 }
-            };
-            Ok(SectionProperties {
-                stiffness,
-                linear_density,
-            })
+                if !has_gravity {
+                    return Err(Error::scene(
+                        t.key("linear_density"),
+                        "weighs only under gravity: give the scene's gravity (its vector)",
+                    ));
+                }
+                Some(d)
+            }
+        };
+        Ok(SectionProperties {
+            stiffness,
+            linear_density,
         })
-        .collect()
+    })
 }
 
 /// An error of a nested table, its key under `path`.
-fn prefixed(e: Error, path: &str) -> Error {
+pub(crate) fn prefixed(e: Error, path: &str) -> Error {
     match e {
         Error::InvalidScene { key, reason } => Error::scene(format!("{path}.{key}"), reason),
         other => other,
@@ -1108,22 +1093,12 @@ fn point_loads(v: &Value) -> Result<Vec<PointLoad>> {
 }
 
 fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
-    let Value::List(items) = v else {
-        return Err(Error::scene(
-            "tendons",
-            format!(
-                "expected a list of {{tension, offset, twist, end}} tables, got {}",
-                v.kind()
-            ),
-        ));
-    };
-    items
-        .iter()
-        .enumerate()
-        .map(|(i, item)| {
-            let path = format!("tendons[{i}]");
-            let t = Table::new(item, &path)?;
-            t.only(&["tension", "offset", "twist", "end"])?;
+    table_list(
+        v,
+        "tendons",
+        &["tension", "offset", "twist", "end"],
+        "",
+        |t| {
             let tension = finite(t.require("tension")?, &t.key("tension"))?;
             if tension < 0.0 {
                 return Err(Error::scene(
@@ -1152,8 +1127,8 @@ fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
                 twist,
                 end: end.min(length),
             })
-        })
-        .collect()
+        },
+    )
 }
 
 fn guides(v: &Value) -> Result<Vec<Guide>> {

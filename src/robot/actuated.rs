@@ -124,6 +124,32 @@ impl Goal {
     fn reached(&self, e: &DVector<f64>) -> bool {
         e.rows(0, 3).norm() <= self.tol && (e.len() == 3 || e.rows(3, 2).norm() <= self.tol)
     }
+
+    /// The rows of [`Goal::error`] differentiated (negated) from the tip's
+    /// sensitivities: its position and its turn (a world rotation vector),
+    /// one column a parameter. The aimed point moves with the turn too,
+    /// `phi x (R c)`; the direction's rows are the turn across the tangent.
+    fn jacobian(
+        &self,
+        sol: &Solution,
+        position: &nalgebra::Matrix3xX<f64>,
+        rotation: &nalgebra::Matrix3xX<f64>,
+    ) -> DMatrix<f64> {
+        let k = position.ncols();
+        let mut jac = DMatrix::zeros(if self.direction.is_some() { 5 } else { 3 }, k);
+        let arm = sol.tip_quaternion().rotate(self.offset);
+        jac.rows_mut(0, 3)
+            .copy_from(&(position - skew(&arm) * rotation));
+        if self.direction.is_some() {
+            let (u, v) = across(sol.tip_quaternion().tangent());
+            for c in 0..k {
+                let phi: Vector3<f64> = rotation.column(c).into();
+                jac[(3, c)] = phi.dot(&u) * self.length;
+                jac[(4, c)] = phi.dot(&v) * self.length;
+            }
+        }
+        jac
+    }
 }
 
 /// An orthonormal pair across the unit vector `t`.
@@ -235,64 +261,37 @@ impl ActuatedInverseSolver {
     /// Rows of the goal's error differentiated in the actuation, at the
     /// solver's (accepted) state; `None` at a bifurcation.
     fn jacobian(&mut self, goal: &Goal, sol: &Solution) -> Option<DMatrix<f64>> {
-        let k = self.x.len();
-        if self.space == ActuationSpace::Tensions
+        let (position, rotation) = if self.space == ActuationSpace::Tensions
             && self.solver.model().scheme == crate::model::Scheme::Fd2
         {
             // Tensions enter the equations linearly: their columns in closed
             // form, one back-substitution each.
             let sens = self.solver.tension_sensitivity().ok()?;
-            let mut jac = DMatrix::zeros(if goal.direction.is_some() { 5 } else { 3 }, k);
-            // The tool point moves with the tip's turn too: phi x (R c).
-            let arm = sol.tip_quaternion().rotate(goal.offset);
-            jac.rows_mut(0, 3)
-                .copy_from(&(&sens.position - skew(&arm) * &sens.rotation));
-            if goal.direction.is_some() {
-                let t = sol.tip_quaternion().tangent();
-                let (u, v) = across(t);
-                for c in 0..k {
-                    // The tip's turn across its tangent: phi = t x dt.
-                    let dt: Vector3<f64> = sens.tangent.column(c).into();
-                    let phi = t.cross(&dt);
-                    jac[(3, c)] = phi.dot(&u) * goal.length;
-                    jac[(4, c)] = phi.dot(&v) * goal.length;
-                }
-            }
-            return Some(jac);
-        }
-        let names = (0..k).map(|j| format!("actuation[{j}]")).collect();
-        let scene = self.solver.scene().clone();
-        let space = self.space;
-        let values: Vec<f64> = match space {
-            ActuationSpace::Tensions => scene.tendons.iter().map(|t| t.tension).collect(),
-            _ => scene.magnetic_field.iter().copied().collect(),
+            (sens.position, sens.rotation)
+        } else {
+            let names = (0..self.x.len())
+                .map(|j| format!("actuation[{j}]"))
+                .collect();
+            let scene = self.solver.scene().clone();
+            let space = self.space;
+            let values: Vec<f64> = match space {
+                ActuationSpace::Tensions => scene.tendons.iter().map(|t| t.tension).collect(),
+                _ => scene.magnetic_field.iter().copied().collect(),
+            };
+            let sens = self
+                .solver
+                .sensitivity_with(names, &values, |j, delta| {
+                    let mut moved = scene.clone();
+                    match space {
+                        ActuationSpace::Tensions => moved.tendons[j].tension += delta,
+                        _ => moved.magnetic_field[j] += delta,
+                    }
+                    Ok(moved)
+                })
+                .ok()?;
+            (sens.tip_position, sens.tip_rotation)
         };
-        let sens = self
-            .solver
-            .sensitivity_with(names, &values, |j, delta| {
-                let mut moved = scene.clone();
-                match space {
-                    ActuationSpace::Tensions => moved.tendons[j].tension += delta,
-                    _ => moved.magnetic_field[j] += delta,
-                }
-                Ok(moved)
-            })
-            .ok()?;
-        let mut jac = DMatrix::zeros(if goal.direction.is_some() { 5 } else { 3 }, k);
-        let arm = sol.tip_quaternion().rotate(goal.offset);
-        jac.rows_mut(0, 3)
-            .copy_from(&(&sens.tip_position - skew(&arm) * &sens.tip_rotation));
-        if goal.direction.is_some() {
-            // The tip tangent turns by phi x t; the error's rows shrink by it.
-            let t = sol.tip_quaternion().tangent();
-            let (u, v) = across(t);
-            for c in 0..k {
-                let phi: Vector3<f64> = sens.tip_rotation.column(c).into();
-                jac[(3, c)] = phi.dot(&u) * goal.length;
-                jac[(4, c)] = phi.dot(&v) * goal.length;
-            }
-        }
-        Some(jac)
+        Some(goal.jacobian(sol, &position, &rotation))
     }
 
     /// The tensions (or field) whose loaded equilibrium puts the tip at

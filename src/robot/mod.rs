@@ -27,8 +27,10 @@ pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, 
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
-use crate::read::{count, finite, numbers, vec3, Table};
-use crate::scene::{Gravity, PointLoad, Scene, Stiffness, Tendon};
+use crate::read::{count, finite, numbers, table_list, vec3};
+use crate::scene::{
+    prefixed, read_stiffness, stiffness_value, Gravity, PointLoad, Scene, Stiffness, Tendon,
+};
 use crate::value::Value;
 use nalgebra::{Matrix3, Vector3};
 
@@ -775,19 +777,7 @@ impl Robot {
     pub fn to_value(&self) -> Value {
         let num = Value::Number;
         let list = |xs: &[f64]| Value::List(xs.iter().map(|x| num(*x)).collect());
-        let stiffness = Scene {
-            stiffness_spec: self.stiffness.clone(),
-            ..Scene::new(1.0, 1.0, 1.0, 1.0)
-        }
-        .to_value();
-        let stiffness = match stiffness {
-            Value::Map(entries) => entries
-                .into_iter()
-                .find(|(k, _)| k == "stiffness")
-                .map(|(_, v)| v)
-                .expect("a scene has a stiffness"),
-            _ => unreachable!("a scene is a table"),
-        };
+        let stiffness = stiffness_value(&self.stiffness);
         let mut value = Value::Map(vec![
             ("length".into(), num(self.length)),
             ("stiffness".into(), stiffness),
@@ -853,7 +843,7 @@ impl Robot {
                 .map(|p| {
                     let mut fields = Vec::new();
                     if let Some(k) = &p.stiffness {
-                        fields.push(("stiffness".to_string(), stiffness_table(k)));
+                        fields.push(("stiffness".to_string(), stiffness_value(k)));
                     }
                     for (name, x) in [
                         ("linear_density", p.linear_density),
@@ -940,13 +930,7 @@ impl Robot {
         };
         match key {
             "length" => self.length = num(value)?,
-            "stiffness" => {
-                let probe = Value::Map(vec![
-                    ("length".into(), Value::Number(1.0)),
-                    ("stiffness".into(), value.clone()),
-                ]);
-                self.stiffness = Scene::from_value(&probe)?.stiffness_spec;
-            }
+            "stiffness" => self.stiffness = read_stiffness(value)?,
             "linear_density" => self.linear_density = num(value)?,
             "sections" => self.sections = count(value, key, MAX_SECTIONS)?,
             "muscle_radius" => self.muscle_radius = num(value)?,
@@ -990,106 +974,43 @@ impl Robot {
     }
 }
 
-/// Tendon routes from a list of `{offset, twist, section}` tables (section:
-/// default the last, filled in by `Robot::from_value`'s validation as 0 here).
+/// Tendon routes from a list of `{offset, twist, section}` tables (a route
+/// without `section` gets `LAST_SECTION`, resolved by `Robot::from_value`).
 fn tendon_routes(v: &Value) -> Result<Vec<TendonRoute>> {
-    let Value::List(items) = v else {
-        return Err(Error::scene(
-            "tendons",
-            format!(
-                "expected a list of {{offset, twist, section}} tables, got {}",
-                v.kind()
-            ),
-        ));
-    };
-    items
-        .iter()
-        .enumerate()
-        .map(|(i, item)| {
-            let path = format!("tendons[{i}]");
-            let t = Table::new(item, &path)?;
-            t.only(&["offset", "twist", "section"])?;
-            Ok(TendonRoute {
-                offset: numbers::<2>(t.require("offset")?, &t.key("offset"))?,
-                twist: match t.get("twist") {
-                    None => 0.0,
-                    Some(x) => finite(x, &t.key("twist"))?,
-                },
-                section: match t.get("section") {
-                    None => LAST_SECTION,
-                    Some(x) => count(x, &t.key("section"), MAX_SECTIONS)?,
-                },
-            })
+    table_list(v, "tendons", &["offset", "twist", "section"], "", |t| {
+        Ok(TendonRoute {
+            offset: numbers::<2>(t.require("offset")?, &t.key("offset"))?,
+            twist: match t.get("twist") {
+                None => 0.0,
+                Some(x) => finite(x, &t.key("twist"))?,
+            },
+            section: match t.get("section") {
+                None => LAST_SECTION,
+                Some(x) => count(x, &t.key("section"), MAX_SECTIONS)?,
+            },
         })
-        .collect()
+    })
 }
 
 /// Placeholder of a route read without `section`: the robot's last section,
 /// set once the number of sections is known.
 const LAST_SECTION: usize = usize::MAX;
 
-/// A stiffness as the table a scene or robot reads.
-fn stiffness_table(k: &Stiffness) -> Value {
-    let scene = Scene {
-        stiffness_spec: k.clone(),
-        ..Scene::new(1.0, 1.0, 1.0, 1.0)
-    };
-    match scene.to_value() {
-        Value::Map(entries) => entries
-            .into_iter()
-            .find(|(key, _)| key == "stiffness")
-            .map(|(_, v)| v)
-            .expect("a scene has a stiffness"),
-        _ => unreachable!("a scene is a table"),
-    }
-}
-
 /// Per-section properties from a list of `{stiffness, linear_density,
 /// disk_mass}` tables (each key optional).
 fn section_specs(v: &Value) -> Result<Vec<SectionSpec>> {
-    let Value::List(items) = v else {
-        return Err(Error::scene(
-            "section_properties",
-            format!(
-                "expected a list of {{stiffness, linear_density, disk_mass}} tables, one a section, got {}",
-                v.kind()
-            ),
-        ));
-    };
-    items
-        .iter()
-        .enumerate()
-        .map(|(i, item)| {
-            let path = format!("section_properties[{i}]");
-            let t = Table::new(item, &path)?;
-            t.only(&["stiffness", "linear_density", "disk_mass"])?;
-            let stiffness = match t.get("stiffness") {
-                None => None,
-                Some(k) => {
-                    let probe = Value::Map(vec![
-                        ("length".into(), Value::Number(1.0)),
-                        ("stiffness".into(), k.clone()),
-                    ]);
-                    Some(
-                        Scene::from_value(&probe)
-                            .map_err(|e| match e {
-                                Error::InvalidScene { key, reason } => {
-                                    Error::scene(format!("{path}.{key}"), reason)
-                                }
-                                other => other,
-                            })?
-                            .stiffness_spec,
-                    )
-                }
-            };
-            let number = |name: &str| -> Result<Option<f64>> {
-                t.get(name).map(|x| finite(x, &t.key(name))).transpose()
-            };
-            Ok(SectionSpec {
-                stiffness,
-                linear_density: number("linear_density")?,
-                disk_mass: number("disk_mass")?,
-            })
+    let allowed = ["stiffness", "linear_density", "disk_mass"];
+    table_list(v, "section_properties", &allowed, ", one a section", |t| {
+        let number = |name: &str| -> Result<Option<f64>> {
+            t.get(name).map(|x| finite(x, &t.key(name))).transpose()
+        };
+        Ok(SectionSpec {
+            stiffness: t
+                .get("stiffness")
+                .map(|k| read_stiffness(k).map_err(|e| prefixed(e, t.path())))
+                .transpose()?,
+            linear_density: number("linear_density")?,
+            disk_mass: number("disk_mass")?,
         })
-        .collect()
+    })
 }

@@ -75,48 +75,36 @@ impl Solver {
         scene.check_derived()?;
         scene.check_elements(n)?;
         let reach_limit = scene.check_constraints(n)?;
-        let magnetic = !scene.magnetization.is_empty() || scene.tip_magnet != Vector3::zeros();
-        if (!scene.tendons.is_empty() || magnetic)
-            && matches!(
-                settings.method,
-                Method::Shooting | Method::Paper | Method::PaperLiteral
-            )
-        {
-            return Err(Error::argument(
-                "method",
-                format!(
-                    "{} does not model tendons or magnetic actuation; use 'newton' or 'lm'",
-                    settings.method.name()
+        // What only the discrete potential models (shooting and the paper's
+        // system do not).
+        if matches!(
+            settings.method,
+            Method::Shooting | Method::Paper | Method::PaperLiteral
+        ) {
+            let magnetic = !scene.magnetization.is_empty() || scene.tip_magnet != Vector3::zeros();
+            let unsupported = [
+                (
+                    !scene.tendons.is_empty() || magnetic,
+                    "tendons or magnetic actuation",
                 ),
-            ));
-        }
-        if !scene.sections.is_empty()
-            && matches!(
-                settings.method,
-                Method::Shooting | Method::Paper | Method::PaperLiteral
-            )
-        {
-            return Err(Error::argument(
-                "method",
-                format!(
-                    "{} does not model sections with their own stiffness or density; use 'newton' or 'lm'",
-                    settings.method.name()
+                (
+                    !scene.sections.is_empty(),
+                    "sections with their own stiffness or density",
                 ),
-            ));
-        }
-        if scene.tip_force_offset != Vector3::zeros()
-            && matches!(
-                settings.method,
-                Method::Shooting | Method::Paper | Method::PaperLiteral
-            )
-        {
-            return Err(Error::argument(
-                "method",
-                format!(
-                    "{} does not model a tip force off the tip (tip_force_offset); use 'newton' or 'lm'",
-                    settings.method.name()
+                (
+                    scene.tip_force_offset != Vector3::zeros(),
+                    "a tip force off the tip (tip_force_offset)",
                 ),
-            ));
+            ];
+            if let Some((_, what)) = unsupported.iter().find(|(present, _)| *present) {
+                return Err(Error::argument(
+                    "method",
+                    format!(
+                        "{} does not model {what}; use 'newton' or 'lm'",
+                        settings.method.name()
+                    ),
+                ));
+            }
         }
         if settings.method == Method::Shooting && !scene.guides.is_empty() {
             return Err(Error::argument(

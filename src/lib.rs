@@ -33,6 +33,7 @@ pub mod blocktri;
 pub mod error;
 mod fe4;
 pub mod interrupt;
+pub mod mesh;
 pub mod model;
 pub mod paper_method;
 pub mod quat;

@@ -15,6 +15,7 @@
 
 use crate::blocktri::BlockTridiagonal;
 use crate::fe4;
+use crate::mesh::Mesh;
 use crate::quat::{rotation_form_apply, skew, tangent_bilinear, tangent_form_apply, Quat};
 use crate::scene::{Scene, TipCondition};
 use nalgebra::{Matrix3, Vector3};
@@ -122,7 +123,7 @@ impl std::str::FromStr for Scheme {
     }
 }
 
-/// A scene discretised by `n` elements of length `ds`.
+/// A scene discretised by `n` elements (see [`Mesh`]: equal within a section).
 #[derive(Debug, Clone)]
 pub struct RodModel {
     pub n: usize,
@@ -135,7 +136,11 @@ pub struct RodModel {
     /// Fourth-order scheme: the internal nodes of the last evaluation.
     mids: fe4::MidCache,
     pub length: f64,
+    /// The mean element length `L / n` [m]: every element's unless the
+    /// sections have lengths of their own (see [`RodModel::h`]).
     pub ds: f64,
+    /// Where the nodes sit.
+    mesh: Mesh,
     /// Diagonal stiffness `(kx, ky, kz)` [N m^2]; with per-section
     /// stiffness, the softest section's in each component (it sets the
     /// residual's scale).
@@ -170,7 +175,8 @@ pub struct RodModel {
     gauss_rest: Vec<Vector3<f64>>,
     /// Mean internal force `Fbar_i` of element `i` (index `i - 1`), world frame [N].
     pub mean_force: Vec<Vector3<f64>>,
-    /// `Fbar_j + Fbar_{j+1}` of node `j` (index `j - 1`), the weight of `T(q_j)`.
+    /// `h_j Fbar_j + h_{j+1} Fbar_{j+1}` of node `j` (index `j - 1`), the
+    /// weight of `T(q_j)` [N m].
     node_force_weight: Vec<Vector3<f64>>,
     /// Internal force `F_j` at node `j = 0..n`, world frame [N].
     pub node_force: Vec<Vector3<f64>>,
@@ -202,6 +208,8 @@ impl RodModel {
     pub fn new(scene: &Scene, n: usize) -> Self {
         let length = scene.length;
         let ds = length / n as f64;
+        let mesh = scene.mesh(n);
+        let h = |i: usize| mesh.element_lengths()[i - 1];
         let sections = scene.rest_curvature.len().max(1);
         let rest_curvature = (0..n)
             .map(
@@ -236,13 +244,13 @@ impl RodModel {
         // The distributed force beyond node j: sum over the elements past it.
         let mut beyond = vec![Vector3::zeros(); n + 1];
         for j in (0..n).rev() {
-            beyond[j] = beyond[j + 1] + force_of(j + 1) * ds;
+            beyond[j] = beyond[j + 1] + force_of(j + 1) * h(j + 1);
         }
         // Point loads by node: a load at node k acts on every element i <= k.
         let point_loads: Vec<(usize, Vector3<f64>)> = scene
             .point_loads
             .iter()
-            .map(|p| (((p.s / ds).round() as usize).min(n), p.force))
+            .map(|p| (mesh.nearest_node(p.s), p.force))
             .collect();
         let point_loads_from = |node: usize, strictly_distal: bool| -> Vector3<f64> {
             point_loads
@@ -262,12 +270,18 @@ impl RodModel {
             .collect();
         let mean_force: Vec<Vector3<f64>> = (1..=n)
             .map(|i| {
-                let to_mid = beyond[i] + force_of(i) * (0.5 * ds);
+                let to_mid = beyond[i] + force_of(i) * (0.5 * h(i));
                 scene.tip_force + to_mid + point_loads_from(i, false)
             })
             .collect();
         let node_force_weight = (1..=n)
-            .map(|j| mean_force[j - 1] + mean_force.get(j).copied().unwrap_or_else(Vector3::zeros))
+            .map(|j| {
+                let next = match j < n {
+                    true => h(j + 1) * mean_force[j],
+                    false => Vector3::zeros(),
+                };
+                h(j) * mean_force[j - 1] + next
+            })
             .collect();
         let stiffness = scene.stiffness();
         let magnetized =
@@ -282,7 +296,7 @@ impl RodModel {
         };
         let mut tendons = scene.tendons.clone();
         tendons.sort_by(|a, b| b.end.total_cmp(&a.end));
-        let last_element = |t: &crate::scene::Tendon| ((t.end / ds).round() as usize).min(n);
+        let last_element = |t: &crate::scene::Tendon| mesh.nearest_node(t.end);
         let tendons_through = (1..=n)
             .map(|i| tendons.iter().take_while(|t| last_element(t) >= i).count())
             .collect();
@@ -291,7 +305,7 @@ impl RodModel {
             .guides
             .iter()
             .map(|g| {
-                let node = (g.s / ds).round() as usize;
+                let node = mesh.nearest_node(g.s);
                 PointConstraint {
                     node,
                     target: g.position,
@@ -322,6 +336,7 @@ impl RodModel {
             mids: fe4::MidCache::default(),
             length,
             ds,
+            mesh,
             stiffness,
             element_stiffness,
             element_force,
@@ -390,6 +405,29 @@ impl RodModel {
         self
     }
 
+    /// Length of element `i` (from 1) [m].
+    #[inline(always)]
+    pub fn h(&self, i: usize) -> f64 {
+        self.mesh.element_lengths()[i - 1]
+    }
+
+    /// Arc length of node `i` [m].
+    #[inline(always)]
+    pub fn arc(&self, i: usize) -> f64 {
+        self.mesh.arcs()[i]
+    }
+
+    /// Arc length of the middle of element `i` [m].
+    #[inline(always)]
+    fn mid_arc(&self, i: usize) -> f64 {
+        0.5 * (self.arc(i - 1) + self.arc(i))
+    }
+
+    /// Where the nodes sit.
+    pub fn mesh(&self) -> &Mesh {
+        &self.mesh
+    }
+
     /// Stiffness of element `i`.
     #[inline]
     fn stiffness_of(&self, i: usize) -> Vector3<f64> {
@@ -421,18 +459,19 @@ impl RodModel {
     /// The reactions of held points act on it as point forces beyond it.
     fn fe4_element(&self, i: usize, load: f64, reactions: &[Vector3<f64>]) -> fe4::Element<'_> {
         // The internal force changes by the distributed force along the element.
-        let half = load * self.force_of(i) * (0.5 * self.ds);
+        let h = self.h(i);
+        let half = load * self.force_of(i) * (0.5 * h);
         let mut mean = load * self.mean_force[i - 1];
         if !reactions.is_empty() {
             mean += self.reactions_from(reactions, i);
         }
         fe4::Element {
-            h: self.ds,
+            h,
             stiffness: self.stiffness_of(i),
             rest: self.gauss_rest[i - 1],
             force: [mean + half, mean, mean - half],
             tendons: self.element_tendons(i),
-            start: (i - 1) as f64 * self.ds,
+            start: self.arc(i - 1),
             tension_scale: load,
             magnet: self
                 .magnetization
@@ -459,7 +498,7 @@ impl RodModel {
         let mut q = Vec::with_capacity(self.n + 1);
         q.push(self.base);
         for (i, k) in self.rest_curvature.iter().enumerate() {
-            let v = 0.5 * self.ds * k;
+            let v = 0.5 * self.h(i + 1) * k;
             // Beyond ds |kappa0| = 2 no element reaches its rest curvature (the
             // solve reports it underresolved); the nearest is a half turn.
             let w = (1.0 - v.norm_squared()).max(0.0).sqrt();
@@ -476,7 +515,8 @@ impl RodModel {
             Scheme::Fe4 => self
                 .rest_curvature
                 .iter()
-                .map(|k| fe4::gauss_rest_curvature(*k, self.ds))
+                .enumerate()
+                .map(|(i, k)| fe4::gauss_rest_curvature(*k, self.h(i + 1)))
                 .collect(),
             Scheme::Fd2 => Vec::new(),
         };
@@ -507,7 +547,7 @@ impl RodModel {
         for i in 1..=self.n {
             let el = self.fe4_element(i, 0.0, &[]);
             let m = fe4::solve_mid(q[i - 1], q[i], &el, None, None);
-            out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], self.ds);
+            out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], el.h);
         }
     }
 
@@ -562,12 +602,11 @@ impl RodModel {
             tension: 1.0,
             ..tendon.clone()
         }];
-        let last = ((tendon.end / self.ds).round() as usize).min(self.n);
+        let last = self.mesh.nearest_node(tendon.end);
         for i in 1..=last {
             let c = q[i - 1].conj() * q[i];
-            let omega = (2.0 / self.ds) * c.v;
-            let s = (i as f64 - 0.5) * self.ds;
-            let (_, moment, _) = crate::tendon::density(&unit, 1.0, s, &omega);
+            let omega = (2.0 / self.h(i)) * c.v;
+            let (_, moment, _) = crate::tendon::density(&unit, 1.0, self.mid_arc(i), &omega);
             let amat = Matrix3::identity() * c.w + skew(&c.v);
             out[i - 1] += amat.transpose() * moment;
             if i >= 2 {
@@ -594,7 +633,7 @@ impl RodModel {
         let mut from = (0usize, self.base_position);
         let mut ratio: f64 = 0.0;
         for c in &self.constraints {
-            let arc = (c.node - from.0) as f64 * self.ds;
+            let arc = self.arc(c.node) - self.arc(from.0);
             ratio = ratio.max((c.target - from.1).norm() / arc);
             from = (c.node, c.target);
         }
@@ -717,7 +756,7 @@ impl RodModel {
         reactions: &[Vector3<f64>],
         with_jacobian: bool,
     ) -> ElementTerms {
-        let (ds, k) = (self.ds, self.stiffness_of(i));
+        let (ds, k) = (self.h(i), self.stiffness_of(i));
         let (a, b) = (q[i - 1], q[i]);
         let c = a.conj() * b;
         let (c0, cv) = (c.w, c.v);
@@ -730,7 +769,7 @@ impl RodModel {
         if !tendons.is_empty() {
             let omega = (2.0 / ds) * cv;
             let (_, moment, stiffness) =
-                crate::tendon::density(tendons, load, (i as f64 - 0.5) * ds, &omega);
+                crate::tendon::density(tendons, load, self.mid_arc(i), &omega);
             w += moment;
             tendon_stiffness = Some(stiffness);
         }
@@ -798,7 +837,7 @@ impl RodModel {
         with_jacobian: bool,
     ) -> ElementTerms {
         let (a, b) = (q[i - 1], q[i]);
-        let kappa = -self.ds / 3.0;
+        let kappa = -self.h(i) / 3.0;
         let field = load * self.magnetic_field;
         let (sa, sb) = (
             rotation_form_apply(&field, m, a),
@@ -959,7 +998,6 @@ impl RodModel {
     ) {
         debug_assert_eq!(q.len(), self.n + 1);
         debug_assert_eq!(g.len(), self.n);
-        let ds = self.ds;
         let load = self.load_scale(lambda);
         if self.scheme == Scheme::Fe4 {
             let mut mids = self.mids.lock();
@@ -979,9 +1017,12 @@ impl RodModel {
         for j in (1..=self.n).filter(|_| self.scheme == Scheme::Fd2) {
             let mut weight = load * self.node_force_weight[j - 1];
             if !reactions.is_empty() {
-                weight += self.reactions_from(reactions, j) + self.reactions_from(reactions, j + 1);
+                weight += self.h(j) * self.reactions_from(reactions, j);
+                if j < self.n {
+                    weight += self.h(j + 1) * self.reactions_from(reactions, j + 1);
+                }
             }
-            let h = (-ds / 3.0) * weight;
+            let h = (-1.0 / 3.0) * weight;
             let f = q[j].inverse_rotate(h);
             g[j - 1] += Vector3::new(-f.y, f.x, 0.0);
             if let Some(jac) = jac.as_deref_mut() {
@@ -990,7 +1031,7 @@ impl RodModel {
             // The field on the magnetisation of the elements that meet here.
             for e in [j, j + 1] {
                 if let Some(m) = self.magnetization.get(e - 1) {
-                    let c = (-ds / 3.0) * load * self.magnetic_field;
+                    let c = (-self.h(e) / 3.0) * load * self.magnetic_field;
                     let (_, grad, block) = body_vector_terms(q[j], &c, m);
                     g[j - 1] += grad;
                     if let Some(jac) = jac.as_deref_mut() {
@@ -1058,25 +1099,26 @@ impl RodModel {
         if self.scheme == Scheme::Fe4 {
             return self.fe4_position_jacobian(q, k, out);
         }
-        let third = self.ds / 3.0;
         for j in 1..=self.n {
             if j > k {
                 out[j - 1] = Matrix3::zeros();
                 continue;
             }
             // Row c: gradient of e_c . r_k. T(q_j) counts once per element of node
-            // j inside [1, k]; the bilinear terms pair it with its neighbours.
-            let diagonal_weight = if j < k { 2.0 } else { 1.0 };
+            // j inside [1, k] (element `i` weighted by `h_i / 3`); the bilinear
+            // terms pair it with its neighbours.
+            let before = self.h(j) / 3.0;
+            let after = if j < k { self.h(j + 1) / 3.0 } else { 0.0 };
             let mut block = Matrix3::zeros();
             for c in 0..3 {
                 let e = Vector3::ith(c, 1.0);
                 let f = q[j].inverse_rotate(e);
-                let mut row = diagonal_weight * Vector3::new(-f.y, f.x, 0.0);
-                row += 0.5 * (q[j].conj() * tangent_form_apply(&e, q[j - 1])).v;
+                let mut row = (before + after) * Vector3::new(-f.y, f.x, 0.0);
+                row += (0.5 * before) * (q[j].conj() * tangent_form_apply(&e, q[j - 1])).v;
                 if j < k {
-                    row += 0.5 * (q[j].conj() * tangent_form_apply(&e, q[j + 1])).v;
+                    row += (0.5 * after) * (q[j].conj() * tangent_form_apply(&e, q[j + 1])).v;
                 }
-                block.set_row(c, &(third * row).transpose());
+                block.set_row(c, &row.transpose());
             }
             out[j - 1] = block;
         }
@@ -1090,7 +1132,7 @@ impl RodModel {
         let mids = self.mids.lock();
         for e in 1..=k {
             let Some(state) = mids[e - 1] else { continue };
-            let c = fe4::chord_jacobian([q[e - 1], state.node(), q[e]], self.ds);
+            let c = fe4::chord_jacobian([q[e - 1], state.node(), q[e]], self.h(e));
             let (ma, mb, _) = state.response();
             if e >= 2 {
                 out[e - 2] += c[0] - c[1] * ma;
@@ -1116,7 +1158,7 @@ impl RodModel {
         let mut at_node = vec![Matrix3::zeros(); last + 1];
         for e in 1..=last {
             if let Some(state) = mids[e - 1] {
-                let c = fe4::chord_jacobian([q[e - 1], state.node(), q[e]], self.ds);
+                let c = fe4::chord_jacobian([q[e - 1], state.node(), q[e]], self.h(e));
                 let (_, _, inverse) = state.response();
                 running += c[1] * inverse * c[1].transpose();
             }
@@ -1181,8 +1223,11 @@ impl RodModel {
     /// of order `kappa L` relative to `k / L` and round to `eps` of that (a tip
     /// force of 1e8 `EI/L^2` leaves a residual noise of about 1e-8).
     pub fn roundoff_floor(&self) -> f64 {
-        let curvature = self.load_parameter + self.max_rest_turn() * self.n as f64;
-        8.0 * f64::EPSILON * (self.n as f64 + curvature)
+        // `L / h` of the shortest element: `n` when the elements are equal.
+        let shortest = self.mesh.element_lengths().iter().fold(self.ds, |a, b| a.min(*b));
+        let per_length = self.n as f64 * self.ds / shortest;
+        let curvature = self.load_parameter + self.max_rest_turn() * per_length;
+        8.0 * f64::EPSILON * (per_length + curvature)
     }
 
     /// The line-search merit: the sum of squares of the scaled torque rows.
@@ -1201,15 +1246,16 @@ impl RodModel {
             .fold(0.0, f64::max)
     }
 
-    /// Largest turning of one element at rest, `ds |kappa0|` [rad].
+    /// Largest turning of one element at rest, `h_i |kappa0_i|` [rad].
     pub fn max_rest_turn(&self) -> f64 {
         self.rest_curvature
             .iter()
-            .map(|k| self.ds * k.norm())
+            .enumerate()
+            .map(|(i, k)| self.h(i + 1) * k.norm())
             .fold(0.0, f64::max)
     }
 
-    /// Node positions `r_0` (the base position), `r_i = r_{i-1} + ds T_i`
+    /// Node positions `r_0` (the base position), `r_i = r_{i-1} + h_i T_i`
     /// with the exact mean tangent.
     /// (Fourth-order scheme: by Simpson's rule on each element's tangents,
     /// with the internal nodes of the full loads.)
@@ -1220,12 +1266,12 @@ impl RodModel {
             for i in 1..=self.n {
                 let el = self.fe4_element(i, 1.0, &[]);
                 let m = fe4::mid_for(&mut mids, i, q[i - 1], q[i], &el);
-                out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], self.ds);
+                out[i] = out[i - 1] + fe4::chord([q[i - 1], m, q[i]], el.h);
             }
             return;
         }
         for i in 1..=self.n {
-            out[i] = out[i - 1] + self.ds * mean_tangent(q[i - 1], q[i]);
+            out[i] = out[i - 1] + self.h(i) * mean_tangent(q[i - 1], q[i]);
         }
     }
 
@@ -1256,14 +1302,13 @@ impl RodModel {
         }
         for i in 1..=self.n {
             let (a, b) = (q[i - 1], q[i]);
-            let cv = (a.conj() * b).v;
-            let e = (2.0 / self.ds) * cv - self.rest_curvature[i - 1];
+            let (cv, h) = ((a.conj() * b).v, self.h(i));
+            let e = (2.0 / h) * cv - self.rest_curvature[i - 1];
             let mut elastic = 0.5 * e.dot(&self.stiffness_of(i).component_mul(&e));
             let tendons = self.element_tendons(i);
             if !tendons.is_empty() {
-                let omega = (2.0 / self.ds) * cv;
-                let s = (i as f64 - 0.5) * self.ds;
-                elastic += crate::tendon::density(tendons, load, s, &omega).0;
+                let omega = (2.0 / h) * cv;
+                elastic += crate::tendon::density(tendons, load, self.mid_arc(i), &omega).0;
             }
             let mut work = load * self.mean_force[i - 1].dot(&mean_tangent(a, b));
             if let Some(m) = self.magnetization.get(i - 1) {
@@ -1272,7 +1317,7 @@ impl RodModel {
                 let form = |x: Quat| rotation_form_apply(&field, m, x);
                 work += (a.dot(form(a)) + a.dot(form(b)) + b.dot(form(b))) / 3.0;
             }
-            total += self.ds * (elastic - work);
+            total += h * (elastic - work);
         }
         total
     }

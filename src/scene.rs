@@ -8,7 +8,8 @@
 //! length            m
 //! stiffness         {kx, ky, kz} N m^2  |  {E, G, diameter} of a round rod
 //! rest_curvature    [[kappa_x, kappa_y], ...] 1/m, one per equal section
-//! sections          [{stiffness, linear_density}, ...] per equal section (each optional)
+//! sections          [{length, stiffness, linear_density}, ...] per section (each optional;
+//!                   lengths for all sections or none: equal sections)
 //! distributed_force [fx, fy, fz] N/m, world frame
 //! gravity           {linear_density kg/m, vector [gx, gy, gz] m/s^2}
 //! tip_force         [Px, Py, Pz] N, world frame
@@ -21,6 +22,7 @@
 //! ```
 
 use crate::error::{Error, Result};
+use crate::mesh::Mesh;
 use crate::model::clamped_end_deficit;
 use crate::quat::Quat;
 use crate::read::{finite, numbers, positive, table_list, vec3, Table};
@@ -114,10 +116,13 @@ impl Tendon {
     }
 }
 
-/// What one of a rod's equal sections changes of the rod's own properties
+/// What one of a rod's sections changes of the rod's own properties
 /// (each `None`: the rod's).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SectionProperties {
+    /// Length of the section [m]; given for every section or for none
+    /// (`None`: the rod's sections are equal).
+    pub length: Option<f64>,
     pub stiffness: Option<Stiffness>,
     /// Mass per length [kg/m] (weighs under the scene's gravity).
     pub linear_density: Option<f64>,
@@ -140,10 +145,10 @@ pub struct Scene {
     /// Length `L` [m].
     pub length: f64,
     pub stiffness_spec: Stiffness,
-    /// Rest curvature `[kappa_x, kappa_y]` per equal section [1/m]; empty: straight.
+    /// Rest curvature `[kappa_x, kappa_y]` per section [1/m]; empty: straight.
     pub rest_curvature: Vec<[f64; 2]>,
-    /// Per equal section, its own stiffness or linear density; empty: the
-    /// rod's everywhere.
+    /// Per section, its own length, stiffness or linear density; empty: the
+    /// rod's everywhere, in equal sections.
     pub sections: Vec<SectionProperties>,
     /// Distributed dead force [N/m], world frame, in addition to gravity.
     pub distributed_force: Vector3<f64>,
@@ -236,10 +241,21 @@ impl Scene {
         self.distributed_force + g
     }
 
-    /// Number of equal sections (1 for a rod without rest curvature or
+    /// Number of sections (1 for a rod without rest curvature or
     /// per-section properties).
     pub fn sections(&self) -> usize {
         self.rest_curvature.len().max(self.sections.len()).max(1)
+    }
+
+    /// The sections' own lengths [m]; empty when the sections are equal.
+    pub fn section_lengths(&self) -> Vec<f64> {
+        self.sections.iter().filter_map(|p| p.length).collect()
+    }
+
+    /// Where the nodes of `n` elements sit: `n / sections` equal elements in
+    /// each section (see [`Mesh`]).
+    pub fn mesh(&self, n: usize) -> Mesh {
+        Mesh::new(self.length, &self.section_lengths(), n)
     }
 
     /// Read a scene from JSON text (duplicate keys refused, see [`Value::from_json_str`]).
@@ -290,7 +306,6 @@ impl Scene {
                 ))
             }
         };
-        let length = positive(top.require("length")?, "length")?;
         let stiffness_spec = read_stiffness(top.require("stiffness")?)?;
         let rest_curvature = match top.get("rest_curvature") {
             None => Vec::new(),
@@ -305,6 +320,7 @@ impl Scene {
             None => Vec::new(),
             Some(v) => section_properties(v, gravity.is_some())?,
         };
+        let length = rod_length(top.get("length"), &sections)?;
         if !sections.is_empty()
             && !rest_curvature.is_empty()
             && sections.len() != rest_curvature.len()
@@ -368,6 +384,17 @@ impl Scene {
             tip_magnet: vec3_or_zero("tip_magnet")?,
             magnetic_field: vec3_or_zero("magnetic_field")?,
         };
+        let k = scene.magnetization.len();
+        if k > 1 && k != scene.sections() && !scene.section_lengths().is_empty() {
+            return Err(Error::scene(
+                "magnetization",
+                format!(
+                    "{k} entries, but the rod has {} sections of their own lengths: one entry, \
+                     or one a section",
+                    scene.sections()
+                ),
+            ));
+        }
         scene.check_derived()?;
         Ok(scene)
     }
@@ -485,6 +512,9 @@ impl Scene {
                 .iter()
                 .map(|p| {
                     let mut entries = Vec::new();
+                    if let Some(l) = p.length {
+                        entries.push(("length".to_string(), num(l)));
+                    }
                     if let Some(k) = &p.stiffness {
                         entries.push(("stiffness".to_string(), stiffness_value(k)));
                     }
@@ -607,7 +637,7 @@ impl Scene {
                 format!("must be a positive multiple of the number of sections ({m}), got {n}"),
             ));
         }
-        let ds = self.length / n as f64;
+        let mesh = self.mesh(n);
         for (i, p) in self.point_loads.iter().enumerate() {
             let key = format!("point_loads[{i}].s");
             if !in_rod(p.s, self.length) {
@@ -616,10 +646,10 @@ impl Scene {
                     format!("must lie in (0, L] = (0, {}], got {}", self.length, p.s),
                 ));
             }
-            check_on_node(&key, p.s, ds)?;
+            check_on_node(&key, p.s, &mesh)?;
         }
         for (i, t) in self.tendons.iter().enumerate() {
-            check_on_node(&format!("tendons[{i}].end"), t.end, ds)?;
+            check_on_node(&format!("tendons[{i}].end"), t.end, &mesh)?;
         }
         let k = self.magnetization.len();
         if k > 0 && n % k != 0 {
@@ -640,7 +670,7 @@ impl Scene {
     /// at full reach (only the straight rod reaches it: the reaction is
     /// indeterminate or unbounded), or beyond what the discrete rod reaches.
     pub fn check_constraints(&self, n: usize) -> Result<Option<ReachLimit>> {
-        let ds = self.length / n as f64;
+        let mesh = self.mesh(n);
         if let TipCondition::Clamped { .. } = self.tip {
             if self.tip_force.norm() > 0.0 || self.tip_moment.norm() > 0.0 {
                 return Err(Error::scene(
@@ -663,7 +693,7 @@ impl Scene {
                     ),
                 ));
             }
-            check_on_node(&key, g.s, ds)?;
+            check_on_node(&key, g.s, &mesh)?;
             if i > 0 && g.s <= previous {
                 return Err(Error::scene(key, "guides must be given by increasing s"));
             }
@@ -736,7 +766,7 @@ impl Scene {
     /// after the last) keeps the discrete rod from straightening at once:
     /// its reach falls short of the arc.
     fn held_spans(&self, n: usize) -> Result<Vec<HeldSpan>> {
-        let ds = self.length / n as f64;
+        let mesh = self.mesh(n);
         let held = self.held_points();
         let held_count = held.len();
         let mut from = (0.0, self.base_position);
@@ -753,24 +783,29 @@ impl Scene {
                     ),
                 ));
             }
-            let elements = ((arc / ds).round() as usize).max(1);
+            let (first, last) = (mesh.nearest_node(from.0), mesh.nearest_node(s));
+            let elements = last.saturating_sub(first).max(1);
+            let h = mesh.element_lengths();
+            // The deficit is in units of the clamped end's element.
+            let (base_h, tip_h) = (h[first.min(h.len() - 1)], h[last.max(1) - 1]);
             let angle_to = |tangent: Vector3<f64>| tangent.angle(&chord).min(PI);
             let mut deficit = 0.0f64;
             if index == 0 {
                 let base_tangent = self.base_quaternion.rotate(Vector3::z());
-                deficit = clamped_end_deficit(angle_to(base_tangent), elements);
+                deficit = base_h * clamped_end_deficit(angle_to(base_tangent), elements);
             }
             if let (true, TipCondition::Clamped { quaternion, .. }) =
                 (index + 1 == held_count, &self.tip)
             {
                 let tip_tangent = quaternion.rotate(Vector3::z());
-                deficit = deficit.max(clamped_end_deficit(angle_to(tip_tangent), elements));
+                deficit =
+                    deficit.max(tip_h * clamped_end_deficit(angle_to(tip_tangent), elements));
             }
             spans.push(HeldSpan {
                 key,
                 arc,
                 distance,
-                reach: arc - ds * deficit,
+                reach: arc - deficit,
             });
             from = (s, p);
         }
@@ -914,11 +949,41 @@ pub(crate) fn stiffness_value(k: &Stiffness) -> Value {
     )
 }
 
-/// Per-section properties: a list of `{stiffness, linear_density}` tables
-/// (each key optional; a density weighs only under the scene's gravity).
+/// The rod's length: the `length` key, or the sum of the sections' lengths
+/// (given for all sections or none), and both agree when both are given.
+fn rod_length(key: Option<&Value>, sections: &[SectionProperties]) -> Result<f64> {
+    let given = key.map(|v| positive(v, "length")).transpose()?;
+    let lengths: Vec<f64> = sections.iter().filter_map(|p| p.length).collect();
+    if lengths.is_empty() {
+        return given.ok_or_else(|| Error::scene("length", "missing"));
+    }
+    if lengths.len() != sections.len() {
+        let missing = sections.iter().position(|p| p.length.is_none()).unwrap_or(0);
+        return Err(Error::scene(
+            format!("sections[{missing}].length"),
+            "missing: give every section its length, or none (equal sections)",
+        ));
+    }
+    let total: f64 = lengths.iter().sum();
+    match given {
+        Some(l) if (l - total).abs() > 1e-9 * l => Err(Error::scene(
+            "length",
+            format!("{l} m, but the sections' lengths add up to {total} m"),
+        )),
+        Some(l) => Ok(l),
+        None => Ok(total),
+    }
+}
+
+/// Per-section properties: a list of `{length, stiffness, linear_density}`
+/// tables (each key optional; a density weighs only under the scene's gravity).
 fn section_properties(v: &Value, has_gravity: bool) -> Result<Vec<SectionProperties>> {
-    let allowed = ["stiffness", "linear_density"];
+    let allowed = ["length", "stiffness", "linear_density"];
     table_list(v, "sections", &allowed, ", one a section", |t| {
+        let length = t
+            .get("length")
+            .map(|x| positive(x, &t.key("length")))
+            .transpose()?;
         let stiffness = t
             .get("stiffness")
             .map(|k| read_stiffness(k).map_err(|e| prefixed(e, t.path())))
@@ -943,6 +1008,7 @@ fn section_properties(v: &Value, has_gravity: bool) -> Result<Vec<SectionPropert
             }
         };
         Ok(SectionProperties {
+            length,
             stiffness,
             linear_density,
         })
@@ -1036,8 +1102,6 @@ fn tip(v: &Value) -> Result<TipCondition> {
     }
 }
 
-/// Refuse an arc length `s` that does not fall on a node of spacing `ds`
-/// (up to round-off): loads and guides act at nodes.
 /// Whether arc length `s` lies in `(0, L]`, within the round-off of a sum
 /// of section lengths (`3 * 0.1` is a little past `0.3`): the same relative
 /// tolerance as [`check_on_node`].
@@ -1045,14 +1109,26 @@ fn in_rod(s: f64, length: f64) -> bool {
     s > 0.0 && s <= length * (1.0 + 1e-9)
 }
 
-fn check_on_node(key: &str, s: f64, ds: f64) -> Result<()> {
-    let node = s / ds;
-    if (node - node.round()).abs() <= 1e-9 * node.max(1.0) {
+/// Refuse an arc length `s` that does not fall on a node of `mesh` (up to
+/// round-off): loads, guides and anchors act at nodes.
+fn check_on_node(key: &str, s: f64, mesh: &Mesh) -> Result<()> {
+    if mesh.node_at(s).is_some() {
         return Ok(());
     }
+    let h = mesh.element_lengths();
+    let spacing = if h.iter().all(|x| *x == h[0]) {
+        format!("a multiple of L/n = {}", h[0])
+    } else {
+        let arcs = mesh.arcs();
+        let after = arcs.partition_point(|a| *a < s).clamp(1, arcs.len() - 1);
+        format!(
+            "a node (each section has its own equal elements; the nearest nodes are at {} and {})",
+            arcs[after - 1], arcs[after]
+        )
+    };
     Err(Error::scene(
         key,
-        format!("must fall on a node: s = {s} is not a multiple of L/n = {ds}"),
+        format!("must fall on a node: s = {s} is not {spacing}"),
     ))
 }
 

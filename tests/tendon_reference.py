@@ -43,10 +43,25 @@ def routing(tendon, s):
 def solve_reference(scene, samples, rtol=1e-12):
     """Node positions at the arc lengths ``samples`` of the tendon scene
     (a dict as softspine reads it: diagonal stiffness, rest curvature per
-    equal section, gravity, tip force and moment, tendons, per-section
-    ``sections`` with their own diagonal stiffness or linear density; a free
-    tip)."""
-    length = scene["length"]
+    section, gravity, tip force and moment, tendons, per-section
+    ``sections`` with their own length, diagonal stiffness or linear density;
+    a free tip)."""
+    own = scene.get("sections", [{}])
+    lengths = [p["length"] for p in own if "length" in p]
+    length = scene.get("length", sum(lengths))
+
+    def splitter(count):
+        """The index of the section holding ``s``, of ``count`` equal
+        sections, or of the scene's sections when they have their lengths."""
+        if lengths and count == len(lengths):
+            ends = np.cumsum(lengths)[:-1]
+            return lambda s: int(np.searchsorted(ends, s, side="right"))
+        return lambda s: min(int(s / length * count), count - 1)
+
+    def section_ends(count):
+        if lengths and count == len(lengths):
+            return set(np.cumsum(lengths)[:-1].tolist())
+        return {length * i / count for i in range(1, count)}
 
     def diagonal(table):
         return np.array([table[c] for c in ("kx", "ky", "kz")], dtype=float)
@@ -54,15 +69,16 @@ def solve_reference(scene, samples, rtol=1e-12):
     grav = scene.get("gravity")
     vector = np.array(grav["vector"], dtype=float) if grav else np.zeros(3)
     density = grav["linear_density"] if grav else 0.0
-    own = scene.get("sections", [{}])
     stiffnesses = [diagonal(p.get("stiffness", scene["stiffness"])) for p in own]
     forces = [p.get("linear_density", density) * vector for p in own]
 
+    own_section = splitter(len(own))
+
     def stiff(s):
-        return stiffnesses[min(int(s / length * len(own)), len(own) - 1)]
+        return stiffnesses[own_section(s)]
 
     def weight(s):
-        return forces[min(int(s / length * len(own)), len(own) - 1)]
+        return forces[own_section(s)]
 
     sections = scene.get("rest_curvature", [[0.0, 0.0]])
     tendons = scene.get("tendons", [])
@@ -73,18 +89,18 @@ def solve_reference(scene, samples, rtol=1e-12):
     tip_moment = np.array(scene.get("tip_moment", [0, 0, 0]), dtype=float)
     ends = sorted({t.get("end", length) for t in tendons})
     breaks = sorted(
-        {length * i / len(sections) for i in range(1, len(sections))}
-        | {length * i / len(own) for i in range(1, len(own))}
-        | {length * i / len(magnetization) for i in range(1, len(magnetization))}
+        section_ends(len(sections))
+        | section_ends(len(own))
+        | section_ends(len(magnetization))
         | {e for e in ends if e < length}
     )
+    magnet_section, rest_section = splitter(len(magnetization)), splitter(len(sections))
 
     def magnet(s):
-        i = min(int(s / length * len(magnetization)), len(magnetization) - 1)
-        return magnetization[i]
+        return magnetization[magnet_section(s)]
 
     def rest(s):
-        i = min(int(s / length * len(sections)), len(sections) - 1)
+        i = rest_section(s)
         return np.array([sections[i][0], sections[i][1], 0.0])
 
     def active(s):

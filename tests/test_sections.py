@@ -69,6 +69,71 @@ def test_the_moments_read_each_sections_stiffness():
     assert jump < 0.1 * scale, (jump, scale)
 
 
+UNEQUAL = {
+    **{k: v for k, v in SCENE.items() if k != "length"},
+    "sections": [
+        {**SCENE["sections"][0], "length": 0.2},
+        {"length": 0.45},
+        {**SCENE["sections"][2], "length": 0.25},
+    ],
+    # Anchored at the end of the second section (s = 0.65).
+    "tendons": [{"tension": 2.0, "offset": [0.01, 0.004], "end": 0.65}],
+}
+
+
+def test_sections_of_their_own_lengths_converge_to_the_cosserat_rod_at_the_schemes_orders():
+    fine = softspine.solve(UNEQUAL, n_elements=48, residual_tol=1e-13)
+    s = fine.arc_length
+    # Each section has 16 equal elements of its own length.
+    assert np.allclose(np.diff(s), np.repeat([0.2, 0.45, 0.25], 16) / 16, rtol=1e-12, atol=0)
+    reference = solve_reference(UNEQUAL, list(s), rtol=1e-11)
+    errors = {}
+    for scheme, sizes in (("fd2", (12, 24, 48)), ("fe4", (6, 12, 24))):
+        errors[scheme] = []
+        for n in sizes:
+            sol = softspine.solve(UNEQUAL, n_elements=n, scheme=scheme, residual_tol=1e-13)
+            assert sol.converged and sol.stable, sol.message
+            assert np.allclose(sol.arc_length, s[:: 48 // n], rtol=0, atol=1e-15)
+            errors[scheme].append(np.abs(sol.positions - reference[:: 48 // n]).max() / 0.9)
+    assert all(1.8 < p < 2.2 for p in observed_orders(errors["fd2"])), errors
+    assert all(3.6 < p < 4.4 for p in observed_orders(errors["fe4"])), errors
+    assert errors["fe4"][-1] < 2e-7, errors
+    # The lengths matter: equal sections of the same properties are elsewhere.
+    equal = {**UNEQUAL, "length": 0.9,
+             "sections": [{k: v for k, v in p.items() if k != "length"}
+                          for p in UNEQUAL["sections"]],
+             "tendons": [{**UNEQUAL["tendons"][0], "end": 0.6}]}
+    other = softspine.solve(equal, n_elements=48)
+    assert np.abs(other.positions[-1] - reference[-1]).max() > 1e-2
+
+
+def test_section_lengths_are_read_checked_and_kept():
+    sol = softspine.solve(UNEQUAL, n_elements=12)
+    assert sol.to_dict()["section_lengths"] == [0.2, 0.45, 0.25]
+    back = softspine.Solution.from_dict(sol.to_dict())
+    assert np.array_equal(back.arc_length, sol.arc_length)
+    assert np.array_equal(back.curvatures, sol.curvatures)
+    scene = softspine.Scene(UNEQUAL)
+    assert scene.to_dict()["length"] == pytest.approx(0.9)
+    assert softspine.Scene(scene.to_dict()).to_dict() == scene.to_dict()
+    # Equal lengths given are the rod of equal sections, exactly.
+    plain = {k: v for k, v in SCENE.items() if k != "tendons"}
+    given = {**plain, "sections": [{**p, "length": 0.3} for p in SCENE["sections"]]}
+    assert np.array_equal(softspine.solve(given, n_elements=12).positions,
+                          softspine.solve(plain, n_elements=12).positions)
+    assert "length: 1 m, but the sections' lengths add up to 0.9" in message(
+        {**UNEQUAL, "length": 1.0})
+    assert "sections[1].length" in message(
+        {**UNEQUAL, "sections": [UNEQUAL["sections"][0], {"length": -0.45},
+                                 UNEQUAL["sections"][2]]})
+    # Loads and anchors fall on the nodes of each section's own elements.
+    err = message({**UNEQUAL, "tendons": [{**UNEQUAL["tendons"][0], "end": 0.6}]})
+    # 21 elements by default: 7 a section, 0.45 / 7 apart in the second.
+    assert "tendons[0].end" in err and "nearest nodes are at 0.5857142857142857 and 0.65" in err
+    assert "magnetization" in message(
+        {**UNEQUAL, "magnetization": [[0, 0, 1], [0, 0, 1]], "magnetic_field": [0.01, 0, 0]})
+
+
 def message(scene) -> str:
     with pytest.raises(ValueError) as e:
         softspine.solve(scene)
@@ -83,7 +148,8 @@ def test_bad_sections_are_refused_by_name():
     assert "sections[1].linear_density" in message(bad)
     no_gravity = {k: v for k, v in SCENE.items() if k != "gravity"}
     assert "gravity" in message(no_gravity)
-    assert "sections[0]" in message({**SCENE, "sections": [{"length": 0.2}, {}, {}]})
+    assert "sections[1].length: missing" in message(
+        {**SCENE, "sections": [{"length": 0.2}, {}, {}]})
     with pytest.raises(ValueError, match="sections"):
         softspine.solve({k: v for k, v in SCENE.items() if k != "tendons"}, method="shooting")
 

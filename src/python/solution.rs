@@ -188,6 +188,7 @@ impl PySolution {
         d.set_item("n_elements", s.n_elements)?;
         d.set_item("scheme", s.scheme)?;
         d.set_item("length", s.length)?;
+        d.set_item("section_lengths", s.section_lengths.clone())?;
         d.set_item("positions", rows3(py, &s.positions))?;
         d.set_item("quaternions", rows4(py, &s.quaternions))?;
         d.set_item("forces", rows3(py, &s.forces))?;
@@ -235,6 +236,7 @@ impl PySolution {
                     })?
             },
             length: float_arg("solution.length", &d.get("length")?)?,
+            section_lengths: d.floats("section_lengths")?,
             positions: d.vectors("positions")?,
             quaternions: d
                 .rows::<4>("quaternions")?

@@ -114,6 +114,9 @@ pub struct Robot {
 /// the robot's).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SectionSpec {
+    /// Length of the section [m]; given for every section or for none
+    /// (`None`: equal sections of `length / sections`).
+    pub length: Option<f64>,
     pub stiffness: Option<Stiffness>,
     /// Mass per length [kg/m].
     pub linear_density: Option<f64>,
@@ -200,9 +203,18 @@ impl Default for Robot {
 }
 
 impl Robot {
-    /// Backbone length of one section [m].
+    /// Backbone length of one section [m] (the mean, if the sections have
+    /// lengths of their own).
     pub fn section_length(&self) -> f64 {
         self.length / self.sections as f64
+    }
+
+    /// The sections' own lengths [m]; empty when the sections are equal.
+    pub fn section_lengths(&self) -> Vec<f64> {
+        self.section_properties
+            .iter()
+            .filter_map(|p| p.length)
+            .collect()
     }
 
     /// Length change of each muscle per unit curvature: row `i` is
@@ -436,6 +448,7 @@ impl Robot {
             .section_properties
             .iter()
             .map(|p| crate::scene::SectionProperties {
+                length: p.length,
                 stiffness: p.stiffness.clone(),
                 linear_density: p.linear_density,
             })
@@ -474,8 +487,11 @@ impl Robot {
 
     /// Arc length of the end of section `k` (1-based) [m].
     pub fn section_end(&self, k: usize) -> f64 {
+        let lengths = self.section_lengths();
         if k >= self.sections {
             self.length
+        } else if lengths.len() == self.sections {
+            lengths[..k].iter().sum()
         } else {
             k as f64 * self.section_length()
         }
@@ -549,6 +565,7 @@ impl Robot {
                 format!("expected one entry a section ({}), got {p}", self.sections),
             ));
         }
+        self.check_section_lengths()?;
         for (i, spec) in self.section_properties.iter().enumerate() {
             for (name, x) in [
                 ("linear_density", spec.linear_density),
@@ -587,6 +604,46 @@ impl Robot {
             if let Some(x) = limit {
                 positive(name, x)?;
             }
+        }
+        Ok(())
+    }
+
+    /// Section lengths: for every section or none, positive, adding up to
+    /// the robot's length; sections of different lengths need tendons or
+    /// magnets (the muscle model has one lever for every section).
+    fn check_section_lengths(&self) -> Result<()> {
+        let lengths = self.section_lengths();
+        if lengths.is_empty() {
+            return Ok(());
+        }
+        for (i, spec) in self.section_properties.iter().enumerate() {
+            match spec.length {
+                None => {
+                    return Err(Error::scene(
+                        format!("section_properties[{i}].length"),
+                        "missing: give every section its length, or none (equal sections)",
+                    ))
+                }
+                Some(l) => positive(&format!("section_properties[{i}].length"), l)?,
+            }
+        }
+        let total: f64 = lengths.iter().sum();
+        if (total - self.length).abs() > 1e-9 * self.length {
+            return Err(Error::scene(
+                "length",
+                format!(
+                    "{} m, but the sections' lengths add up to {total} m",
+                    self.length
+                ),
+            ));
+        }
+        let equal = lengths.iter().all(|l| (l - lengths[0]).abs() <= 1e-12 * l);
+        if !equal && self.actuation_space() == ActuationSpace::Curvature {
+            return Err(Error::scene(
+                "section_properties",
+                "sections of different lengths are modelled for tendon and magnetic robots; \
+                 the pneumatic muscle model takes equal sections (one lever l_s d for all)",
+            ));
         }
         Ok(())
     }
@@ -842,6 +899,9 @@ impl Robot {
                 .iter()
                 .map(|p| {
                     let mut fields = Vec::new();
+                    if let Some(l) = p.length {
+                        fields.push(("length".to_string(), num(l)));
+                    }
                     if let Some(k) = &p.stiffness {
                         fields.push(("stiffness".to_string(), stiffness_value(k)));
                     }
@@ -880,6 +940,10 @@ impl Robot {
             r.read_field(key, value)?;
         }
         let given = |name: &str| entries.iter().any(|(k, _)| k == name);
+        // Sections given their lengths give the robot its own.
+        if !given("length") && !r.section_lengths().is_empty() {
+            r.length = r.section_lengths().iter().sum();
+        }
         // Defaults that follow the section length.
         if !given("muscle_rest_length") {
             r.muscle_rest_length = r.section_length();
@@ -996,15 +1060,16 @@ fn tendon_routes(v: &Value) -> Result<Vec<TendonRoute>> {
 /// set once the number of sections is known.
 const LAST_SECTION: usize = usize::MAX;
 
-/// Per-section properties from a list of `{stiffness, linear_density,
-/// disk_mass}` tables (each key optional).
+/// Per-section properties from a list of `{length, stiffness,
+/// linear_density, disk_mass}` tables (each key optional).
 fn section_specs(v: &Value) -> Result<Vec<SectionSpec>> {
-    let allowed = ["stiffness", "linear_density", "disk_mass"];
+    let allowed = ["length", "stiffness", "linear_density", "disk_mass"];
     table_list(v, "section_properties", &allowed, ", one a section", |t| {
         let number = |name: &str| -> Result<Option<f64>> {
             t.get(name).map(|x| finite(x, &t.key(name))).transpose()
         };
         Ok(SectionSpec {
+            length: number("length")?,
             stiffness: t
                 .get("stiffness")
                 .map(|k| read_stiffness(k).map_err(|e| prefixed(e, t.path())))

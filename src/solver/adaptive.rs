@@ -10,7 +10,7 @@
 
 use super::{check_tolerance, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
-use crate::model::{element_turn, slerp};
+use crate::model::{element_turn, section_of, slerp};
 use crate::quat::Quat;
 use crate::read::{as_argument, count, finite, Table};
 use crate::scene::Scene;
@@ -347,11 +347,17 @@ fn backbone_difference(coarse: &Solution, fine: &Solution, k: usize) -> f64 {
 
 /// Largest element turning of a solution [rad], rest turning included.
 fn max_turn(scene: &Scene, sol: &Solution) -> f64 {
-    let ds = scene.length / sol.n_elements as f64;
-    let rest = scene
-        .rest_curvature
+    let n = sol.n_elements;
+    let mesh = scene.mesh(n);
+    let sections = scene.rest_curvature.len().max(1);
+    let rest = mesh
+        .element_lengths()
         .iter()
-        .map(|k| ds * k[0].hypot(k[1]))
+        .enumerate()
+        .filter_map(|(i, h)| {
+            let k = scene.rest_curvature.get(section_of(i, sections, n))?;
+            Some(h * k[0].hypot(k[1]))
+        })
         .fold(0.0, f64::max);
     sol.quaternions
         .windows(2)

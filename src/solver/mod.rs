@@ -471,6 +471,7 @@ impl Solver {
             n_elements: model.n,
             scheme: model.scheme.name(),
             length: model.length,
+            section_lengths: self.scene.section_lengths(),
             quaternions: w.q.clone(),
             positions,
             forces: model.node_forces(reactions),

@@ -66,6 +66,7 @@ impl Solver {
             n_elements: n,
             scheme: "fd2",
             length: model.length,
+            section_lengths: Vec::new(),
             quaternions: out.quaternions.clone(),
             positions: out.positions,
             forces: out.forces.clone(),

@@ -541,6 +541,7 @@ impl Solver {
             n_elements: model.n,
             scheme: "rk4",
             length: model.length,
+            section_lengths: Vec::new(),
             quaternions: w.q.clone(),
             positions,
             forces: model.node_forces(&reactions),

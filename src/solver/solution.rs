@@ -2,6 +2,7 @@
 //! judgement of every method's end state.
 
 use crate::error::{Error, Result};
+use crate::mesh::Mesh;
 use crate::model::{section_of, RodModel};
 use crate::quat::Quat;
 use nalgebra::{Matrix3, Vector3};
@@ -85,8 +86,12 @@ pub struct Solution {
     /// How the nodes were computed: `"fd2"` or `"fe4"` (the [`Scheme`]
     /// names), or `"rk4"` (shooting's integrator).
     pub scheme: &'static str,
-    /// Length of the rod [m]: node `i` sits at arc length `i L / n`.
+    /// Length of the rod [m]: node `i` sits at arc length `i L / n`
+    /// (sections of their own lengths: see `section_lengths`).
     pub length: f64,
+    /// The sections' own lengths [m], each cut into `n / sections` equal
+    /// elements; empty: equal elements `L / n`.
+    pub section_lengths: Vec<f64>,
     /// Node quaternions `q_0..q_n`, `q_0` the base.
     pub quaternions: Vec<Quat>,
     /// Node positions `r_0..r_n` [m], `r_0` the scene's base position.
@@ -151,12 +156,15 @@ impl Solution {
         self.quaternions[self.quaternions.len() - 1]
     }
 
-    /// Arc length of the nodes, `s_i = i L / n` [m].
+    /// Where the nodes sit along the rod.
+    pub fn mesh(&self) -> Mesh {
+        Mesh::new(self.length, &self.section_lengths, self.n_elements)
+    }
+
+    /// Arc length of the nodes [m]: `s_i = i L / n`, or each section's
+    /// equal elements when the sections have lengths of their own.
     pub fn arc_length(&self) -> Vec<f64> {
-        let n = self.n_elements as f64;
-        (0..=self.n_elements)
-            .map(|i| self.length * i as f64 / n)
-            .collect()
+        self.mesh().arcs().to_vec()
     }
 
     /// Curvature and twist of each element in its own (material) frame
@@ -165,10 +173,11 @@ impl Solution {
     /// the same reading of their nodes: second order). It is the same in the
     /// frames of both nodes (the axis of the relative rotation).
     pub fn curvatures(&self) -> Vec<Vector3<f64>> {
-        let ds = self.length / self.n_elements as f64;
+        let mesh = self.mesh();
         self.quaternions
             .windows(2)
-            .map(|p| (2.0 / ds) * (p[0].conj() * p[1]).v)
+            .zip(mesh.element_lengths())
+            .map(|(p, h)| (2.0 / h) * (p[0].conj() * p[1]).v)
             .collect()
     }
 
@@ -248,6 +257,13 @@ impl Solution {
                     format!("has {len} rows, n_elements = {n} needs {expected}"),
                 ));
             }
+        }
+        let lengths = self.section_lengths.len();
+        if lengths > 0 && (n % lengths != 0 || self.section_lengths.iter().any(|l| !(*l > 0.0))) {
+            return Err(Error::argument(
+                "solution.section_lengths",
+                format!("{lengths} sections of positive length must divide n_elements = {n}"),
+            ));
         }
         let sections = self.rest_curvature.len();
         if sections > 0 && n % sections != 0 {

@@ -365,7 +365,7 @@ impl RodModel {
         let tendon_moment: f64 = scene
             .tendons
             .iter()
-            .map(|t| t.tension * t.offset[0].hypot(t.offset[1]))
+            .map(|t| t.tension * t.largest_offset())
             .sum();
         let field = scene.magnetic_field.norm();
         let magnetic_moment = field

@@ -86,9 +86,11 @@ pub struct PointLoad {
 
 /// A frictionless tendon: pulled at the base with a constant tension, routed
 /// at an offset from the backbone in the cross-section (the routing angle
-/// may turn linearly along the rod: a helix), anchored at arc length `end`.
-/// Its potential is the tension times its path length.
-#[derive(Debug, Clone, PartialEq)]
+/// may turn linearly along the rod: a helix; the routing may change at a
+/// section's start, where the tendon crosses the disk to its new hole),
+/// anchored at arc length `end`. Its potential is the tension times its path
+/// length (a crossing's length is a constant of the configuration).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Tendon {
     /// Tension [N], >= 0 (zero: slack).
     pub tension: f64,
@@ -97,22 +99,124 @@ pub struct Tendon {
     /// Rate at which the routing angle turns about the backbone [rad/m]
     /// (0: straight routing).
     pub twist: f64,
+    /// Where the routing changes, by increasing arc length: from `start` on
+    /// (a section's start) the tendon runs at its own offset, its angle
+    /// turning from there. Empty: one routing from the base to the anchor.
+    pub reroutes: Vec<(f64, Routing)>,
     /// Arc length of the anchor [m], in `(0, L]`; must fall on a node.
     pub end: f64,
 }
 
+/// How a tendon runs through one stretch of the rod: its offset `[x, y]`
+/// from the backbone at the stretch's start, material frame [m], and the rate
+/// at which its angle turns about the backbone [rad/m].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Routing {
+    pub offset: [f64; 2],
+    pub twist: f64,
+}
+
 impl Tendon {
-    /// The routing offset `rho(s)` and its derivative `rho'(s)`, material frame.
+    /// The routing offset `rho(s)` and its derivative `rho'(s)`, material
+    /// frame (at a change of routing, the one that starts there).
     pub fn routing(&self, s: f64) -> (Vector3<f64>, Vector3<f64>) {
-        let [x, y] = self.offset;
-        if self.twist == 0.0 {
+        let ([x, y], twist, from) = match self.reroutes.iter().rev().find(|(a, _)| *a <= s) {
+            None => (self.offset, self.twist, 0.0),
+            Some((start, r)) => (r.offset, r.twist, *start),
+        };
+        if twist == 0.0 {
             // Straight routing, the common case: no trigonometry.
             return (Vector3::new(x, y, 0.0), Vector3::zeros());
         }
-        let (sin, cos) = (self.twist * s).sin_cos();
+        let (sin, cos) = (twist * (s - from)).sin_cos();
         let rho = Vector3::new(cos * x - sin * y, sin * x + cos * y, 0.0);
-        let drho = Vector3::new(-rho.y, rho.x, 0.0) * self.twist;
+        let drho = Vector3::new(-rho.y, rho.x, 0.0) * twist;
         (rho, drho)
+    }
+
+    /// The routings from the base: the first, then each change.
+    pub fn routings(&self) -> impl Iterator<Item = Routing> + '_ {
+        let first = Routing {
+            offset: self.offset,
+            twist: self.twist,
+        };
+        std::iter::once(first).chain(self.reroutes.iter().map(|(_, r)| *r))
+    }
+
+    /// Largest offset from the backbone [m]: the tendon's lever.
+    pub fn largest_offset(&self) -> f64 {
+        self.routings()
+            .map(|r| r.offset[0].hypot(r.offset[1]))
+            .fold(0.0, f64::max)
+    }
+}
+
+/// A tendon's routing read from a table's `offset` (`[x, y]`, or one
+/// `[x, y]` a section) and `twist` (a number, or one a section, as many as
+/// the offsets).
+pub(crate) fn read_routings(t: &Table) -> Result<Vec<Routing>> {
+    let offset_key = t.key("offset");
+    let offsets: Vec<[f64; 2]> = match t.require("offset")? {
+        Value::List(items) if items.iter().all(|x| matches!(x, Value::List(_))) => {
+            if items.is_empty() {
+                return Err(Error::scene(offset_key, "must name at least one [x, y]"));
+            }
+            items
+                .iter()
+                .enumerate()
+                .map(|(i, x)| numbers::<2>(x, &format!("{offset_key}[{i}]")))
+                .collect::<Result<_>>()?
+        }
+        other => vec![numbers::<2>(other, &offset_key)?],
+    };
+    let twist_key = t.key("twist");
+    let twists: Vec<f64> = match t.get("twist") {
+        None => vec![0.0; offsets.len()],
+        Some(Value::List(items)) => {
+            if items.len() != offsets.len() {
+                return Err(Error::scene(
+                    twist_key,
+                    format!(
+                        "{} entries, but offset gives {}: one twist, or one for each offset",
+                        items.len(),
+                        offsets.len()
+                    ),
+                ));
+            }
+            items
+                .iter()
+                .enumerate()
+                .map(|(i, x)| finite(x, &format!("{twist_key}[{i}]")))
+                .collect::<Result<_>>()?
+        }
+        Some(x) => vec![finite(x, &twist_key)?; offsets.len()],
+    };
+    Ok(offsets
+        .into_iter()
+        .zip(twists)
+        .map(|(offset, twist)| Routing { offset, twist })
+        .collect())
+}
+
+/// The `offset` and `twist` entries of a tendon's routings: `[x, y]` and a
+/// number for one routing, a list of each for one a section.
+pub(crate) fn routing_values(routings: &[Routing]) -> [(String, Value); 2] {
+    let pair = |o: &[f64; 2]| Value::List(vec![Value::Number(o[0]), Value::Number(o[1])]);
+    match routings {
+        [one] => [
+            ("offset".into(), pair(&one.offset)),
+            ("twist".into(), Value::Number(one.twist)),
+        ],
+        many => [
+            (
+                "offset".into(),
+                Value::List(many.iter().map(|r| pair(&r.offset)).collect()),
+            ),
+            (
+                "twist".into(),
+                Value::List(many.iter().map(|r| Value::Number(r.twist)).collect()),
+            ),
+        ],
     }
 }
 
@@ -350,9 +454,23 @@ impl Scene {
             None => Vec::new(),
             Some(v) => point_loads(v)?,
         };
+        let section_starts: Vec<f64> = {
+            let count = rest_curvature.len().max(sections.len()).max(1);
+            let lengths: Vec<f64> = sections.iter().filter_map(|p| p.length).collect();
+            match lengths.is_empty() {
+                true => (0..count).map(|k| length * k as f64 / count as f64).collect(),
+                false => std::iter::once(0.0)
+                    .chain(lengths.iter().scan(0.0, |a, l| {
+                        *a += l;
+                        Some(*a)
+                    }))
+                    .take(count)
+                    .collect(),
+            }
+        };
         let tendons = match top.get("tendons") {
             None => Vec::new(),
-            Some(v) => tendons(v, length)?,
+            Some(v) => tendons(v, length, &section_starts)?,
         };
         let magnetization: Vec<Vector3<f64>> = match top.get("magnetization") {
             None => Vec::new(),
@@ -486,7 +604,7 @@ impl Scene {
         )?;
         for (i, t) in self.tendons.iter().enumerate() {
             let key = format!("tendons[{i}].tension");
-            let arm = t.offset[0].hypot(t.offset[1]);
+            let arm = t.largest_offset();
             check(
                 &key,
                 "|tension| |offset| L / k",
@@ -604,13 +722,12 @@ impl Scene {
                 .tendons
                 .iter()
                 .map(|t| {
+                    let routings: Vec<Routing> = t.routings().collect();
+                    let [offset, twist] = routing_values(&routings);
                     Value::Map(vec![
                         ("tension".into(), num(t.tension)),
-                        (
-                            "offset".into(),
-                            Value::List(vec![num(t.offset[0]), num(t.offset[1])]),
-                        ),
-                        ("twist".into(), num(t.twist)),
+                        offset,
+                        twist,
                         ("end".into(), num(t.end)),
                     ])
                 })
@@ -1168,7 +1285,9 @@ fn point_loads(v: &Value) -> Result<Vec<PointLoad>> {
         .collect())
 }
 
-fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
+/// Tendons; a tendon routed section by section (`section_starts`, the base's
+/// 0 first) names one routing for each section it runs through.
+fn tendons(v: &Value, length: f64, section_starts: &[f64]) -> Result<Vec<Tendon>> {
     table_list(
         v,
         "tendons",
@@ -1182,11 +1301,7 @@ fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
                     format!("a tendon pulls, it cannot push: must be >= 0 N, got {tension}"),
                 ));
             }
-            let offset = numbers::<2>(t.require("offset")?, &t.key("offset"))?;
-            let twist = match t.get("twist") {
-                None => 0.0,
-                Some(v) => finite(v, &t.key("twist"))?,
-            };
+            let routings = read_routings(t)?;
             let end = match t.get("end") {
                 None => length,
                 Some(v) => finite(v, &t.key("end"))?,
@@ -1197,10 +1312,30 @@ fn tendons(v: &Value, length: f64) -> Result<Vec<Tendon>> {
                     format!("must lie in (0, L] = (0, {length}], got {end}"),
                 ));
             }
+            // The sections it runs through: those that start before its anchor.
+            let through = section_starts
+                .iter()
+                .filter(|a| **a < end * (1.0 - 1e-9))
+                .count();
+            if routings.len() > 1 && routings.len() != through {
+                return Err(Error::scene(
+                    t.key("offset"),
+                    format!(
+                        "{} routings, but the tendon runs through {through} sections (to s = {end}): \
+                         one [x, y] for all, or one for each",
+                        routings.len()
+                    ),
+                ));
+            }
             Ok(Tendon {
                 tension,
-                offset,
-                twist,
+                offset: routings[0].offset,
+                twist: routings[0].twist,
+                reroutes: section_starts[1..]
+                    .iter()
+                    .zip(&routings[1..])
+                    .map(|(a, r)| (*a, *r))
+                    .collect(),
                 end: end.min(length),
             })
         },

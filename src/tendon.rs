@@ -58,12 +58,14 @@ mod tests {
                 offset: [0.02, -0.01],
                 twist: 3.0,
                 end: 1.0,
+                ..Tendon::default()
             },
             Tendon {
                 tension: 0.7,
                 offset: [-0.015, 0.005],
                 twist: 0.0,
                 end: 1.0,
+                ..Tendon::default()
             },
         ];
         let omega = Vector3::new(1.3, -2.1, 0.4);

@@ -29,10 +29,16 @@ def skew(v):
     return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
 
 
-def routing(tendon, s):
-    """Offset, its first and second derivatives (material frame)."""
-    x, y = tendon["offset"]
-    w = tendon.get("twist", 0.0)
+def routing(tendon, s, starts=(0.0,), after=True):
+    """Offset, its first and second derivatives (material frame). A tendon
+    routed section by section (one offset a section, the sections starting at
+    ``starts``) turns from its section's start; at a start, ``after`` picks
+    the routing that begins there."""
+    offsets = np.array(tendon["offset"], dtype=float).reshape(-1, 2)
+    twists = np.broadcast_to(np.asarray(tendon.get("twist", 0.0), dtype=float), len(offsets))
+    inside = [a for a in starts[1 : len(offsets)] if (a <= s if after else a < s)]
+    k = len(inside)
+    (x, y), w, s = offsets[k], twists[k], s - starts[k]
     c, si = np.cos(w * s), np.sin(w * s)
     rho = np.array([c * x - si * y, si * x + c * y, 0.0])
     d1 = w * np.array([-rho[1], rho[0], 0.0])
@@ -95,6 +101,11 @@ def solve_reference(scene, samples, rtol=1e-12):
         | {e for e in ends if e < length}
     )
     magnet_section, rest_section = splitter(len(magnetization)), splitter(len(sections))
+    count = max(len(sections), len(own))
+    starts = [0.0, *sorted(section_ends(count))]
+
+    def route(t, s, after=True):
+        return routing(t, s, starts, after)
 
     def magnet(s):
         return magnetization[magnet_section(s)]
@@ -118,7 +129,7 @@ def solve_reference(scene, samples, rtol=1e-12):
         f_lin = np.zeros((3, 3))
         l_lin = np.zeros((3, 3))
         for t in active(s):
-            rho, d1, d2 = routing(t, s)
+            rho, d1, d2 = route(t, s)
             a = np.cross(u, rho) + d1 + np.array([0, 0, 1.0])
             dpi = r @ a
             norm = np.linalg.norm(dpi)
@@ -145,8 +156,8 @@ def solve_reference(scene, samples, rtol=1e-12):
         dr = r @ skew(u)
         return np.concatenate([dp, dr.ravel(), dn, mp])
 
-    def tangent(t, r, u, s):
-        rho, d1, _ = routing(t, s)
+    def tangent(t, r, u, s, after=True):
+        rho, d1, _ = route(t, s, after)
         dpi = r @ (np.cross(u, rho) + d1 + np.array([0, 0, 1.0]))
         return r @ rho, dpi / np.linalg.norm(dpi)
 
@@ -162,7 +173,7 @@ def solve_reference(scene, samples, rtol=1e-12):
         u_before = u0_before + (r.T @ m) / k_before
         for t in tendons:
             if abs(t.get("end", length) - b) < 1e-12:
-                arm, unit = tangent(t, r, u_before, b)
+                arm, unit = tangent(t, r, u_before, b, after=False)
                 force = -t["tension"] * unit
                 n -= force
                 m -= np.cross(arm, force)
@@ -172,11 +183,19 @@ def solve_reference(scene, samples, rtol=1e-12):
             u_after = u0_after + (r.T @ m_after) / k_after
             n_next, m_next = n.copy(), m.copy()
             for t in running:
-                arm, before = tangent(t, r, u_before, b)
-                _, after = tangent(t, r, u_after, b)
-                force = t["tension"] * (after - before)
-                n_next -= force
-                m_next -= np.cross(arm, force)
+                arm, before = tangent(t, r, u_before, b, after=False)
+                arm_after, after = tangent(t, r, u_after, b)
+                # A change of routing: the tendon crosses the disk from its
+                # old hole to its new one, bending at each.
+                cross = arm_after - arm
+                turns = [(arm, after, before)]
+                if np.linalg.norm(cross) > 0:
+                    d = cross / np.linalg.norm(cross)
+                    turns = [(arm, d, before), (arm_after, after, d)]
+                for at, out_dir, in_dir in turns:
+                    force = t["tension"] * (out_dir - in_dir)
+                    n_next -= force
+                    m_next -= np.cross(at, force)
             done = np.abs(m_next - m_after).max() < 1e-15 * (1 + np.abs(m_next).max())
             n_after, m_after = n_next, m_next
             if done:
@@ -215,7 +234,7 @@ def solve_reference(scene, samples, rtol=1e-12):
         n_tip, m_tip = y[12:15].copy(), y[15:18].copy()
         for t in tendons:
             if abs(t.get("end", length) - length) < 1e-12:
-                rho, d1, _ = routing(t, length)
+                rho, d1, _ = route(t, length, after=False)
                 dpi = r @ (np.cross(u, rho) + d1 + np.array([0, 0, 1.0]))
                 force = -t["tension"] * dpi / np.linalg.norm(dpi)
                 n_tip -= force

@@ -12,6 +12,7 @@ fn tendon(tension: f64, offset: [f64; 2], twist: f64, end: f64) -> Tendon {
         offset,
         twist,
         end,
+        ..Tendon::default()
     }
 }
 

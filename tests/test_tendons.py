@@ -103,6 +103,68 @@ def test_an_anchor_off_the_nodes_and_methods_without_tendons_are_refused():
             softspine.solve(scene, method=method)
 
 
+ROUTED = {
+    "stiffness": {"kx": 0.5, "ky": 0.6, "kz": 0.4},
+    "rest_curvature": [[0.4, -0.2], [0.0, 0.0], [-0.5, 0.3]],
+    "sections": [{"length": 0.2}, {"length": 0.45}, {"length": 0.25}],
+    "gravity": {"linear_density": 0.3, "vector": [0.0, 0.2, -9.81]},
+    "tendons": [
+        # Through holes of its own in each section, helical in the second.
+        {"tension": 2.0, "offset": [[0.01, 0.0], [0.0, 0.012], [-0.008, 0.004]],
+         "twist": [0, 4.0, 0]},
+        # Two sections, anchored at the second's end (s = 0.65).
+        {"tension": 1.5, "offset": [[-0.01, 0.002], [0.006, -0.01]], "twist": 2.0, "end": 0.65},
+    ],
+}
+
+
+def test_tendons_routed_section_by_section_converge_to_the_rucker_webster_rod():
+    """At a section's start such a tendon crosses the disk to its new hole:
+    the reference bends it there (two point loads); the potential only
+    changes where the routing is evaluated."""
+    fine = softspine.solve(ROUTED, n_elements=48, residual_tol=1e-13)
+    reference = solve_reference(ROUTED, list(fine.arc_length), rtol=1e-11)
+    errors = {}
+    for scheme, sizes in (("fd2", (12, 24, 48)), ("fe4", (6, 12, 24))):
+        errors[scheme] = []
+        for n in sizes:
+            sol = softspine.solve(ROUTED, n_elements=n, scheme=scheme, residual_tol=1e-13)
+            assert sol.converged and sol.stable, sol.message
+            errors[scheme].append(np.abs(sol.positions - reference[:: 48 // n]).max() / 0.9)
+    assert all(1.8 < p < 2.2 for p in observed_orders(errors["fd2"])), errors
+    assert all(3.6 < p < 4.4 for p in observed_orders(errors["fe4"])), errors
+    assert errors["fe4"][-1] < 2e-7, errors
+    # The routing matters: the first routing all the way is elsewhere.
+    first = [{**t, "offset": t["offset"][0], "twist": 0.0} for t in ROUTED["tendons"]]
+    other = softspine.solve({**ROUTED, "tendons": first}, n_elements=48)
+    assert np.abs(other.positions[-1] - reference[-1]).max() > 1e-3
+
+
+def test_routings_round_trip_and_must_cover_the_sections_a_tendon_runs_through():
+    data = softspine.Scene(ROUTED).to_dict()
+    assert data["tendons"][1]["offset"] == [[-0.01, 0.002], [0.006, -0.01]]
+    assert data["tendons"][1]["twist"] == [2.0, 2.0]
+    assert softspine.Scene(data).to_dict() == data
+    solver = softspine.Solver(ROUTED, n_elements=12, residual_tol=1e-13)
+    solver.solve(check=True)
+    sens = solver.sensitivity(["tendons[1].tension"])
+    h = 1e-4
+    tips = []
+    for sign in (1, -1):
+        moved = softspine.Scene(ROUTED).to_dict()
+        moved["tendons"][1]["tension"] += sign * h
+        tips.append(softspine.solve(moved, n_elements=12, residual_tol=1e-13).tip_position)
+    np.testing.assert_allclose(sens.tip_position[:, 0], (tips[0] - tips[1]) / (2 * h), atol=1e-7)
+    two = {**ROUTED["tendons"][0], "offset": ROUTED["tendons"][0]["offset"][:2], "twist": 0.0}
+    with pytest.raises(ValueError, match=r"tendons\[0\].offset: 2 routings, .* through 3 sections"):
+        softspine.solve({**ROUTED, "tendons": [two]})
+    with pytest.raises(ValueError, match=r"tendons\[0\].twist: 2 entries, but offset gives 3"):
+        softspine.solve({**ROUTED, "tendons": [{**ROUTED["tendons"][0], "twist": [1, 2]}]})
+    with pytest.raises(ValueError, match=r"tendons\[0\].offset\[1\]"):
+        bad = [[0.01, 0.0], [0.0, float("nan")], [0.0, 0.01]]
+        softspine.solve({**ROUTED, "tendons": [{"tension": 1.0, "offset": bad}]})
+
+
 MAGNETIC = {
     "length": L,
     "stiffness": {"kx": 0.05, "ky": 0.06, "kz": 0.04},

@@ -27,9 +27,10 @@ pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, 
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
-use crate::read::{count, finite, numbers, table_list, vec3};
+use crate::read::{count, finite, table_list, vec3};
 use crate::scene::{
-    prefixed, read_stiffness, stiffness_value, Gravity, PointLoad, Scene, Stiffness, Tendon,
+    prefixed, read_routings, read_stiffness, routing_values, stiffness_value, Gravity, PointLoad,
+    Routing, Scene, Stiffness, Tendon,
 };
 use crate::value::Value;
 use nalgebra::{Matrix3, Vector3};
@@ -126,13 +127,17 @@ pub struct SectionSpec {
 
 /// How a tendon runs through the robot: routed at an offset from the
 /// backbone in the cross-section (its angle may turn at a constant rate: a
-/// helix), pulled at the base, anchored at the end of a section.
+/// helix), through holes of its own in each section if it is given one
+/// routing a section, pulled at the base, anchored at the end of a section.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TendonRoute {
     /// Offset `[x, y]` from the backbone at the base, material frame [m].
     pub offset: [f64; 2],
     /// Turn of the routing angle per length [rad/m] (default 0: straight).
     pub twist: f64,
+    /// The routing through sections 2, 3, ... up to the anchor's, each from
+    /// its section's start (empty: `offset` and `twist` all the way).
+    pub reroutes: Vec<Routing>,
     /// The section at whose end the tendon is anchored, 1..=sections
     /// (default: the last).
     pub section: usize,
@@ -468,6 +473,12 @@ impl Robot {
                 tension: tensions.get(i).copied().unwrap_or(0.0),
                 offset: route.offset,
                 twist: route.twist,
+                reroutes: route
+                    .reroutes
+                    .iter()
+                    .enumerate()
+                    .map(|(k, r)| (self.section_end(k + 1), *r))
+                    .collect(),
                 end: self.section_end(route.section),
             })
             .collect();
@@ -536,13 +547,29 @@ impl Robot {
     /// Tendon routes, magnets and the drives' limits.
     fn check_drives(&self) -> Result<()> {
         for (i, t) in self.tendons.iter().enumerate() {
-            if t.offset.iter().any(|x| !x.is_finite()) {
+            let offsets = std::iter::once(&t.offset).chain(t.reroutes.iter().map(|r| &r.offset));
+            if offsets.flatten().any(|x| !x.is_finite()) {
                 return Err(Error::scene(
                     format!("tendons[{i}].offset"),
                     "must be finite",
                 ));
             }
-            if !t.twist.is_finite() {
+            let runs = if t.section == LAST_SECTION {
+                self.sections
+            } else {
+                t.section
+            };
+            if !t.reroutes.is_empty() && t.reroutes.len() + 1 != runs {
+                return Err(Error::scene(
+                    format!("tendons[{i}].offset"),
+                    format!(
+                        "{} routings, but the tendon runs through {runs} sections: one [x, y] \
+                         for all, or one for each",
+                        t.reroutes.len() + 1
+                    ),
+                ));
+            }
+            if !t.twist.is_finite() || t.reroutes.iter().any(|r| !r.twist.is_finite()) {
                 return Err(Error::scene(
                     format!("tendons[{i}].twist"),
                     "must be finite",
@@ -865,9 +892,16 @@ impl Robot {
                 .tendons
                 .iter()
                 .map(|t| {
+                    let first = Routing {
+                        offset: t.offset,
+                        twist: t.twist,
+                    };
+                    let routings: Vec<Routing> =
+                        std::iter::once(first).chain(t.reroutes.iter().copied()).collect();
+                    let [offset, twist] = routing_values(&routings);
                     Value::Map(vec![
-                        ("offset".into(), list(&t.offset)),
-                        ("twist".into(), num(t.twist)),
+                        offset,
+                        twist,
                         ("section".into(), num(t.section as f64)),
                     ])
                 })
@@ -1042,12 +1076,11 @@ impl Robot {
 /// without `section` gets `LAST_SECTION`, resolved by `Robot::from_value`).
 fn tendon_routes(v: &Value) -> Result<Vec<TendonRoute>> {
     table_list(v, "tendons", &["offset", "twist", "section"], "", |t| {
+        let routings = read_routings(t)?;
         Ok(TendonRoute {
-            offset: numbers::<2>(t.require("offset")?, &t.key("offset"))?,
-            twist: match t.get("twist") {
-                None => 0.0,
-                Some(x) => finite(x, &t.key("twist"))?,
-            },
+            offset: routings[0].offset,
+            twist: routings[0].twist,
+            reroutes: routings[1..].to_vec(),
             section: match t.get("section") {
                 None => LAST_SECTION,
                 Some(x) => count(x, &t.key("section"), MAX_SECTIONS)?,

@@ -1224,7 +1224,11 @@ impl RodModel {
     /// force of 1e8 `EI/L^2` leaves a residual noise of about 1e-8).
     pub fn roundoff_floor(&self) -> f64 {
         // `L / h` of the shortest element: `n` when the elements are equal.
-        let shortest = self.mesh.element_lengths().iter().fold(self.ds, |a, b| a.min(*b));
+        let shortest = self
+            .mesh
+            .element_lengths()
+            .iter()
+            .fold(self.ds, |a, b| a.min(*b));
         let per_length = self.n as f64 * self.ds / shortest;
         let curvature = self.load_parameter + self.max_rest_turn() * per_length;
         8.0 * f64::EPSILON * (per_length + curvature)

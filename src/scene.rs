@@ -458,7 +458,9 @@ impl Scene {
             let count = rest_curvature.len().max(sections.len()).max(1);
             let lengths: Vec<f64> = sections.iter().filter_map(|p| p.length).collect();
             match lengths.is_empty() {
-                true => (0..count).map(|k| length * k as f64 / count as f64).collect(),
+                true => (0..count)
+                    .map(|k| length * k as f64 / count as f64)
+                    .collect(),
                 false => std::iter::once(0.0)
                     .chain(lengths.iter().scan(0.0, |a, l| {
                         *a += l;
@@ -915,8 +917,7 @@ impl Scene {
                 (index + 1 == held_count, &self.tip)
             {
                 let tip_tangent = quaternion.rotate(Vector3::z());
-                deficit =
-                    deficit.max(tip_h * clamped_end_deficit(angle_to(tip_tangent), elements));
+                deficit = deficit.max(tip_h * clamped_end_deficit(angle_to(tip_tangent), elements));
             }
             spans.push(HeldSpan {
                 key,
@@ -1075,7 +1076,10 @@ fn rod_length(key: Option<&Value>, sections: &[SectionProperties]) -> Result<f64
         return given.ok_or_else(|| Error::scene("length", "missing"));
     }
     if lengths.len() != sections.len() {
-        let missing = sections.iter().position(|p| p.length.is_none()).unwrap_or(0);
+        let missing = sections
+            .iter()
+            .position(|p| p.length.is_none())
+            .unwrap_or(0);
         return Err(Error::scene(
             format!("sections[{missing}].length"),
             "missing: give every section its length, or none (equal sections)",
@@ -1240,7 +1244,8 @@ fn check_on_node(key: &str, s: f64, mesh: &Mesh) -> Result<()> {
         let after = arcs.partition_point(|a| *a < s).clamp(1, arcs.len() - 1);
         format!(
             "a node (each section has its own equal elements; the nearest nodes are at {} and {})",
-            arcs[after - 1], arcs[after]
+            arcs[after - 1],
+            arcs[after]
         )
     };
     Err(Error::scene(

@@ -132,6 +132,64 @@ def test_the_robot_converges_to_the_rucker_webster_rod_at_second_order(kind):
     assert errors[-1] < 1e-4, errors
 
 
+def rerouted_robot(**fields) -> softspine.Robot:
+    """Sections of 0.12, 0.1 and 0.08 m; three tendons to the tip through
+    holes turned 40 degrees a section, three more to the first section's end."""
+    def hole(angle):
+        a = np.deg2rad(angle)
+        return [0.008 * np.cos(a), 0.008 * np.sin(a)]
+
+    tendons = [{"offset": [hole(90 + 120 * k + 40 * j) for j in range(3)]} for k in range(3)]
+    tendons += [{"offset": hole(30 + 120 * k), "section": 1} for k in range(3)]
+    return softspine.Robot({
+        "sections": 3,
+        "section_properties": [{"length": 0.12}, {"length": 0.1}, {"length": 0.08}],
+        "linear_density": 0.05,
+        "disk_mass": 0.0,
+        "base_quaternion": [1, 0, 0, 0],
+        "stiffness": {"E": 60e9, "G": 23e9, "diameter": 0.0015},
+        "tendons": tendons,
+        **fields,
+    })
+
+
+def test_a_robot_of_unequal_sections_and_rerouted_tendons_converges_to_the_reference():
+    robot = rerouted_robot()
+    assert robot.length == pytest.approx(0.3)
+    d = robot.to_dict()
+    assert len(d["tendons"][0]["offset"]) == 3 and softspine.Robot(d).to_dict() == d
+    tensions = np.array([4.0, 0.0, 2.0, 0.0, 3.0, 0.0])
+    scene = robot.scene(tensions=tensions, load=0.01).to_dict()
+    kx, ky, kz = robot.scene(tensions=tensions, load=0.01).stiffness
+    scene["stiffness"] = {"kx": kx, "ky": ky, "kz": kz}
+    scene["tendons"] = [t for t in scene["tendons"] if t["tension"] > 0]
+    fine = softspine.Robot({**d, "n_elements": 96}).forward(tensions=tensions, load=0.01)
+    reference = solve_reference(scene, list(fine.arc_length), rtol=1e-8)
+    errors = []
+    for n in (24, 48, 96):
+        sol = softspine.Robot({**d, "n_elements": n}).forward(tensions=tensions, load=0.01)
+        assert sol.converged and sol.stable, sol.message
+        errors.append(np.abs(sol.positions - reference[:: 96 // n]).max() / 0.3)
+    assert all(1.8 < p < 2.2 for p in observed_orders(errors)), errors
+    # The tension IK drives it to a tip it can reach, under the load.
+    target = robot.forward(tensions=[2.0, 5.0, 0.0, 1.0, 0.0, 0.0], load=0.01).tip_position
+    r = robot.inverse(target, load=0.01)
+    assert r.reached, r.message
+    assert np.linalg.norm(robot.forward(tensions=r.tensions, load=0.01).tip_position
+                          - target) < 1e-8
+
+
+def test_unequal_sections_are_refused_where_they_are_not_modelled():
+    lengths = [{"length": 0.3}, {"length": 0.7}]
+    with pytest.raises(ValueError, match="section_properties: sections of different lengths"):
+        softspine.Robot({"sections": 2, "section_properties": lengths})
+    with pytest.raises(ValueError, match=r"length: 2 m, but the sections' lengths add up to 1"):
+        softspine.Robot({"sections": 2, "length": 2.0, "section_properties": lengths,
+                         "tendons": [{"offset": [0.01, 0]}]})
+    with pytest.raises(ValueError, match=r"tendons\[0\].offset: 2 routings, .* through 3"):
+        rerouted_robot(tendons=[{"offset": [[0.01, 0], [0, 0.01]]}])
+
+
 def test_the_tensions_found_reach_the_target_with_the_least_norm():
     robot = tendon_robot()
     target = robot.forward(tensions=GIVEN, load=0.02).tip_position

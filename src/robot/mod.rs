@@ -896,8 +896,9 @@ impl Robot {
                         offset: t.offset,
                         twist: t.twist,
                     };
-                    let routings: Vec<Routing> =
-                        std::iter::once(first).chain(t.reroutes.iter().copied()).collect();
+                    let routings: Vec<Routing> = std::iter::once(first)
+                        .chain(t.reroutes.iter().copied())
+                        .collect();
                     let [offset, twist] = routing_values(&routings);
                     Value::Map(vec![
                         offset,

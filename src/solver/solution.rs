@@ -259,7 +259,13 @@ impl Solution {
             }
         }
         let lengths = self.section_lengths.len();
-        if lengths > 0 && (n % lengths != 0 || self.section_lengths.iter().any(|l| !(*l > 0.0))) {
+        if lengths > 0
+            && (n % lengths != 0
+                || self
+                    .section_lengths
+                    .iter()
+                    .any(|l| l.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)))
+        {
             return Err(Error::argument(
                 "solution.section_lengths",
                 format!("{lengths} sections of positive length must divide n_elements = {n}"),

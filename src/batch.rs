@@ -15,7 +15,7 @@
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
-use crate::robot::{IkEnding, IkOptions, InverseSolver, Robot, Strategy};
+use crate::robot::{Actuation, IkEnding, IkOptions, InverseSolver, Robot, Strategy};
 use crate::scene::Scene;
 use crate::solver::{Settings, Solution, Solver, Status};
 use nalgebra::Vector3;
@@ -368,6 +368,117 @@ impl Robot {
                     tip_miss: r.tip_miss,
                     iterations: r.iterations,
                 })
+            },
+        )
+    }
+}
+
+/// The last equilibrium of a chunk's solver and the whole actuation it had.
+#[derive(Default)]
+struct LastActuated {
+    q: Option<Vec<Quat>>,
+    actuation: Actuation,
+}
+
+impl Robot {
+    /// How far apart two actuations are: an estimate of the largest change
+    /// of a section's turn [rad] between them, to compare with
+    /// [`WARM_TURN`]. The rest curvature turns a section by `kappa l_s`; a
+    /// tension `tau` at offset `r` bends by its moment `tau r`, a field `B`
+    /// by `|m| |B|` a length (and a tip magnet's `|mu| |B|`), each over the
+    /// softest stiffness `k` along the section `l_s`.
+    fn actuation_turn(&self, a: &Actuation, b: &Actuation, k: f64) -> f64 {
+        let ls = self.section_length();
+        let curvature = a
+            .rest_curvature
+            .iter()
+            .zip(&b.rest_curvature)
+            .map(|(x, y)| ls * (x[0] - y[0]).hypot(x[1] - y[1]))
+            .fold(0.0, f64::max);
+        let arms = self.tendons.iter().map(|t| {
+            std::iter::once(&t.offset)
+                .chain(t.reroutes.iter().map(|r| &r.offset))
+                .map(|o| o[0].hypot(o[1]))
+                .fold(0.0, f64::max)
+        });
+        let tension: f64 = a
+            .tensions
+            .iter()
+            .zip(&b.tensions)
+            .zip(arms)
+            .map(|((x, y), r)| (x - y).abs() * r)
+            .sum();
+        let magnet = self
+            .magnetization
+            .iter()
+            .map(|m| m.norm() * ls)
+            .fold(self.tip_magnet.norm(), f64::max);
+        let field = (a.field - b.field).norm() * magnet;
+        curvature.max((tension * ls + field) / k)
+    }
+
+    /// Forward statics of many whole actuations (rest curvature, tensions
+    /// and field: a tendon-driven or magnetic robot's, muscles too) under
+    /// one tip mass [kg]. Each actuation is checked first (the drives'
+    /// limits included), an error naming its sample. A warm start is taken
+    /// where [`Robot::actuation_turn`] from the chunk's last equilibrium is
+    /// within [`WARM_TURN`].
+    pub fn actuated_batch(
+        &self,
+        actuations: &[Actuation],
+        tip_mass: f64,
+        settings: &BatchSettings,
+        control: &BatchControl,
+    ) -> Result<Vec<Sample>> {
+        let straight = vec![[0.0; 2]; self.sections];
+        let whole = |a: &Actuation| Actuation {
+            rest_curvature: match a.rest_curvature.is_empty() {
+                true => straight.clone(),
+                false => a.rest_curvature.clone(),
+            },
+            tensions: match a.tensions.is_empty() {
+                true => vec![0.0; self.tendons.len()],
+                false => a.tensions.clone(),
+            },
+            field: a.field,
+        };
+        let actuations: Vec<Actuation> = actuations.iter().map(whole).collect();
+        for (i, a) in actuations.iter().enumerate() {
+            self.actuated_scene(a, tip_mass).map_err(|e| match e {
+                Error::InvalidArgument { name, reason } => {
+                    Error::argument(name, format!("{reason} (sample {i})"))
+                }
+                other => other,
+            })?;
+        }
+        let stiffness = self
+            .actuated_scene(&whole(&Actuation::default()), tip_mass)?
+            .stiffness()
+            .min();
+        let start = || -> Result<(Solver, LastActuated)> {
+            let solver = self.actuated_solver(&whole(&Actuation::default()), tip_mass)?;
+            Ok((solver, LastActuated::default()))
+        };
+        run_chunks(
+            &actuations,
+            settings,
+            control,
+            start,
+            |(solver, last), a| {
+                solver.set_drives(&a.rest_curvature, &a.tensions, a.field)?;
+                let near = last.q.is_some()
+                    && self.actuation_turn(&last.actuation, a, stiffness) < WARM_TURN;
+                let from = if settings.warm_start && near {
+                    last.q.as_deref()
+                } else {
+                    None
+                };
+                let sol = solver.solve_warm_or_cold(from)?;
+                if settings.warm_start && sol.converged() && sol.stable {
+                    last.q = Some(sol.quaternions.clone());
+                    last.actuation = a.clone();
+                }
+                Ok(Sample::of(&sol, settings.shapes))
             },
         )
     }

@@ -88,6 +88,16 @@ def test_forward_and_inverse_batches_on_a_cluster(executor):
     )
 
 
+def test_a_tendon_robots_batch_on_a_cluster(executor):
+    robot = softspine.Robot.from_file("examples/robots/tendon_robot.toml")
+    tensions = np.abs(np.sin(np.arange(30 * 9).reshape(30, 9))) * 10.0
+    local = robot.forward_batch(tensions=tensions, load=0.01, chunk=CHUNK)
+    remote = robot.forward_batch(tensions=tensions, load=0.01, chunk=CHUNK,
+                                 executor=executor, part=PART)
+    assert remote.tensions.shape == (30, 9) and remote.actuations is None
+    same(local, remote)
+
+
 def test_solve_batch_on_a_cluster(executor):
     scenes = [
         {"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1}, "tip_force": [p, 0, 0]}

@@ -190,6 +190,48 @@ def test_unequal_sections_are_refused_where_they_are_not_modelled():
         rerouted_robot(tendons=[{"offset": [[0.01, 0], [0, 0.01]]}])
 
 
+def test_batches_of_tensions_and_fields_are_the_one_by_one_forward_solves():
+    robot = tendon_robot(max_tension=40.0)
+    rng = np.random.default_rng(4)
+    tensions = rng.uniform(0, 15, (12, 9)) * (rng.uniform(size=(12, 9)) < 0.4)
+    cold = robot.forward_batch(tensions=tensions, load=0.02, warm_start=False, chunk=5)
+    warm = robot.forward_batch(tensions=tensions, load=0.02, chunk=5)
+    assert np.array_equal(cold.tensions, tensions) and cold.field is None
+    for i, t in enumerate(tensions):
+        one = robot.forward(tensions=t, load=0.02)
+        assert cold.status[i] == "converged" and cold.stable[i]
+        assert np.array_equal(cold.tip_positions[i], one.tip_position)
+        assert np.linalg.norm(warm.tip_positions[i] - one.tip_position) < 1e-9
+    # With the muscles' curvature too, and a field on a magnetic robot.
+    kappa = rng.uniform(-2, 2, (12, 3, 2))
+    both = robot.forward_batch(kappa, 0.02, tensions=tensions, warm_start=False)
+    assert np.array_equal(
+        both.tip_positions[3],
+        robot.forward(kappa[3], load=0.02, tensions=tensions[3]).tip_position)
+    magnet = catheter()
+    fields = rng.uniform(-0.03, 0.03, (8, 3))
+    batch = magnet.forward_batch(field=fields, shapes=True)
+    assert batch.positions.shape == (8, magnet.n_elements + 1, 3)
+    for i, b in enumerate(fields):
+        assert np.linalg.norm(batch.tip_positions[i] - magnet.forward(field=b).tip_position) < 1e-9
+
+
+def test_bad_batches_of_drives_are_refused_by_name():
+    robot = tendon_robot(max_tension=40.0)
+    with pytest.raises(ValueError, match=r"tensions\[2\]: 50 N is more than .* \(sample 1\)"):
+        robot.forward_batch(tensions=[[0.0] * 9, [0, 0, 50.0] + [0.0] * 6])
+    with pytest.raises(ValueError, match=r"tensions: expected shape \(samples, 9\)"):
+        robot.forward_batch(tensions=[[1.0] * 8])
+    with pytest.raises(ValueError, match="tensions: 2 samples, but actuations has 1"):
+        robot.forward_batch([[[0, 0]] * 3], tensions=[[1.0] * 9] * 2)
+    with pytest.raises(ValueError, match=r"field: .* \(sample 0\)"):
+        catheter().forward_batch(field=[[0.1, 0, 0]])
+    with pytest.raises(ValueError, match="tensions: missing"):
+        robot.forward_batch()
+    with pytest.raises(ValueError, match="actuations: missing"):
+        softspine.Robot().forward_batch()
+
+
 def test_the_tensions_found_reach_the_target_with_the_least_norm():
     robot = tendon_robot()
     target = robot.forward(tensions=GIVEN, load=0.02).tip_position

@@ -277,9 +277,11 @@ class Robot:
         ``"disk_mass"``). Default: the robot's actuation space."""
     def forward_batch(
         self,
-        actuations: npt.ArrayLike,
+        actuations: npt.ArrayLike | None = None,
         load: float = 0.0,
         *,
+        tensions: npt.ArrayLike | None = None,
+        field: npt.ArrayLike | None = None,
         shapes: bool | None = None,
         warm_start: bool | None = None,
         threads: int | None = None,
@@ -289,7 +291,10 @@ class Robot:
         part: int | None = None,
     ) -> BatchResult:
         """Forward statics of many actuations (samples, m, 2) under one tip
-        mass, in Rust on every core without the GIL.
+        mass, in Rust on every core without the GIL. A tendon-driven or
+        magnetic robot takes ``tensions`` (samples, tendons) in N and ``field``
+        (samples, 3) in T, each checked against the drives' limits (the
+        rest curvature is then optional); the result keeps them.
 
         ``shapes``: keep every node's position and quaternion (default False).
         ``warm_start``: start a solve from the last equilibrium of its chunk

@@ -29,7 +29,8 @@ class BatchResult:
     ``status`` holds each solve's ``softspine.Status`` name (``"converged"``,
     ...); ``positions`` and ``quaternions`` (scalar first) are the shapes when
     asked for (``shapes=True``), and ``actuations`` the rest curvature of each
-    sample (m, 2) for a robot's batch.
+    sample (m, 2) for a robot's batch, ``tensions`` and ``field`` its drives
+    where they were given.
     """
 
     tip_positions: npt.NDArray[np.float64]
@@ -50,6 +51,10 @@ class BatchResult:
     """(N, n + 1, 4), with ``shapes=True``."""
     actuations: npt.NDArray[np.float64] | None = None
     """(N, m, 2), 1/m: the rest curvature of each sample (a robot's batch)."""
+    tensions: npt.NDArray[np.float64] | None = None
+    """(N, tendons), N: the tendon tensions of each sample (a tendon robot's batch)."""
+    field: npt.NDArray[np.float64] | None = None
+    """(N, 3), T: the field of each sample (a magnetic robot's batch)."""
 
     @property
     def converged(self) -> npt.NDArray[np.bool_]:

@@ -147,10 +147,12 @@ def _options(**values: Any) -> dict[str, Any]:
 
 def forward_batch(
     robot: Robot,
-    actuations: npt.ArrayLike,
+    actuations: npt.ArrayLike | None = None,
     load: float = 0.0,
     *,
     executor: Any,
+    tensions: npt.ArrayLike | None = None,
+    field: npt.ArrayLike | None = None,
     shapes: bool | None = None,
     warm_start: bool | None = None,
     threads: int | None = None,
@@ -159,15 +161,27 @@ def forward_batch(
     part: int | None = None,
 ) -> BatchResult:
     """``Robot.forward_batch`` on ``executor`` (see the module's documentation)."""
-    k = np.asarray(actuations, dtype=np.float64)
-    if k.ndim != 3:
+    given = {
+        name: np.asarray(a, dtype=np.float64)
+        for name, a in (("actuations", actuations), ("tensions", tensions), ("field", field))
+        if a is not None
+    }
+    if "actuations" in given and given["actuations"].ndim != 3:
         raise ValueError(
-            f"actuations: expected shape (samples, {robot.sections}, 2), got {k.shape}"
+            f"actuations: expected shape (samples, {robot.sections}, 2), "
+            f"got {given['actuations'].shape}"
         )
+    if not given:
+        raise ValueError("actuations: missing (the rest curvature of each sample)")
+    count = len(next(iter(given.values())))
     chunk, part = _part_size(chunk, part)
     options = _options(shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk)
-    cuts = _cuts(len(k), part)
-    calls = [(robot, k[a:b], load, options) for a, b in cuts]
+    cuts = _cuts(count, part)
+    calls = []
+    for a, b in cuts:
+        drives = {name: x[a:b] for name, x in given.items() if name != "actuations"}
+        k = given["actuations"][a:b] if "actuations" in given else None
+        calls.append((robot, k, load, {**options, **drives}))
     parts = _run(executor, _forward_task, calls, [b - a for a, b in cuts], progress)
     return concatenate(parts)
 

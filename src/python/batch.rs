@@ -104,8 +104,24 @@ pub(super) fn batch_result<'py>(
     samples: &[Sample],
     actuations: Option<(&[[f64; 2]], usize)>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    batch_result_with(py, samples, actuations, &[])
+}
+
+/// [`batch_result`] with more per-sample arrays (`tensions`, `field`): each
+/// a row a sample.
+pub(super) fn batch_result_with<'py>(
+    py: Python<'py>,
+    samples: &[Sample],
+    actuations: Option<(&[[f64; 2]], usize)>,
+    columns: &[(&str, &[Vec<f64>])],
+) -> PyResult<Bound<'py, PyAny>> {
     let count = samples.len();
     let d = PyDict::new(py);
+    for (name, rows) in columns {
+        let width = rows.first().map_or(0, Vec::len);
+        let a = Array2::from_shape_fn((count, width), |(i, c)| rows[i][c]);
+        d.set_item(*name, a.into_pyarray(py))?;
+    }
     let tips = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].tip_position[c]);
     let quats = Array2::from_shape_fn((count, 4), |(i, c)| samples[i].tip_quaternion.to_array()[c]);
     d.set_item("tip_positions", tips.into_pyarray(py))?;

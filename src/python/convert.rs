@@ -563,3 +563,23 @@ pub(super) fn samples_arg<const N: usize>(
         &array.call_method1("reshape", ((shape[0] * per) as i64, N as i64))?,
     )
 }
+
+/// A (samples, `width`) array of numbers, one row a sample.
+pub(super) fn sample_rows(
+    name: &str,
+    obj: &Bound<'_, PyAny>,
+    width: usize,
+) -> PyResult<Vec<Vec<f64>>> {
+    let py = obj.py();
+    let np = py.import("numpy")?;
+    let array = np.call_method1("asarray", (obj, "float64")).map_err(|e| {
+        PyValueError::new_err(format!("{name}: not an array of numbers ({})", e.value(py)))
+    })?;
+    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    if shape.len() != 2 || shape[1] != width {
+        return Err(PyValueError::new_err(format!(
+            "{name}: expected shape (samples, {width}), got {shape:?}"
+        )));
+    }
+    array.call_method0("tolist")?.extract()
+}

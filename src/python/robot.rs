@@ -1,6 +1,8 @@
 //! `Robot`, its inverse kinematics (`InverseSolver`, `IkResult`) and the seed's trajectories.
 
-use super::batch::{batch_result, batch_settings, distributed, ik_batch_result, run_batch};
+use super::batch::{
+    batch_result, batch_result_with, batch_settings, distributed, ik_batch_result, run_batch,
+};
 use super::convert::*;
 use super::detach::detach_solve;
 use super::scene::PyScene;
@@ -455,16 +457,18 @@ impl PyRobot {
         super::fitting::sensitivity_result(py, &sens, Some(sol))
     }
 
-    /// Forward statics of many actuations (samples, m, 2) under one tip
-    /// mass, on every core. See the Python documentation of
-    /// ``Robot.forward_batch``.
-    #[pyo3(signature = (actuations, load=0.0, *, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    /// Forward statics of many actuations (samples, m, 2), tendon tensions
+    /// (samples, tendons) or fields (samples, 3) under one tip mass, on
+    /// every core. See the Python documentation of ``Robot.forward_batch``.
+    #[pyo3(signature = (actuations=None, load=0.0, *, tensions=None, field=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn forward_batch<'py>(
         slf: &Bound<'py, Self>,
         py: Python<'py>,
-        actuations: &Bound<'py, PyAny>,
+        actuations: Option<&Bound<'py, PyAny>>,
         #[pyo3(from_py_with = load_arg)] load: f64,
+        tensions: Option<&Bound<'py, PyAny>>,
+        field: Option<&Bound<'py, PyAny>>,
         shapes: Option<&Bound<'py, PyAny>>,
         warm_start: Option<&Bound<'py, PyAny>>,
         threads: Option<&Bound<'py, PyAny>>,
@@ -479,6 +483,8 @@ impl PyRobot {
                 "forward_batch",
                 (slf, actuations, load),
                 &[
+                    ("tensions", tensions),
+                    ("field", field),
                     ("shapes", shapes),
                     ("warm_start", warm_start),
                     ("threads", threads),
@@ -490,14 +496,72 @@ impl PyRobot {
             );
         }
         let this = slf.get();
-        let m = this.inner.sections;
-        let k = samples_arg::<2>("actuations", actuations, m)?;
-        let settings = batch_settings(threads, chunk, warm_start, shapes)?;
         let robot = &this.inner;
-        let samples = run_batch(py, k.len() / m, progress, |control| {
-            robot.forward_batch(&k, load, &settings, control)
+        let m = robot.sections;
+        let settings = batch_settings(threads, chunk, warm_start, shapes)?;
+        let k = given(actuations)
+            .map(|a| samples_arg::<2>("actuations", &a, m))
+            .transpose()?;
+        let (tensions, field) = (given(tensions), given(field));
+        if tensions.is_none()
+            && field.is_none()
+            && robot.actuation_space() == crate::robot::ActuationSpace::Curvature
+        {
+            let k = k.ok_or_else(|| {
+                PyValueError::new_err("actuations: missing (the rest curvature of each sample)")
+            })?;
+            let samples = run_batch(py, k.len() / m, progress, |control| {
+                robot.forward_batch(&k, load, &settings, control)
+            })?;
+            return batch_result(py, &samples, Some((&k, m)));
+        }
+        let t = tensions
+            .map(|t| sample_rows("tensions", &t, robot.tendons.len()))
+            .transpose()?;
+        let b = field.map(|b| sample_rows("field", &b, 3)).transpose()?;
+        let counts = [
+            ("actuations", k.as_ref().map(|k| k.len() / m)),
+            ("tensions", t.as_ref().map(Vec::len)),
+            ("field", b.as_ref().map(Vec::len)),
+        ];
+        let mut given_counts = counts.iter().filter_map(|(name, c)| c.map(|c| (*name, c)));
+        let Some((first, count)) = given_counts.next() else {
+            return Err(PyValueError::new_err(
+                "tensions: missing (give the tensions, the field or the actuations of each sample)",
+            ));
+        };
+        if let Some((name, other)) = given_counts.find(|(_, c)| *c != count) {
+            return Err(PyValueError::new_err(format!(
+                "{name}: {other} samples, but {first} has {count}"
+            )));
+        }
+        let drives: Vec<Actuation> = (0..count)
+            .map(|i| Actuation {
+                rest_curvature: k
+                    .as_ref()
+                    .map_or(Vec::new(), |k| k[i * m..(i + 1) * m].to_vec()),
+                tensions: t.as_ref().map_or(Vec::new(), |t| t[i].clone()),
+                field: b.as_ref().map_or(Vector3::zeros(), |b| {
+                    Vector3::new(b[i][0], b[i][1], b[i][2])
+                }),
+            })
+            .collect();
+        let samples = run_batch(py, count, progress, |control| {
+            robot.actuated_batch(&drives, load, &settings, control)
         })?;
-        batch_result(py, &samples, Some((&k, m)))
+        let mut columns: Vec<(&str, &[Vec<f64>])> = Vec::new();
+        if let Some(t) = &t {
+            columns.push(("tensions", t));
+        }
+        if let Some(b) = &b {
+            columns.push(("field", b));
+        }
+        batch_result_with(
+            py,
+            &samples,
+            k.as_ref().map(|k| (k.as_slice(), m)),
+            &columns,
+        )
     }
 
     /// The equilibria of ``samples`` random actuations (muscle lengths

@@ -175,6 +175,47 @@ impl Solver {
     /// Change the tendons' tensions [N] (one each, in the scene's order,
     /// each >= 0) keeping the workspace; the discretised tendons are rebuilt.
     pub fn set_tensions(&mut self, tensions: &[f64]) -> Result<()> {
+        self.check_tensions(tensions)?;
+        let mut scene = self.scene.clone();
+        for (t, tension) in scene.tendons.iter_mut().zip(tensions) {
+            t.tension = *tension;
+        }
+        self.rebuild(scene)
+    }
+
+    /// Change the uniform magnetic field [T], world frame, keeping the workspace.
+    pub fn set_magnetic_field(&mut self, field: Vector3<f64>) -> Result<()> {
+        check_field(field)?;
+        let mut scene = self.scene.clone();
+        scene.magnetic_field = field;
+        self.rebuild(scene)
+    }
+
+    /// Change the rest curvature per section, the tensions (one a tendon)
+    /// and the field at once, with one rebuild of the discretised loads:
+    /// each checked as by its own setter.
+    pub fn set_drives(
+        &mut self,
+        rest_curvature: &[[f64; 2]],
+        tensions: &[f64],
+        field: Vector3<f64>,
+    ) -> Result<()> {
+        self.check_tensions(tensions)?;
+        check_field(field)?;
+        if rest_curvature.iter().flatten().any(|k| !k.is_finite()) {
+            return Err(Error::argument("rest_curvature", "must be finite"));
+        }
+        let mut scene = self.scene.clone();
+        for (t, tension) in scene.tendons.iter_mut().zip(tensions) {
+            t.tension = *tension;
+        }
+        scene.magnetic_field = field;
+        scene.rest_curvature = rest_curvature.to_vec();
+        scene.check_elements(self.model.n)?;
+        self.rebuild(scene)
+    }
+
+    fn check_tensions(&self, tensions: &[f64]) -> Result<()> {
         let count = self.scene.tendons.len();
         if tensions.len() != count {
             return Err(Error::argument(
@@ -191,24 +232,7 @@ impl Solver {
                 ),
             ));
         }
-        let mut scene = self.scene.clone();
-        for (t, tension) in scene.tendons.iter_mut().zip(tensions) {
-            t.tension = *tension;
-        }
-        self.rebuild(scene)
-    }
-
-    /// Change the uniform magnetic field [T], world frame, keeping the workspace.
-    pub fn set_magnetic_field(&mut self, field: Vector3<f64>) -> Result<()> {
-        if let Some(c) = field.iter().position(|x| !x.is_finite()) {
-            return Err(Error::argument(
-                format!("magnetic_field[{c}]"),
-                format!("must be finite, got {}", field[c]),
-            ));
-        }
-        let mut scene = self.scene.clone();
-        scene.magnetic_field = field;
-        self.rebuild(scene)
+        Ok(())
     }
 
     /// Take `scene` (the same rod with other loads or actuation): its
@@ -555,4 +579,15 @@ pub fn solve(scene: &Scene, settings: Settings, initial: Option<&[Quat]>) -> Res
     let mut solution = Solver::new(scene, settings)?.solve(initial)?;
     solution.solve_time = started.elapsed().as_secs_f64();
     Ok(solution)
+}
+
+/// Refuse a field with a component that is not finite, naming it.
+fn check_field(field: Vector3<f64>) -> Result<()> {
+    match field.iter().position(|x| !x.is_finite()) {
+        Some(c) => Err(Error::argument(
+            format!("magnetic_field[{c}]"),
+            format!("must be finite, got {}", field[c]),
+        )),
+        None => Ok(()),
+    }
 }

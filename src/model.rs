@@ -167,6 +167,13 @@ pub struct RodModel {
     tip_force_at: (Vector3<f64>, Vector3<f64>),
     /// Tendons, longest first (an element's tendons are a prefix).
     tendons: Vec<crate::scene::Tendon>,
+    /// The scene's index of each of `tendons`.
+    tendon_order: Vec<usize>,
+    /// The moment scale of the loads other than the tendons and the field
+    /// [N m], and the magnets' moment per tesla [N m / T]: with the
+    /// tensions and the field, [`RodModel::load_parameter`].
+    other_moment: f64,
+    magnet_moment: f64,
     /// How many tendons (a prefix of `tendons`) run through element `i`
     /// (index `i - 1`).
     tendons_through: Vec<usize>,
@@ -294,8 +301,13 @@ impl RodModel {
         } else {
             Vec::new()
         };
-        let mut tendons = scene.tendons.clone();
-        tendons.sort_by(|a, b| b.end.total_cmp(&a.end));
+        // Longest first (a stable sort: equal ends keep the scene's order).
+        let mut tendon_order: Vec<usize> = (0..scene.tendons.len()).collect();
+        tendon_order.sort_by(|a, b| scene.tendons[*b].end.total_cmp(&scene.tendons[*a].end));
+        let tendons: Vec<crate::scene::Tendon> = tendon_order
+            .iter()
+            .map(|i| scene.tendons[*i].clone())
+            .collect();
         let last_element = |t: &crate::scene::Tendon| mesh.nearest_node(t.end);
         let tendons_through = (1..=n)
             .map(|i| tendons.iter().take_while(|t| last_element(t) >= i).count())
@@ -348,6 +360,7 @@ impl RodModel {
             magnetic_field: scene.magnetic_field,
             tip_force_at: (scene.tip_force, scene.tip_force_offset),
             tendons,
+            tendon_order,
             tendons_through,
             gauss_rest: Vec::new(),
             mean_force,
@@ -360,32 +373,60 @@ impl RodModel {
             residual_scale: stiffness / length,
             loads_held_fixed: false,
             load_parameter: 0.0,
+            other_moment: 0.0,
+            magnet_moment: 0.0,
         };
         let point_moment: f64 = scene.point_loads.iter().map(|p| p.force.norm() * p.s).sum();
-        let tendon_moment: f64 = scene
+        model.magnet_moment = scene.tip_magnet.norm()
+            + length
+                * scene
+                    .magnetization
+                    .iter()
+                    .map(|m| m.norm())
+                    .fold(0.0, f64::max);
+        model.other_moment = scene.tip_moment.norm()
+            + scene.tip_force.norm() * scene.tip_force_offset.norm()
+            + length * scene.tip_force.norm()
+            + 0.5 * length * length * largest_force
+            + point_moment;
+        model.refresh_load_parameter();
+        model.refresh_rest();
+        model
+    }
+
+    /// `load_parameter` from the loads' moments, the tensions and the field.
+    fn refresh_load_parameter(&mut self) {
+        let tendon_moment: f64 = self
             .tendons
             .iter()
             .map(|t| t.tension * t.largest_offset())
             .sum();
-        let field = scene.magnetic_field.norm();
-        let magnetic_moment = field
-            * (scene.tip_magnet.norm()
-                + length
-                    * scene
-                        .magnetization
-                        .iter()
-                        .map(|m| m.norm())
-                        .fold(0.0, f64::max));
-        let moment = scene.tip_moment.norm()
-            + scene.tip_force.norm() * scene.tip_force_offset.norm()
-            + magnetic_moment
-            + length * scene.tip_force.norm()
-            + 0.5 * length * length * largest_force
-            + point_moment
-            + tendon_moment;
-        model.load_parameter = moment * length / stiffness.min();
-        model.refresh_rest();
-        model
+        let moment =
+            self.other_moment + self.magnetic_field.norm() * self.magnet_moment + tendon_moment;
+        self.load_parameter = moment * self.length / self.stiffness.min();
+    }
+
+    /// Set the tendons' tensions in place, in the scene's order (checked by
+    /// the caller): nothing else of the discretisation depends on them.
+    pub fn set_tensions(&mut self, tensions: &[f64]) {
+        debug_assert_eq!(tensions.len(), self.tendons.len());
+        for (t, i) in self.tendons.iter_mut().zip(&self.tendon_order) {
+            t.tension = tensions[*i];
+        }
+        self.refresh_load_parameter();
+    }
+
+    /// Set the field in place where the discretisation keeps its shape
+    /// (the magnetised elements are kept only under a field); false when the
+    /// model must be rebuilt for it.
+    pub fn set_magnetic_field(&mut self, field: Vector3<f64>, magnetized: bool) -> bool {
+        let kept = !self.magnetization.is_empty();
+        if magnetized && kept != (field != Vector3::zeros()) {
+            return false;
+        }
+        self.magnetic_field = field;
+        self.refresh_load_parameter();
+        true
     }
 
     /// Fourth-order scheme: whether every internal node of the last

@@ -15,7 +15,9 @@
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
-use crate::robot::{Actuation, IkEnding, IkOptions, InverseSolver, Robot, Strategy};
+use crate::robot::{
+    ActuatedInverseSolver, Actuation, IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy,
+};
 use crate::scene::Scene;
 use crate::solver::{Settings, Solution, Solver, Status};
 use nalgebra::Vector3;
@@ -120,9 +122,28 @@ pub struct IkSample {
     pub ending: IkEnding,
     pub reached: bool,
     pub rest_curvature: Vec<[f64; 2]>,
+    /// The tensions found [N] (a tendon robot's; empty otherwise).
+    pub tensions: Vec<f64>,
+    /// The field found [T] (a magnetic robot's; zero otherwise).
+    pub field: Vector3<f64>,
     pub tip_position: Vector3<f64>,
     pub tip_miss: f64,
     pub iterations: usize,
+}
+
+impl IkSample {
+    fn of(r: IkResult) -> IkSample {
+        IkSample {
+            ending: r.ending,
+            reached: r.reached,
+            rest_curvature: r.rest_curvature,
+            tensions: r.tensions,
+            field: r.field,
+            tip_position: r.tip_position,
+            tip_miss: r.tip_miss,
+            iterations: r.iterations,
+        }
+    }
 }
 
 /// Run `work` over `items` in chunks (see the module's documentation).
@@ -322,15 +343,6 @@ impl Robot {
         control: &BatchControl,
     ) -> Result<Vec<IkSample>> {
         options.settings.validate()?;
-        if self.actuation_space() != crate::robot::ActuationSpace::Curvature {
-            return Err(Error::argument(
-                "robot",
-                format!(
-                    "inverse batches search muscle curvatures; this robot's actuation is its {} (use track)",
-                    self.actuation_space().name()
-                ),
-            ));
-        }
         if let Some(i) = targets
             .iter()
             .position(|t| !t.iter().all(|v| v.is_finite()))
@@ -341,6 +353,17 @@ impl Robot {
             ));
         }
         let ik = &options.settings;
+        if self.actuation_space() != crate::robot::ActuationSpace::Curvature {
+            // Tensions or a field: a chunk reuses one inverse solver of them.
+            self.check_actuated_ik(options)?;
+            return run_chunks(
+                targets,
+                settings,
+                control,
+                || ActuatedInverseSolver::new(self, options.tip_mass),
+                |solver, target| Ok(IkSample::of(solver.solve_with(*target, options)?)),
+            );
+        }
         run_chunks(
             targets,
             settings,
@@ -360,14 +383,7 @@ impl Robot {
                     )?,
                     None => self.inverse(*target, options)?,
                 };
-                Ok(IkSample {
-                    ending: r.ending,
-                    reached: r.reached,
-                    rest_curvature: r.rest_curvature,
-                    tip_position: r.tip_position,
-                    tip_miss: r.tip_miss,
-                    iterations: r.iterations,
-                })
+                Ok(IkSample::of(r))
             },
         )
     }

@@ -96,6 +96,11 @@ def test_a_tendon_robots_batch_on_a_cluster(executor):
                                  executor=executor, part=PART)
     assert remote.tensions.shape == (30, 9) and remote.actuations is None
     same(local, remote)
+    targets = local.tip_positions[:6]
+    same(
+        robot.inverse_batch(targets, 0.01, chunk=2),
+        robot.inverse_batch(targets, 0.01, chunk=2, executor=executor, part=4),
+    )
 
 
 def test_solve_batch_on_a_cluster(executor):

@@ -216,6 +216,24 @@ def test_batches_of_tensions_and_fields_are_the_one_by_one_forward_solves():
         assert np.linalg.norm(batch.tip_positions[i] - magnet.forward(field=b).tip_position) < 1e-9
 
 
+def test_an_inverse_batch_in_tensions_and_in_field_is_the_one_by_one_track():
+    robot = tendon_robot()
+    targets = trajectories.circle(8, robot)
+    batch = robot.inverse_batch(targets, load=0.02, chunk=3, pretension=[1.0] * 9)
+    assert batch.tensions.shape == (8, 9) and batch.field is None
+    assert batch.reached.all(), batch.ending
+    # A chunk is solved in order, warm from its last answer, as track does.
+    for first in (0, 3, 6):
+        track = robot.track(targets[first:first + 3], load=0.02, pretension=[1.0] * 9)
+        for j, r in enumerate(track):
+            np.testing.assert_array_equal(batch.tensions[first + j], r.tensions)
+    magnet = catheter()
+    tips = magnet.forward_batch(field=[[0.02, 0.01, 0.0], [-0.01, 0.02, 0.0]]).tip_positions
+    found = magnet.inverse_batch(tips)
+    assert found.reached.all() and found.field.shape == (2, 3) and found.tensions is None
+    np.testing.assert_allclose(found.field, [[0.02, 0.01, 0.0], [-0.01, 0.02, 0.0]], atol=1e-6)
+
+
 def test_bad_batches_of_drives_are_refused_by_name():
     robot = tendon_robot(max_tension=40.0)
     with pytest.raises(ValueError, match=r"tensions\[2\]: 50 N is more than .* \(sample 1\)"):
@@ -344,7 +362,8 @@ def test_actuation_the_drives_cannot_apply_is_refused_by_name():
     assert "reference" in message(lambda: robot.inverse([0, 0, 0.2], reference=np.zeros((3, 2))))
     assert "strategy" in message(lambda: robot.inverse([0, 0, 0.2], strategy="geometric"))
     assert "pretension" in message(lambda: softspine.Robot().inverse([0, 0, -0.9], pretension=[]))
-    assert "use track" in message(lambda: robot.inverse_batch([[0, 0, 0.2]]))
+    assert "reference" in message(
+        lambda: robot.inverse_batch([[0, 0, 0.2]], reference=np.zeros((3, 2))))
     assert "tensions" in message(lambda: robot.inverse_solver(0.0))
     assert "muscle lengths" in message(lambda: robot.workspace(10))
     assert "field" in message(lambda: catheter().workspace(10))

@@ -335,6 +335,7 @@ class Robot:
         direction: npt.ArrayLike | None = None,
         settings: IkSettings | dict[str, Any] | None = None,
         *,
+        pretension: npt.ArrayLike | None = None,
         threads: int | None = None,
         chunk: int | None = None,
         progress: bool | Callable[[int, int], object] | None = None,
@@ -342,7 +343,9 @@ class Robot:
         part: int | None = None,
     ) -> IkBatchResult:
         """Load-aware inverse kinematics of many targets (samples, 3), each on
-        its own (as ``inverse``), on every core. Keywords as ``forward_batch``."""
+        its own (as ``inverse``), on every core; a tendon-driven or magnetic
+        robot's in its tensions (closest to ``pretension``) or field, kept in
+        the result's ``tensions`` or ``field``. Keywords as ``forward_batch``."""
     def inverse_solver(self, load: float = 0.0) -> InverseSolver: ...
     def inverse(
         self,

@@ -86,12 +86,16 @@ class IkBatchResult:
     """(N,), the ``softspine.IkEnding`` name of each solve."""
     iterations: npt.NDArray[np.int64]
     """(N,)."""
+    tensions: npt.NDArray[np.float64] | None = None
+    """(N, tendons), N: the tensions found (a tendon robot's batch)."""
+    field: npt.NDArray[np.float64] | None = None
+    """(N, 3), T: the field found (a magnetic robot's batch)."""
 
     def __len__(self) -> int:
         return len(self.tip_positions)
 
     def to_dict(self) -> dict[str, Any]:
-        """Every field as an array."""
+        """Every field (arrays or None)."""
         return _dict(self)
 
 

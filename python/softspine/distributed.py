@@ -221,6 +221,7 @@ def inverse_batch(
     reference: npt.ArrayLike | None = None,
     direction: npt.ArrayLike | None = None,
     settings: Any = None,
+    pretension: npt.ArrayLike | None = None,
     threads: int | None = None,
     chunk: int | None = None,
     progress: Any = None,
@@ -232,7 +233,12 @@ def inverse_batch(
         raise ValueError(f"targets: expected shape (samples, 3), got {t.shape}")
     chunk, part = _part_size(chunk, part)
     options = _options(
-        reference=reference, direction=direction, settings=settings, threads=threads, chunk=chunk
+        reference=reference,
+        direction=direction,
+        settings=settings,
+        pretension=pretension,
+        threads=threads,
+        chunk=chunk,
     )
     cuts = _cuts(len(t), part)
     calls = [(robot, t[a:b], load, options) for a, b in cuts]

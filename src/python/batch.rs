@@ -6,6 +6,7 @@ use super::convert::*;
 use super::detach::detach_batch;
 use super::scene::scene_arg;
 use super::solve::settings_with;
+use crate::robot::ActuationSpace;
 use crate::{BatchControl, BatchSettings, IkSample, Sample, Status};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
@@ -155,14 +156,28 @@ pub(super) fn batch_result_with<'py>(
         .call((), Some(&d))
 }
 
-/// The `softspine.batch.IkBatchResult` of inverse samples of `sections` sections.
+/// The `softspine.batch.IkBatchResult` of inverse samples of `sections`
+/// sections, searched in `space` (its tensions or fields kept).
 pub(super) fn ik_batch_result<'py>(
     py: Python<'py>,
     samples: &[IkSample],
     sections: usize,
+    space: ActuationSpace,
 ) -> PyResult<Bound<'py, PyAny>> {
     let count = samples.len();
     let d = PyDict::new(py);
+    match space {
+        ActuationSpace::Tensions => {
+            let width = samples.first().map_or(0, |s| s.tensions.len());
+            let t = Array2::from_shape_fn((count, width), |(i, c)| samples[i].tensions[c]);
+            d.set_item("tensions", t.into_pyarray(py))?;
+        }
+        ActuationSpace::Field => {
+            let b = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].field[c]);
+            d.set_item("field", b.into_pyarray(py))?;
+        }
+        ActuationSpace::Curvature => {}
+    }
     let k = Array3::from_shape_fn((count, sections, 2), |(i, s, c)| {
         samples[i].rest_curvature[s][c]
     });

@@ -610,7 +610,7 @@ impl PyRobot {
 
     /// Load-aware inverse kinematics of many targets (samples, 3), each on
     /// its own, on every core. See ``Robot.inverse_batch``.
-    #[pyo3(signature = (targets, load=0.0, reference=None, direction=None, settings=None, *, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    #[pyo3(signature = (targets, load=0.0, reference=None, direction=None, settings=None, *, pretension=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse_batch<'py>(
         slf: &Bound<'py, Self>,
@@ -620,6 +620,7 @@ impl PyRobot {
         reference: Option<&Bound<'py, PyAny>>,
         direction: Option<&Bound<'py, PyAny>>,
         settings: Option<&Bound<'py, PyAny>>,
+        pretension: Option<&Bound<'py, PyAny>>,
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
@@ -635,6 +636,7 @@ impl PyRobot {
                     ("reference", reference),
                     ("direction", direction),
                     ("settings", settings),
+                    ("pretension", pretension),
                     ("threads", threads),
                     ("chunk", chunk),
                     ("progress", progress),
@@ -657,7 +659,9 @@ impl PyRobot {
                 .map(|d| vec3_arg("direction", &d))
                 .transpose()?,
             settings: ik_settings_arg(settings, &[])?,
-            pretension: None,
+            pretension: given(pretension)
+                .map(|p| floats_arg("pretension", &p))
+                .transpose()?,
             initial: None,
         };
         let batch = batch_settings(threads, chunk, None, None)?;
@@ -665,7 +669,7 @@ impl PyRobot {
         let samples = run_batch(py, targets.len(), progress, |control| {
             robot.inverse_batch(&targets, &options, &batch, control)
         })?;
-        ik_batch_result(py, &samples, robot.sections)
+        ik_batch_result(py, &samples, robot.sections, robot.actuation_space())
     }
 
     /// A reusable inverse solver for one tip mass (warm starts between calls).

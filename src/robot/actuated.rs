@@ -321,6 +321,22 @@ impl ActuatedInverseSolver {
         Ok(result)
     }
 
+    /// [`ActuatedInverseSolver::solve`] with the direction, pretension and
+    /// settings of `options`.
+    pub fn solve_with(
+        &mut self,
+        target: Vector3<f64>,
+        options: &super::IkOptions,
+    ) -> Result<IkResult> {
+        self.solve(
+            target,
+            options.direction,
+            options.pretension.as_deref(),
+            options.settings.tol,
+            options.settings.max_iterations,
+        )
+    }
+
     fn goal(
         &self,
         target: Vector3<f64>,

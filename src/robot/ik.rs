@@ -1238,6 +1238,21 @@ impl Robot {
         targets: &[Vector3<f64>],
         options: &IkOptions,
     ) -> Result<Vec<IkResult>> {
+        self.check_actuated_ik(options)?;
+        let mut solver = ActuatedInverseSolver::new(self, options.tip_mass)?;
+        if let Some(start) = &options.initial {
+            check_initial(start, self.n_elements)?;
+            solver.warm_start(start)?;
+        }
+        targets
+            .iter()
+            .map(|target| solver.solve_with(*target, options))
+            .collect()
+    }
+
+    /// Refuse the IK options that steer muscles, for a robot driven by its
+    /// tensions or a field, naming them.
+    pub(crate) fn check_actuated_ik(&self, options: &IkOptions) -> Result<()> {
         let space = self.actuation_space();
         if options.settings.strategy != Strategy::Equilibrium {
             return Err(Error::argument(
@@ -1257,22 +1272,6 @@ impl Robot {
                 ),
             ));
         }
-        let mut solver = ActuatedInverseSolver::new(self, options.tip_mass)?;
-        if let Some(start) = &options.initial {
-            check_initial(start, self.n_elements)?;
-            solver.warm_start(start)?;
-        }
-        targets
-            .iter()
-            .map(|target| {
-                solver.solve(
-                    *target,
-                    options.direction,
-                    options.pretension.as_deref(),
-                    options.settings.tol,
-                    options.settings.max_iterations,
-                )
-            })
-            .collect()
+        Ok(())
     }
 }

@@ -16,7 +16,8 @@
 use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::robot::{
-    ActuatedInverseSolver, Actuation, IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy,
+    ActuatedInverseSolver, Actuation, ActuationSpace, IkEnding, IkOptions, IkResult, InverseSolver,
+    Robot, Strategy,
 };
 use crate::scene::Scene;
 use crate::solver::{Settings, Solution, Solver, Status};
@@ -467,38 +468,132 @@ impl Robot {
                 other => other,
             })?;
         }
-        let stiffness = self
-            .actuated_scene(&whole(&Actuation::default()), tip_mass)?
-            .stiffness()
-            .min();
-        let start = || -> Result<(Solver, LastActuated)> {
-            let solver = self.actuated_solver(&whole(&Actuation::default()), tip_mass)?;
-            Ok((solver, LastActuated::default()))
+        let (start, stiffness) = self.actuated_chunk(tip_mass)?;
+        run_chunks(&actuations, settings, control, start, |state, a| {
+            self.actuated_sample(state, a, stiffness, settings)
+        })
+    }
+
+    /// What makes a chunk's state for whole actuations (a forward solver
+    /// of this robot under `tip_mass`), and the softest stiffness (the
+    /// warm starts' scale).
+    fn actuated_chunk(
+        &self,
+        tip_mass: f64,
+    ) -> Result<(impl Fn() -> Result<ActuatedChunk> + Sync + '_, f64)> {
+        let rest = Actuation {
+            rest_curvature: vec![[0.0; 2]; self.sections],
+            tensions: vec![0.0; self.tendons.len()],
+            field: Vector3::zeros(),
         };
-        run_chunks(
-            &actuations,
-            settings,
-            control,
-            start,
-            |(solver, last), a| {
-                solver.set_drives(&a.rest_curvature, &a.tensions, a.field)?;
-                let near = last.q.is_some()
-                    && self.actuation_turn(&last.actuation, a, stiffness) < WARM_TURN;
-                let from = if settings.warm_start && near {
-                    last.q.as_deref()
-                } else {
-                    None
-                };
-                let sol = solver.solve_warm_or_cold(from)?;
-                if settings.warm_start && sol.converged() && sol.stable {
-                    last.q = Some(sol.quaternions.clone());
-                    last.actuation = a.clone();
+        let stiffness = self.actuated_scene(&rest, tip_mass)?.stiffness().min();
+        let start = move || {
+            Ok((
+                self.actuated_solver(&rest, tip_mass)?,
+                LastActuated::default(),
+            ))
+        };
+        Ok((start, stiffness))
+    }
+
+    /// One forward sample of a whole actuation (every part given).
+    fn actuated_sample(
+        &self,
+        (solver, last): &mut ActuatedChunk,
+        a: &Actuation,
+        stiffness: f64,
+        settings: &BatchSettings,
+    ) -> Result<Sample> {
+        solver.set_drives(&a.rest_curvature, &a.tensions, a.field)?;
+        let near =
+            last.q.is_some() && self.actuation_turn(&last.actuation, a, stiffness) < WARM_TURN;
+        let from = if settings.warm_start && near {
+            last.q.as_deref()
+        } else {
+            None
+        };
+        let sol = solver.solve_warm_or_cold(from)?;
+        if settings.warm_start && sol.converged() && sol.stable {
+            last.q = Some(sol.quaternions.clone());
+            last.actuation = a.clone();
+        }
+        Ok(Sample::of(&sol, settings.shapes))
+    }
+
+    /// Sample `index` of the seeded random drives of a tendon-driven or
+    /// magnetic robot: each tension uniform over `[0, max_tension]`, or the
+    /// field uniform in the ball `|B| <= max_field` (the muscles straight).
+    /// Each sample has its own stream, as [`Robot::random_actuation`].
+    pub fn random_drives(&self, seed: u64, index: u64) -> Result<Actuation> {
+        use rand::rngs::SmallRng;
+        use rand::{RngExt, SeedableRng};
+        let mut rng = SmallRng::seed_from_u64(seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let mut drives = Actuation {
+            rest_curvature: vec![[0.0; 2]; self.sections],
+            tensions: vec![0.0; self.tendons.len()],
+            field: Vector3::zeros(),
+        };
+        match self.actuation_space() {
+            ActuationSpace::Tensions => {
+                let most = self.max_tension.ok_or_else(|| {
+                    Error::argument(
+                        "max_tension",
+                        "missing: the workspace samples each tension over [0, max_tension]",
+                    )
+                })?;
+                for t in &mut drives.tensions {
+                    *t = rng.random_range(0.0..=most);
                 }
-                Ok(Sample::of(&sol, settings.shapes))
-            },
-        )
+            }
+            ActuationSpace::Field => {
+                let most = self.max_field.ok_or_else(|| {
+                    Error::argument(
+                        "max_field",
+                        "missing: the workspace samples the field in the ball |B| <= max_field",
+                    )
+                })?;
+                // Uniform in the ball: rejection from its cube.
+                drives.field = loop {
+                    let b = Vector3::from_fn(|_, _| rng.random_range(-1.0..=1.0));
+                    if b.norm_squared() <= 1.0 {
+                        break most * b;
+                    }
+                };
+            }
+            ActuationSpace::Curvature => {
+                drives.rest_curvature = self.random_actuation(seed, index)?;
+            }
+        }
+        Ok(drives)
+    }
+
+    /// The workspace of a tendon-driven or magnetic robot: the equilibria
+    /// of `samples` random drives ([`Robot::random_drives`], drawn by the
+    /// workers) under a tip mass [kg]; `first` as in [`Robot::workspace`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn actuated_workspace(
+        &self,
+        samples: usize,
+        first: u64,
+        tip_mass: f64,
+        seed: u64,
+        settings: &BatchSettings,
+        control: &BatchControl,
+    ) -> Result<(Vec<Actuation>, Vec<Sample>)> {
+        self.random_drives(seed, first)?;
+        let indices: Vec<u64> = (first..first + samples as u64).collect();
+        let (start, stiffness) = self.actuated_chunk(tip_mass)?;
+        let out = run_chunks(&indices, settings, control, start, |state, index| {
+            let drives = self.random_drives(seed, *index)?;
+            let sample = self.actuated_sample(state, &drives, stiffness, settings)?;
+            Ok((drives, sample))
+        })?;
+        Ok(out.into_iter().unzip())
     }
 }
+
+/// A chunk's forward solver of whole actuations and its last equilibrium.
+type ActuatedChunk = (Solver, LastActuated);
 
 impl Robot {
     /// Sample `index` of the seeded random actuations: every muscle's length
@@ -546,11 +641,12 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<(Vec<[f64; 2]>, Vec<Sample>)> {
-        if self.actuation_space() != crate::robot::ActuationSpace::Curvature {
+        if self.actuation_space() != ActuationSpace::Curvature {
             return Err(Error::argument(
                 "robot",
                 format!(
-                    "the workspace samples muscle lengths; this robot's actuation is its {}",
+                    "the workspace samples muscle lengths; this robot's actuation is its {} \
+                     (see actuated_workspace)",
                     self.actuation_space().name()
                 ),
             ));
@@ -679,6 +775,46 @@ mod tests {
         };
         let e = robot.forward_batch(&k[..robot.sections], 0.0, &zero, &control);
         assert!(e.unwrap_err().to_string().contains("chunk"));
+    }
+
+    #[test]
+    fn a_batch_of_tensions_is_the_one_by_one_forward_solve() {
+        let robot =
+            Robot::from_toml_str(include_str!("../examples/robots/tendon_robot.toml")).unwrap();
+        let drives: Vec<Actuation> = (0..6)
+            .map(|i| Actuation {
+                tensions: (0..9)
+                    .map(|j| ((i * 9 + j) as f64).sin().abs() * 8.0)
+                    .collect(),
+                ..Actuation::default()
+            })
+            .collect();
+        let cold = BatchSettings {
+            warm_start: false,
+            chunk: 4,
+            ..BatchSettings::default()
+        };
+        let control = BatchControl::default();
+        let batch = robot
+            .actuated_batch(&drives, 0.02, &cold, &control)
+            .unwrap();
+        let warm = BatchSettings::default();
+        let warmed = robot
+            .actuated_batch(&drives, 0.02, &warm, &control)
+            .unwrap();
+        for ((sample, again), a) in batch.iter().zip(&warmed).zip(&drives) {
+            let one = robot.actuated_solver(a, 0.02).unwrap().solve(None).unwrap();
+            assert!(sample.converged() && sample.stable);
+            assert_eq!(sample.tip_position, one.tip_position());
+            assert!((again.tip_position - one.tip_position()).norm() < 1e-9);
+        }
+        // Over the drive's limit: refused, naming the sample.
+        let mut over = drives.clone();
+        over[4].tensions[2] = 100.0;
+        let e = robot
+            .actuated_batch(&over, 0.02, &cold, &control)
+            .unwrap_err();
+        assert!(e.to_string().contains("tensions[2]") && e.to_string().contains("sample 4"));
     }
 
     #[test]

@@ -96,6 +96,10 @@ def test_a_tendon_robots_batch_on_a_cluster(executor):
                                  executor=executor, part=PART)
     assert remote.tensions.shape == (30, 9) and remote.actuations is None
     same(local, remote)
+    same(
+        robot.workspace(30, 0.01, seed=4, chunk=CHUNK),
+        robot.workspace(30, 0.01, seed=4, chunk=CHUNK, executor=executor, part=PART),
+    )
     targets = local.tip_positions[:6]
     same(
         robot.inverse_batch(targets, 0.01, chunk=2),

@@ -234,6 +234,27 @@ def test_an_inverse_batch_in_tensions_and_in_field_is_the_one_by_one_track():
     np.testing.assert_allclose(found.field, [[0.02, 0.01, 0.0], [-0.01, 0.02, 0.0]], atol=1e-6)
 
 
+def test_the_workspace_of_tendons_and_fields_samples_their_drives_within_limits():
+    robot = tendon_robot(max_tension=20.0)
+    ws = robot.workspace(40, load=0.01, seed=2, chunk=16)
+    assert ws.tensions.shape == (40, 9) and ws.actuations is None
+    assert (ws.tensions >= 0).all() and (ws.tensions <= 20.0).all()
+    assert ws.tensions.std() > 4.0  # spread over the range (uniform: 5.8)
+    assert ws.converged.all() and ws.stable.all()
+    # The same equilibria as the forward solves of those tensions, and a
+    # part of the workspace draws the samples the whole drew there.
+    for i in (0, 17, 39):
+        one = robot.forward(tensions=ws.tensions[i], load=0.01).tip_position
+        assert np.linalg.norm(ws.tip_positions[i] - one) < 1e-9
+    part = robot.workspace(8, load=0.01, seed=2, first=16, chunk=16)
+    np.testing.assert_array_equal(part.tensions, ws.tensions[16:24])
+    magnet = catheter()
+    fields = magnet.workspace(30, seed=1).field
+    assert fields.shape == (30, 3)
+    assert (np.linalg.norm(fields, axis=1) <= 0.05).all()
+    assert np.linalg.norm(fields, axis=1).max() > 0.035  # fills the ball
+
+
 def test_bad_batches_of_drives_are_refused_by_name():
     robot = tendon_robot(max_tension=40.0)
     with pytest.raises(ValueError, match=r"tensions\[2\]: 50 N is more than .* \(sample 1\)"):
@@ -365,8 +386,9 @@ def test_actuation_the_drives_cannot_apply_is_refused_by_name():
     assert "reference" in message(
         lambda: robot.inverse_batch([[0, 0, 0.2]], reference=np.zeros((3, 2))))
     assert "tensions" in message(lambda: robot.inverse_solver(0.0))
-    assert "muscle lengths" in message(lambda: robot.workspace(10))
-    assert "field" in message(lambda: catheter().workspace(10))
+    assert "max_tension: missing" in message(lambda: tendon_robot().workspace(10))
+    unbounded = {k: v for k, v in catheter().to_dict().items() if k != "max_field"}
+    assert "max_field: missing" in message(lambda: softspine.Robot(unbounded).workspace(10))
     bad = {"sections": 2, "tendons": [{"offset": [0.01, 0], "section": 3}]}
     assert "tendons[0].section" in message(lambda: softspine.Robot(bad))
     bad = {"tendons": [{"offset": [0.01, 0], "tension": 2.0}]}

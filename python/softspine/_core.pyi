@@ -324,9 +324,11 @@ class Robot:
     ) -> BatchResult:
         """The equilibria of ``samples`` random actuations (each muscle's
         length uniform over its range, seeded) under a tip mass: a
-        ``BatchResult`` with ``actuations``. Sample ``i`` is drawn from the
-        seed and ``first + i`` (a part of a larger workspace draws what the
-        whole would). Keywords as ``forward_batch``."""
+        ``BatchResult`` with ``actuations``; a tendon-driven robot's draws
+        each tension over ``[0, max_tension]`` (``tensions``), a magnetic
+        one's the field in the ball ``|B| <= max_field`` (``field``). Sample
+        ``i`` is drawn from the seed and ``first + i`` (a part of a larger
+        workspace draws what the whole would). Keywords as ``forward_batch``."""
     def inverse_batch(
         self,
         targets: npt.ArrayLike,

@@ -602,6 +602,20 @@ impl PyRobot {
         }
         let settings = batch_settings(threads, chunk, None, shapes)?;
         let robot = &slf.get().inner;
+        let space = robot.actuation_space();
+        if space != crate::robot::ActuationSpace::Curvature {
+            let (drives, out) = run_batch(py, samples, progress, |control| {
+                robot.actuated_workspace(samples, first, load, seed, &settings, control)
+            })?;
+            let rows: Vec<Vec<f64>> = drives
+                .iter()
+                .map(|a| match space {
+                    crate::robot::ActuationSpace::Tensions => a.tensions.clone(),
+                    _ => a.field.iter().copied().collect(),
+                })
+                .collect();
+            return batch_result_with(py, &out, None, &[(space.name(), &rows)]);
+        }
         let (k, out) = run_batch(py, samples, progress, |control| {
             robot.workspace(samples, first, load, seed, &settings, control)
         })?;

@@ -255,6 +255,21 @@ def test_the_workspace_of_tendons_and_fields_samples_their_drives_within_limits(
     assert np.linalg.norm(fields, axis=1).max() > 0.035  # fills the ball
 
 
+def test_a_reusable_inverse_solver_of_tensions_and_of_the_field():
+    robot = tendon_robot()
+    solver = robot.inverse_solver(0.02)
+    targets = trajectories.circle(4, robot)
+    track = robot.track(targets, load=0.02, pretension=[1.0] * 9)
+    for target, expected in zip(targets, track, strict=True):
+        r = solver.solve(target, pretension=[1.0] * 9)
+        assert r.reached, r.message
+        np.testing.assert_array_equal(r.tensions, expected.tensions)
+    magnet = catheter()
+    tip = magnet.forward(field=[0.02, -0.01, 0.0]).tip_position
+    found = magnet.inverse_solver().solve(tip)
+    assert found.reached and np.allclose(found.field, [0.02, -0.01, 0.0], atol=1e-6)
+
+
 def test_bad_batches_of_drives_are_refused_by_name():
     robot = tendon_robot(max_tension=40.0)
     with pytest.raises(ValueError, match=r"tensions\[2\]: 50 N is more than .* \(sample 1\)"):
@@ -385,7 +400,10 @@ def test_actuation_the_drives_cannot_apply_is_refused_by_name():
     assert "pretension" in message(lambda: softspine.Robot().inverse([0, 0, -0.9], pretension=[]))
     assert "reference" in message(
         lambda: robot.inverse_batch([[0, 0, 0.2]], reference=np.zeros((3, 2))))
-    assert "tensions" in message(lambda: robot.inverse_solver(0.0))
+    solver = robot.inverse_solver(0.0)
+    assert "reference" in message(lambda: solver.solve([0, 0, 0.2], reference=np.zeros((3, 2))))
+    assert "pretension" in message(
+        lambda: softspine.Robot().inverse_solver().solve([0, 0, -0.9], pretension=[1.0]))
     assert "max_tension: missing" in message(lambda: tendon_robot().workspace(10))
     unbounded = {k: v for k, v in catheter().to_dict().items() if k != "max_field"}
     assert "max_field: missing" in message(lambda: softspine.Robot(unbounded).workspace(10))

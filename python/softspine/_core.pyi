@@ -199,6 +199,7 @@ class InverseSolver:
         *,
         tol: float | None = None,
         max_iterations: int | None = None,
+        pretension: npt.ArrayLike | None = None,
     ) -> IkResult: ...
 
 @final

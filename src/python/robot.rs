@@ -8,7 +8,10 @@ use super::detach::detach_solve;
 use super::scene::PyScene;
 use super::settings::ik_settings_arg;
 use super::solution::{quaternions_arg, PySolution};
-use crate::robot::{trajectory, Actuation, IkOptions, IkResult, IkStart, InverseSolver, Robot};
+use crate::robot::{
+    trajectory, ActuatedInverseSolver, Actuation, IkOptions, IkResult, IkStart, InverseSolver,
+    Robot,
+};
 use crate::Settings;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
@@ -191,16 +194,24 @@ impl PyIkResult {
 #[pyclass(name = "InverseSolver", module = "softspine._core", frozen)]
 pub struct PyInverseSolver {
     /// Shared with a worker thread during a long solve (see `detach_solve`).
-    pub(super) inner: Arc<Mutex<InverseSolver>>,
+    pub(super) inner: Arc<Mutex<IkEngine>>,
     pub(super) long_passes: bool,
+}
+
+/// The inverse solver of a robot's actuation space: muscle curvatures, or
+/// tendon tensions and the field.
+pub(super) enum IkEngine {
+    Muscles(InverseSolver),
+    Drives(ActuatedInverseSolver),
 }
 
 #[pymethods]
 impl PyInverseSolver {
     /// The actuation whose loaded equilibrium reaches ``target`` (see
     /// ``Robot.inverse``); ``settings`` an ``IkSettings`` (its strategy must
-    /// be "equilibrium"), the keywords over it.
-    #[pyo3(signature = (target, reference=None, direction=None, settings=None, *, tol=None, max_iterations=None))]
+    /// be "equilibrium"), the keywords over it. A tendon-driven or magnetic
+    /// robot's: its tensions (closest to ``pretension``) or field.
+    #[pyo3(signature = (target, reference=None, direction=None, settings=None, *, tol=None, max_iterations=None, pretension=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve(
         &self,
@@ -211,7 +222,11 @@ impl PyInverseSolver {
         settings: Option<&Bound<'_, PyAny>>,
         tol: Option<&Bound<'_, PyAny>>,
         max_iterations: Option<&Bound<'_, PyAny>>,
+        pretension: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
+        let pretension = given(pretension)
+            .map(|p| floats_arg("pretension", &p))
+            .transpose()?;
         let target = vec3_arg("target", target)?;
         let reference = reference
             .map(|r| rows_arg::<2>("reference", r))
@@ -224,9 +239,31 @@ impl PyInverseSolver {
         // Locked without the GIL; None if a solve panicked holding the lock.
         let inner = Arc::clone(&self.inner);
         let r = detach_solve(py, self.long_passes, move || match inner.lock() {
-            Ok(mut solver) => solver
-                .solve_with(target, direction, reference.as_deref(), &settings)
-                .map(Some),
+            Ok(mut engine) => match &mut *engine {
+                IkEngine::Muscles(solver) => {
+                    if pretension.is_some() {
+                        return Err(crate::Error::argument(
+                            "pretension",
+                            "pulls tendons; this robot's actuation is its muscles' curvature",
+                        ));
+                    }
+                    solver
+                        .solve_with(target, direction, reference.as_deref(), &settings)
+                        .map(Some)
+                }
+                IkEngine::Drives(solver) => {
+                    let options = IkOptions {
+                        tip_mass: 0.0,
+                        reference,
+                        direction,
+                        settings,
+                        pretension,
+                        initial: None,
+                    };
+                    solver.robot().check_actuated_ik(&options)?;
+                    solver.solve_with(target, &options).map(Some)
+                }
+            },
             Err(_) => Ok(None),
         })?;
         let r = r.ok_or_else(|| {
@@ -692,8 +729,14 @@ impl PyRobot {
         &self,
         #[pyo3(from_py_with = load_arg)] load: f64,
     ) -> PyResult<PyInverseSolver> {
+        let engine = match self.inner.actuation_space() {
+            crate::robot::ActuationSpace::Curvature => {
+                IkEngine::Muscles(InverseSolver::new(&self.inner, load)?)
+            }
+            _ => IkEngine::Drives(ActuatedInverseSolver::new(&self.inner, load)?),
+        };
         Ok(PyInverseSolver {
-            inner: Arc::new(Mutex::new(InverseSolver::new(&self.inner, load)?)),
+            inner: Arc::new(Mutex::new(engine)),
             long_passes: self.inner.has_long_passes(),
         })
     }

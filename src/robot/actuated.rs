@@ -217,6 +217,11 @@ impl ActuatedInverseSolver {
         })
     }
 
+    /// The robot it inverts.
+    pub fn robot(&self) -> &Robot {
+        &self.robot
+    }
+
     pub fn space(&self) -> ActuationSpace {
         self.space
     }

@@ -580,6 +580,7 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<(Vec<Actuation>, Vec<Sample>)> {
+        self.validate()?;
         self.random_drives(seed, first)?;
         let indices: Vec<u64> = (first..first + samples as u64).collect();
         let (start, stiffness) = self.actuated_chunk(tip_mass)?;

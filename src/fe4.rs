@@ -717,15 +717,16 @@ pub(crate) fn cached_mid(
 /// is: solved once for each run of equal elements (a section).
 pub(crate) fn rest_chain<'a>(base: Quat, elements: impl Iterator<Item = Element<'a>>) -> Vec<Quat> {
     let mut out = vec![base];
-    let mut last: Option<(Vector3<f64>, Quat)> = None;
+    // A run of equal elements: the same rest curvature and length.
+    let mut last: Option<(Vector3<f64>, f64, Quat)> = None;
     for el in elements {
         let a = *out.last().expect("starts with the base");
-        if let Some((_, turn)) = last.filter(|(rest, _)| *rest == el.rest) {
+        if let Some((_, _, turn)) = last.filter(|(rest, h, _)| *rest == el.rest && *h == el.h) {
             out.push((a * turn).normalized());
             continue;
         }
         let b = rest_element(a, &el);
-        last = Some((el.rest, a.conj() * b));
+        last = Some((el.rest, el.h, a.conj() * b));
         out.push(b);
     }
     out

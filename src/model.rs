@@ -408,24 +408,33 @@ impl RodModel {
 
     /// Set the tendons' tensions in place, in the scene's order (checked by
     /// the caller): nothing else of the discretisation depends on them.
-    pub fn set_tensions(&mut self, tensions: &[f64]) {
-        debug_assert_eq!(tensions.len(), self.tendons.len());
+    pub(crate) fn set_tensions(&mut self, tensions: &[f64]) {
+        assert_eq!(tensions.len(), self.tendons.len(), "one tension a tendon");
         for (t, i) in self.tendons.iter_mut().zip(&self.tendon_order) {
             t.tension = tensions[*i];
         }
+        self.drives_changed();
+    }
+
+    /// After new drives: the load parameter, and the fourth-order scheme's
+    /// internal nodes (which belonged to the old ones) forgotten.
+    fn drives_changed(&mut self) {
         self.refresh_load_parameter();
+        if self.scheme == Scheme::Fe4 {
+            self.mids = fe4::MidCache::new(self.n);
+        }
     }
 
     /// Set the field in place where the discretisation keeps its shape
     /// (the magnetised elements are kept only under a field); false when the
     /// model must be rebuilt for it.
-    pub fn set_magnetic_field(&mut self, field: Vector3<f64>, magnetized: bool) -> bool {
+    pub(crate) fn set_magnetic_field(&mut self, field: Vector3<f64>, magnetized: bool) -> bool {
         let kept = !self.magnetization.is_empty();
         if magnetized && kept != (field != Vector3::zeros()) {
             return false;
         }
         self.magnetic_field = field;
-        self.refresh_load_parameter();
+        self.drives_changed();
         true
     }
 

@@ -351,6 +351,28 @@ impl Scene {
         self.rest_curvature.len().max(self.sections.len()).max(1)
     }
 
+    /// What of the scene only the discrete potential models (shooting and
+    /// the paper's system do not), if anything.
+    pub fn only_the_potential_models(&self) -> Option<&'static str> {
+        let magnetic = !self.magnetization.is_empty() || self.tip_magnet != Vector3::zeros();
+        [
+            (
+                !self.tendons.is_empty() || magnetic,
+                "tendons or magnetic actuation",
+            ),
+            (
+                !self.sections.is_empty(),
+                "sections with their own length, stiffness or density",
+            ),
+            (
+                self.tip_force_offset != Vector3::zeros(),
+                "a tip force off the tip (tip_force_offset)",
+            ),
+        ]
+        .into_iter()
+        .find_map(|(present, what)| present.then_some(what))
+    }
+
     /// The sections' own lengths [m]; empty when the sections are equal.
     pub fn section_lengths(&self) -> Vec<f64> {
         self.sections.iter().filter_map(|p| p.length).collect()
@@ -504,17 +526,7 @@ impl Scene {
             tip_magnet: vec3_or_zero("tip_magnet")?,
             magnetic_field: vec3_or_zero("magnetic_field")?,
         };
-        let k = scene.magnetization.len();
-        if k > 1 && k != scene.sections() && !scene.section_lengths().is_empty() {
-            return Err(Error::scene(
-                "magnetization",
-                format!(
-                    "{k} entries, but the rod has {} sections of their own lengths: one entry, \
-                     or one a section",
-                    scene.sections()
-                ),
-            ));
-        }
+        scene.check_section_lengths()?;
         scene.check_derived()?;
         Ok(scene)
     }
@@ -747,8 +759,53 @@ impl Scene {
         Value::Map(m)
     }
 
+    /// Sections of their own lengths (as the reader checks them, for a scene
+    /// built in Rust or changed since): every section or none given one,
+    /// positive and finite, adding up to `length`, and the rest curvature
+    /// and magnetisation one a section (or one for all).
+    fn check_section_lengths(&self) -> Result<()> {
+        let lengths = self.section_lengths();
+        if lengths.is_empty() {
+            return Ok(());
+        }
+        if let Some(i) = self
+            .sections
+            .iter()
+            .position(|p| !p.length.is_some_and(|l| l.is_finite() && l > 0.0))
+        {
+            return Err(Error::scene(
+                format!("sections[{i}].length"),
+                "missing or not positive: give every section its length, or none (equal sections)",
+            ));
+        }
+        let total: f64 = lengths.iter().sum();
+        if (total - self.length).abs() > 1e-9 * self.length {
+            return Err(Error::scene(
+                "length",
+                format!(
+                    "{} m, but the sections' lengths add up to {total} m",
+                    self.length
+                ),
+            ));
+        }
+        let k = lengths.len();
+        for (key, count, one_allowed) in [
+            ("rest_curvature", self.rest_curvature.len(), false),
+            ("magnetization", self.magnetization.len(), true),
+        ] {
+            if count > 0 && count != k && !(one_allowed && count == 1) {
+                return Err(Error::scene(
+                    key,
+                    format!("{count} entries, but the rod has {k} sections of their own lengths"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Check a discretisation: `n` a positive multiple of the number of sections.
     pub fn check_elements(&self, n: usize) -> Result<()> {
+        self.check_section_lengths()?;
         let m = self.sections();
         if n == 0 || n % m != 0 {
             return Err(Error::argument(
@@ -1067,32 +1124,15 @@ pub(crate) fn stiffness_value(k: &Stiffness) -> Value {
     )
 }
 
-/// The rod's length: the `length` key, or the sum of the sections' lengths
-/// (given for all sections or none), and both agree when both are given.
+/// The rod's length: the `length` key, or else the sum of the sections'
+/// lengths (checked with the scene: `Scene::check_section_lengths`).
 fn rod_length(key: Option<&Value>, sections: &[SectionProperties]) -> Result<f64> {
-    let given = key.map(|v| positive(v, "length")).transpose()?;
-    let lengths: Vec<f64> = sections.iter().filter_map(|p| p.length).collect();
-    if lengths.is_empty() {
-        return given.ok_or_else(|| Error::scene("length", "missing"));
-    }
-    if lengths.len() != sections.len() {
-        let missing = sections
-            .iter()
-            .position(|p| p.length.is_none())
-            .unwrap_or(0);
-        return Err(Error::scene(
-            format!("sections[{missing}].length"),
-            "missing: give every section its length, or none (equal sections)",
-        ));
-    }
-    let total: f64 = lengths.iter().sum();
-    match given {
-        Some(l) if (l - total).abs() > 1e-9 * l => Err(Error::scene(
-            "length",
-            format!("{l} m, but the sections' lengths add up to {total} m"),
-        )),
-        Some(l) => Ok(l),
-        None => Ok(total),
+    match key {
+        Some(v) => positive(v, "length"),
+        None if sections.iter().any(|p| p.length.is_some()) => {
+            Ok(sections.iter().filter_map(|p| p.length).sum())
+        }
+        None => Err(Error::scene("length", "missing")),
     }
 }
 

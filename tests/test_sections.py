@@ -4,6 +4,9 @@ Cosserat rod (tests/tendon_reference.py), and their input."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from tendon_reference import solve_reference
@@ -132,6 +135,53 @@ def test_section_lengths_are_read_checked_and_kept():
     assert "tendons[0].end" in err and "nearest nodes are at 0.5857142857142857 and 0.65" in err
     assert "magnetization" in message(
         {**UNEQUAL, "magnetization": [[0, 0, 1], [0, 0, 1]], "magnetic_field": [0.01, 0, 0]})
+
+
+def test_an_unloaded_arc_split_into_unequal_sections_is_the_same_arc():
+    """Regression: the fourth-order rest shape reused one element's turn for
+    the next section of the same (small) curvature but another length."""
+    arc = {"length": 1.0, "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+           "rest_curvature": [[0.04, 0.0], [0.04, 0.0]]}
+    split = {**arc, "sections": [{"length": 0.25}, {"length": 0.75}]}
+    # fe4's rest shape is the exact arc; fd2's differs with the element
+    # length at second order (1e-9 here).
+    for scheme, tol in (("fd2", 1e-8), ("fe4", 1e-12)):
+        one = softspine.solve(arc, n_elements=200, scheme=scheme)
+        two = softspine.solve(split, n_elements=200, scheme=scheme)
+        assert two.converged, two.message
+        assert np.linalg.norm(two.tip_position - one.tip_position) < tol, scheme
+
+
+def test_a_solvers_new_rest_curvature_counts_the_sections_of_their_own_lengths():
+    """Regression: three rows on a rod of two sections of their own lengths
+    were taken per block of elements, and a nested solve then indexed past
+    the mesh (a panic). Run apart, so that a crash fails one test only."""
+    code = """
+import softspine
+scene = {"length": 1.0, "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+         "sections": [{"length": 0.4}, {"length": 0.6}], "tip_moment": [13.0, 0, 0]}
+solver = softspine.Solver(scene, n_elements=108)
+try:
+    solver.set_rest_curvature([[0.1, 0.0]] * 3)
+except ValueError as e:
+    print("refused:", e)
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "refused: rest_curvature: 3 sections, but the rod has 2" in done.stdout
+
+
+def test_solution_dicts_check_their_section_lengths_and_older_dicts_still_load():
+    d = softspine.solve(UNEQUAL, n_elements=12).to_dict()
+    with pytest.raises(ValueError, match="solution.section_lengths"):
+        softspine.Solution.from_dict({**d, "section_lengths": [0.5, 0.7, 0.1]})
+    with pytest.raises(ValueError, match="solution.section_lengths"):
+        softspine.Solution.from_dict({**d, "section_lengths": [0.2, float("inf"), 0.25]})
+    plain = softspine.solve({k: v for k, v in SCENE.items() if k != "sections"},
+                            n_elements=12).to_dict()
+    del plain["section_lengths"]
+    assert softspine.Solution.from_dict(plain).arc_length[-1] == pytest.approx(0.9)
 
 
 def message(scene) -> str:

@@ -173,7 +173,12 @@ def forward_batch(
         )
     if not given:
         raise ValueError("actuations: missing (the rest curvature of each sample)")
-    count = len(next(iter(given.values())))
+    counts = {name: len(x) for name, x in given.items()}
+    count = next(iter(counts.values()))
+    for name, other in counts.items():
+        if other != count:
+            first = next(iter(counts))
+            raise ValueError(f"{name}: {other} samples, but {first} has {count}")
     chunk, part = _part_size(chunk, part)
     options = _options(shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk)
     cuts = _cuts(count, part)

@@ -412,6 +412,12 @@ pub fn solve_paper(
     literal: bool,
 ) -> Result<PaperOutcome> {
     scene.check_elements(n)?;
+    if let Some(what) = scene.only_the_potential_models() {
+        return Err(Error::argument(
+            "method",
+            format!("the paper's method does not model {what}; use 'newton' or 'lm'"),
+        ));
+    }
     if scene.check_constraints(n)?.is_some() {
         return Err(Error::argument(
             "tip",

@@ -460,6 +460,14 @@ impl<'py> Fields<'py> {
         floats_arg(&self.name(key), &self.get(key)?)
     }
 
+    /// A key that the dicts of earlier versions lack: empty when absent or None.
+    pub(super) fn floats_or_empty(&self, key: &str) -> PyResult<Vec<f64>> {
+        match self.dict.get_item(key)? {
+            Some(v) if !v.is_none() => floats_arg(&self.name(key), &v),
+            _ => Ok(Vec::new()),
+        }
+    }
+
     pub(super) fn optional_vector(&self, key: &str) -> PyResult<Option<Vector3<f64>>> {
         given(Some(&self.get(key)?))
             .map(|v| vector_of(&self.name(key), &v))

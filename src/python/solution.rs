@@ -236,7 +236,8 @@ impl PySolution {
                     })?
             },
             length: float_arg("solution.length", &d.get("length")?)?,
-            section_lengths: d.floats("section_lengths")?,
+            // Absent from the dicts of earlier versions: equal sections.
+            section_lengths: d.floats_or_empty("section_lengths")?,
             positions: d.vectors("positions")?,
             quaternions: d
                 .rows::<4>("quaternions")?

@@ -81,22 +81,7 @@ impl Solver {
             settings.method,
             Method::Shooting | Method::Paper | Method::PaperLiteral
         ) {
-            let magnetic = !scene.magnetization.is_empty() || scene.tip_magnet != Vector3::zeros();
-            let unsupported = [
-                (
-                    !scene.tendons.is_empty() || magnetic,
-                    "tendons or magnetic actuation",
-                ),
-                (
-                    !scene.sections.is_empty(),
-                    "sections with their own stiffness or density",
-                ),
-                (
-                    scene.tip_force_offset != Vector3::zeros(),
-                    "a tip force off the tip (tip_force_offset)",
-                ),
-            ];
-            if let Some((_, what)) = unsupported.iter().find(|(present, _)| *present) {
+            if let Some(what) = scene.only_the_potential_models() {
                 return Err(Error::argument(
                     "method",
                     format!(
@@ -143,6 +128,17 @@ impl Solver {
             return Err(Error::argument(
                 "rest_curvature",
                 format!("{m} sections do not divide the {} elements", self.model.n),
+            ));
+        }
+        // Sections of their own lengths: one curvature each.
+        let own = &self.scene.sections;
+        if own.first().is_some_and(|p| p.length.is_some()) && m != own.len() {
+            return Err(Error::argument(
+                "rest_curvature",
+                format!(
+                    "{m} sections, but the rod has {} of their own lengths",
+                    own.len()
+                ),
             ));
         }
         if sections.iter().flatten().any(|k| !k.is_finite()) {

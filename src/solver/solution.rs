@@ -259,16 +259,21 @@ impl Solution {
             }
         }
         let lengths = self.section_lengths.len();
+        let total: f64 = self.section_lengths.iter().sum();
+        let positive = self
+            .section_lengths
+            .iter()
+            .all(|l| l.is_finite() && *l > 0.0);
         if lengths > 0
-            && (n % lengths != 0
-                || self
-                    .section_lengths
-                    .iter()
-                    .any(|l| l.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)))
+            && (n % lengths != 0 || !positive || (total - self.length).abs() > 1e-9 * self.length)
         {
             return Err(Error::argument(
                 "solution.section_lengths",
-                format!("{lengths} sections of positive length must divide n_elements = {n}"),
+                format!(
+                    "{lengths} sections of positive length adding up to length = {} must divide \
+                     n_elements = {n}",
+                    self.length
+                ),
             ));
         }
         let sections = self.rest_curvature.len();

@@ -460,15 +460,17 @@ impl Robot {
             field: a.field,
         };
         let actuations: Vec<Actuation> = actuations.iter().map(whole).collect();
-        for (i, a) in actuations.iter().enumerate() {
-            self.actuated_scene(a, tip_mass).map_err(|e| match e {
-                Error::InvalidArgument { name, reason } => {
-                    Error::argument(name, format!("{reason} (sample {i})"))
-                }
-                other => other,
-            })?;
-        }
+        // The robot and the load once, each sample's drives (named).
         let (start, stiffness) = self.actuated_chunk(tip_mass)?;
+        for (i, a) in actuations.iter().enumerate() {
+            self.check_sample_drives(&a.rest_curvature, &a.tensions, a.field)
+                .map_err(|e| match e {
+                    Error::InvalidArgument { name, reason } => {
+                        Error::argument(name, format!("{reason} (sample {i})"))
+                    }
+                    other => other,
+                })?;
+        }
         run_chunks(&actuations, settings, control, start, |state, a| {
             self.actuated_sample(state, a, stiffness, settings)
         })

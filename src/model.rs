@@ -228,21 +228,15 @@ impl RodModel {
             .collect();
         let f = scene.distributed_force();
         let sections = scene.sections();
-        let per_section = !scene.sections.is_empty();
-        let element_stiffness: Vec<Vector3<f64>> = if per_section {
-            (0..n)
-                .map(|i| scene.section_stiffness(section_of(i, sections, n)))
-                .collect()
-        } else {
-            Vec::new()
+        // Each element's value of a section property (none without sections).
+        let per_element = |of: &dyn Fn(usize) -> Vector3<f64>| -> Vec<Vector3<f64>> {
+            match scene.sections.is_empty() {
+                true => Vec::new(),
+                false => (0..n).map(|i| of(section_of(i, sections, n))).collect(),
+            }
         };
-        let element_force: Vec<Vector3<f64>> = if per_section {
-            (0..n)
-                .map(|i| scene.section_force(section_of(i, sections, n)))
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let element_stiffness = per_element(&|s| scene.section_stiffness(s));
+        let element_force = per_element(&|s| scene.section_force(s));
         let force_of = |i: usize| element_force.get(i - 1).copied().unwrap_or(f);
         let largest_force = element_force
             .iter()

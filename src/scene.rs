@@ -601,29 +601,49 @@ impl Scene {
             let key = format!("rest_curvature[{i}]");
             check(&key, "L |kappa0|", kappa[0].hypot(kappa[1]) * l)?;
         }
-        let b = self.magnetic_field.norm();
-        for (i, m) in self.magnetization.iter().enumerate() {
-            let key = format!("magnetization[{i}]");
-            check(&key, "|m| |B| L^2 / k", m.norm() * b * l / k_min * l)?;
-        }
         check(
             "tip_force_offset",
             "|F| |c| L / k",
             self.tip_force.norm() * self.tip_force_offset.norm() * l / k_min,
         )?;
-        check(
-            "tip_magnet",
-            "|mu| |B| L / k",
-            self.tip_magnet.norm() * b * l / k_min,
-        )?;
-        for (i, t) in self.tendons.iter().enumerate() {
-            let key = format!("tendons[{i}].tension");
-            let arm = t.largest_offset();
-            check(
-                &key,
-                "|tension| |offset| L / k",
-                t.tension * arm * l / k_min,
-            )?;
+        self.check_field_load(self.magnetic_field)?;
+        let tensions: Vec<f64> = self.tendons.iter().map(|t| t.tension).collect();
+        self.check_tension_load(&tensions)
+    }
+
+    /// Refuse a load parameter that overflows, naming `key` (the scene's
+    /// stiffness and length are valid).
+    fn check_load(&self, key: impl FnOnce() -> String, what: &str, value: f64) -> Result<()> {
+        if value.is_finite() {
+            return Ok(());
+        }
+        let (l, k_min) = (self.length, self.stiffness().min());
+        Err(Error::scene(
+            key(),
+            format!("the load parameter {what} = {value:e} overflows (length {l:e} m, smallest stiffness {k_min:e} N m^2)"),
+        ))
+    }
+
+    /// The field's load parameters (on the magnetisation and the tip
+    /// magnet) at `field`, without changing the scene.
+    pub(crate) fn check_field_load(&self, field: Vector3<f64>) -> Result<()> {
+        let (l, k_min, b) = (self.length, self.stiffness().min(), field.norm());
+        for (i, m) in self.magnetization.iter().enumerate() {
+            let value = m.norm() * b * l / k_min * l;
+            self.check_load(|| format!("magnetization[{i}]"), "|m| |B| L^2 / k", value)?;
+        }
+        let value = self.tip_magnet.norm() * b * l / k_min;
+        self.check_load(|| "tip_magnet".into(), "|mu| |B| L / k", value)
+    }
+
+    /// The tendons' load parameters at `tensions` (one a tendon), without
+    /// changing the scene.
+    pub(crate) fn check_tension_load(&self, tensions: &[f64]) -> Result<()> {
+        let (l, k_min) = (self.length, self.stiffness().min());
+        for (i, (t, tension)) in self.tendons.iter().zip(tensions).enumerate() {
+            let value = tension * t.largest_offset() * l / k_min;
+            let key = || format!("tendons[{i}].tension");
+            self.check_load(key, "|tension| |offset| L / k", value)?;
         }
         Ok(())
     }
@@ -643,17 +663,11 @@ impl Scene {
                 .sections
                 .iter()
                 .map(|p| {
-                    let mut entries = Vec::new();
-                    if let Some(l) = p.length {
-                        entries.push(("length".to_string(), num(l)));
-                    }
-                    if let Some(k) = &p.stiffness {
-                        entries.push(("stiffness".to_string(), stiffness_value(k)));
-                    }
-                    if let Some(d) = p.linear_density {
-                        entries.push(("linear_density".to_string(), num(d)));
-                    }
-                    Value::Map(entries)
+                    Value::Map(section_entries(
+                        p.length,
+                        p.stiffness.as_ref(),
+                        p.linear_density,
+                    ))
                 })
                 .collect();
             m.push(("sections".into(), Value::List(sections)));
@@ -768,26 +782,8 @@ impl Scene {
         if lengths.is_empty() {
             return Ok(());
         }
-        if let Some(i) = self
-            .sections
-            .iter()
-            .position(|p| !p.length.is_some_and(|l| l.is_finite() && l > 0.0))
-        {
-            return Err(Error::scene(
-                format!("sections[{i}].length"),
-                "missing or not positive: give every section its length, or none (equal sections)",
-            ));
-        }
-        let total: f64 = lengths.iter().sum();
-        if (total - self.length).abs() > 1e-9 * self.length {
-            return Err(Error::scene(
-                "length",
-                format!(
-                    "{} m, but the sections' lengths add up to {total} m",
-                    self.length
-                ),
-            ));
-        }
+        let given: Vec<Option<f64>> = self.sections.iter().map(|p| p.length).collect();
+        check_lengths_add_up(&given, self.length, "sections")?;
         let k = lengths.len();
         for (key, count, one_allowed) in [
             ("rest_curvature", self.rest_curvature.len(), false),
@@ -1108,6 +1104,26 @@ pub(crate) fn read_stiffness(v: &Value) -> Result<Stiffness> {
     }
 }
 
+/// The given entries of a section's table: `length`, `stiffness`,
+/// `linear_density` (a robot's section adds its `disk_mass`).
+pub(crate) fn section_entries(
+    length: Option<f64>,
+    stiffness: Option<&Stiffness>,
+    linear_density: Option<f64>,
+) -> Vec<(String, Value)> {
+    let mut entries = Vec::new();
+    if let Some(l) = length {
+        entries.push(("length".to_string(), Value::Number(l)));
+    }
+    if let Some(k) = stiffness {
+        entries.push(("stiffness".to_string(), stiffness_value(k)));
+    }
+    if let Some(d) = linear_density {
+        entries.push(("linear_density".to_string(), Value::Number(d)));
+    }
+    entries
+}
+
 /// A stiffness as the table it is read from.
 pub(crate) fn stiffness_value(k: &Stiffness) -> Value {
     let entries = match *k {
@@ -1122,6 +1138,31 @@ pub(crate) fn stiffness_value(k: &Stiffness) -> Value {
             .map(|(k, x)| (k.to_string(), Value::Number(x)))
             .collect(),
     )
+}
+
+/// Section lengths `given` under the list `key`: for every section or none,
+/// positive and finite, adding up to the rod's `length`.
+pub(crate) fn check_lengths_add_up(given: &[Option<f64>], length: f64, key: &str) -> Result<()> {
+    if given.iter().all(Option::is_none) {
+        return Ok(());
+    }
+    if let Some(i) = given
+        .iter()
+        .position(|l| !l.is_some_and(|l| l.is_finite() && l > 0.0))
+    {
+        return Err(Error::scene(
+            format!("{key}[{i}].length"),
+            "missing or not positive: give every section its length, or none (equal sections)",
+        ));
+    }
+    let total: f64 = given.iter().flatten().sum();
+    if (total - length).abs() > 1e-9 * length {
+        return Err(Error::scene(
+            "length",
+            format!("{length} m, but the sections' lengths add up to {total} m"),
+        ));
+    }
+    Ok(())
 }
 
 /// The rod's length: the `length` key, or else the sum of the sections'

@@ -548,6 +548,22 @@ pub(super) fn samples_count(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
     int_arg("samples", obj)
 }
 
+/// An array-like as a NumPy array of float64 and its shape.
+fn float_array<'py>(
+    name: &str,
+    obj: &Bound<'py, PyAny>,
+) -> PyResult<(Bound<'py, PyAny>, Vec<usize>)> {
+    let py = obj.py();
+    let array = py
+        .import("numpy")?
+        .call_method1("asarray", (obj, "float64"))
+        .map_err(|e| {
+            PyValueError::new_err(format!("{name}: not an array of numbers ({})", e.value(py)))
+        })?;
+    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    Ok((array, shape))
+}
+
 /// A batch of samples, each `per` rows of `N` numbers: an array-like of
 /// shape (count, per, N), as the rows of all samples, one after the other.
 pub(super) fn samples_arg<const N: usize>(
@@ -555,12 +571,7 @@ pub(super) fn samples_arg<const N: usize>(
     obj: &Bound<'_, PyAny>,
     per: usize,
 ) -> PyResult<Vec<[f64; N]>> {
-    let py = obj.py();
-    let np = py.import("numpy")?;
-    let array = np.call_method1("asarray", (obj, "float64")).map_err(|e| {
-        PyValueError::new_err(format!("{name}: not an array of numbers ({})", e.value(py)))
-    })?;
-    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    let (array, shape) = float_array(name, obj)?;
     if shape.len() != 3 || shape[1] != per || shape[2] != N {
         return Err(PyValueError::new_err(format!(
             "{name}: expected shape (samples, {per}, {N}), got {shape:?}"
@@ -578,12 +589,7 @@ pub(super) fn sample_rows(
     obj: &Bound<'_, PyAny>,
     width: usize,
 ) -> PyResult<Vec<Vec<f64>>> {
-    let py = obj.py();
-    let np = py.import("numpy")?;
-    let array = np.call_method1("asarray", (obj, "float64")).map_err(|e| {
-        PyValueError::new_err(format!("{name}: not an array of numbers ({})", e.value(py)))
-    })?;
-    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    let (array, shape) = float_array(name, obj)?;
     if shape.len() != 2 || shape[1] != width {
         return Err(PyValueError::new_err(format!(
             "{name}: expected shape (samples, {width}), got {shape:?}"

@@ -29,8 +29,8 @@ use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::read::{count, finite, table_list, vec3};
 use crate::scene::{
-    prefixed, read_routings, read_stiffness, routing_values, stiffness_value, Gravity, PointLoad,
-    Routing, Scene, Stiffness, Tendon,
+    check_lengths_add_up, prefixed, read_routings, read_stiffness, routing_values, section_entries,
+    stiffness_value, Gravity, PointLoad, Routing, Scene, Stiffness, Tendon,
 };
 use crate::value::Value;
 use nalgebra::{Matrix3, Vector3};
@@ -413,25 +413,12 @@ impl Robot {
         tip_mass: f64,
     ) -> Result<Scene> {
         self.validate()?;
-        self.check_actuation(tensions, field)?;
-        if rest_curvature.len() != self.sections {
-            return Err(Error::argument(
-                "rest_curvature",
-                format!(
-                    "expected {} sections, got {}",
-                    self.sections,
-                    rest_curvature.len()
-                ),
-            ));
-        }
+        self.check_sample_drives(rest_curvature, tensions, field)?;
         if !(tip_mass.is_finite() && tip_mass >= 0.0) {
             return Err(Error::argument(
                 "load",
                 format!("must be a mass >= 0 kg, got {tip_mass}"),
             ));
-        }
-        if rest_curvature.iter().flatten().any(|k| !k.is_finite()) {
-            return Err(Error::argument("rest_curvature", "must be finite"));
         }
         let mut s = Scene::new(self.length, 1.0, 1.0, 1.0);
         s.name = Some(format!(
@@ -486,6 +473,32 @@ impl Robot {
         s.tip_magnet = self.tip_magnet;
         s.magnetic_field = field;
         Ok(s)
+    }
+
+    /// Refuse a whole actuation that this (valid) robot cannot take: a rest
+    /// curvature not one a section or not finite, tensions or a field its
+    /// drives cannot apply.
+    pub fn check_sample_drives(
+        &self,
+        rest_curvature: &[[f64; 2]],
+        tensions: &[f64],
+        field: Vector3<f64>,
+    ) -> Result<()> {
+        self.check_actuation(tensions, field)?;
+        if rest_curvature.len() != self.sections {
+            return Err(Error::argument(
+                "rest_curvature",
+                format!(
+                    "expected {} sections, got {}",
+                    self.sections,
+                    rest_curvature.len()
+                ),
+            ));
+        }
+        if rest_curvature.iter().flatten().any(|k| !k.is_finite()) {
+            return Err(Error::argument("rest_curvature", "must be finite"));
+        }
+        Ok(())
     }
 
     /// Mass of the disk at the end of section `k` (1-based) [kg].
@@ -639,31 +652,9 @@ impl Robot {
     /// the robot's length; sections of different lengths need tendons or
     /// magnets (the muscle model has one lever for every section).
     fn check_section_lengths(&self) -> Result<()> {
+        let given: Vec<Option<f64>> = self.section_properties.iter().map(|p| p.length).collect();
+        check_lengths_add_up(&given, self.length, "section_properties")?;
         let lengths = self.section_lengths();
-        if lengths.is_empty() {
-            return Ok(());
-        }
-        for (i, spec) in self.section_properties.iter().enumerate() {
-            match spec.length {
-                None => {
-                    return Err(Error::scene(
-                        format!("section_properties[{i}].length"),
-                        "missing: give every section its length, or none (equal sections)",
-                    ))
-                }
-                Some(l) => positive(&format!("section_properties[{i}].length"), l)?,
-            }
-        }
-        let total: f64 = lengths.iter().sum();
-        if (total - self.length).abs() > 1e-9 * self.length {
-            return Err(Error::scene(
-                "length",
-                format!(
-                    "{} m, but the sections' lengths add up to {total} m",
-                    self.length
-                ),
-            ));
-        }
         let equal = lengths.iter().all(|l| (l - lengths[0]).abs() <= 1e-12 * l);
         if !equal && self.actuation_space() == ActuationSpace::Curvature {
             return Err(Error::scene(
@@ -933,20 +924,10 @@ impl Robot {
                 .section_properties
                 .iter()
                 .map(|p| {
-                    let mut fields = Vec::new();
-                    if let Some(l) = p.length {
-                        fields.push(("length".to_string(), num(l)));
-                    }
-                    if let Some(k) = &p.stiffness {
-                        fields.push(("stiffness".to_string(), stiffness_value(k)));
-                    }
-                    for (name, x) in [
-                        ("linear_density", p.linear_density),
-                        ("disk_mass", p.disk_mass),
-                    ] {
-                        if let Some(x) = x {
-                            fields.push((name.to_string(), num(x)));
-                        }
+                    let mut fields =
+                        section_entries(p.length, p.stiffness.as_ref(), p.linear_density);
+                    if let Some(x) = p.disk_mass {
+                        fields.push(("disk_mass".to_string(), num(x)));
                     }
                     Value::Map(fields)
                 })

@@ -172,17 +172,11 @@ impl Solver {
     /// each >= 0) keeping the workspace; the discretised tendons are rebuilt.
     pub fn set_tensions(&mut self, tensions: &[f64]) -> Result<()> {
         self.check_tensions(tensions)?;
-        let before: Vec<f64> = self.scene.tendons.iter().map(|t| t.tension).collect();
+        self.scene.check_tension_load(tensions)?;
+        // In place: the IK in tension space changes them at every trial.
         for (t, tension) in self.scene.tendons.iter_mut().zip(tensions) {
             t.tension = *tension;
         }
-        if let Err(e) = self.scene.check_derived() {
-            for (t, tension) in self.scene.tendons.iter_mut().zip(before) {
-                t.tension = tension;
-            }
-            return Err(e);
-        }
-        // In place: the IK in tension space changes them at every trial.
         self.model.set_tensions(tensions);
         Ok(())
     }
@@ -190,11 +184,8 @@ impl Solver {
     /// Change the uniform magnetic field [T], world frame, keeping the workspace.
     pub fn set_magnetic_field(&mut self, field: Vector3<f64>) -> Result<()> {
         check_field(field)?;
-        let before = std::mem::replace(&mut self.scene.magnetic_field, field);
-        if let Err(e) = self.scene.check_derived() {
-            self.scene.magnetic_field = before;
-            return Err(e);
-        }
+        self.scene.check_field_load(field)?;
+        self.scene.magnetic_field = field;
         let magnetized = !self.scene.magnetization.is_empty();
         if !self.model.set_magnetic_field(field, magnetized) {
             self.rebuild(self.scene.clone())?;

@@ -70,8 +70,95 @@ impl BatchSettings {
                 "must be at least 1 (or None: every core)",
             ));
         }
+        let most = max_threads();
+        if let Some(t) = self.threads.filter(|t| *t > most) {
+            return Err(Error::argument(
+                "threads",
+                format!(
+                    "{t} is more than {most} ({THREADS_PER_CORE} for each of this machine's {} \
+                     cores): threads beyond the cores only take turns on them (None: every core)",
+                    cores()
+                ),
+            ));
+        }
         Ok(())
     }
+
+    /// Bytes one sample's result holds while a batch returns it (the core's
+    /// [`Sample`] with its shape of `nodes` nodes if kept, and `drive_values`
+    /// numbers of its drives), twice: the parts and the joined results, or
+    /// the results and the caller's copy (Python's arrays), live at once.
+    pub fn sample_bytes(&self, nodes: usize, drive_values: usize) -> usize {
+        let shape = match self.shapes {
+            true => nodes.saturating_mul(std::mem::size_of::<(Vector3<f64>, Quat)>()),
+            false => 0,
+        };
+        std::mem::size_of::<Sample>()
+            .saturating_add(shape)
+            .saturating_add(drive_values.saturating_mul(8))
+            .saturating_mul(2)
+    }
+}
+
+/// Most worker threads a batch may ask for, per core: a solve is pure
+/// computation, so threads beyond the cores only take turns on them, and
+/// thousands of them load the machine for nothing (2 000 drove its load
+/// average above 600).
+pub const THREADS_PER_CORE: usize = 4;
+
+/// The cores this process may use.
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Largest `threads` of a batch: [`THREADS_PER_CORE`] for each core.
+pub fn max_threads() -> usize {
+    THREADS_PER_CORE * cores()
+}
+
+/// Refuse a batch of `count` results of `bytes_each` bytes that cannot fit
+/// in the memory the machine has free (or whose size overflows), naming the
+/// argument `name` that sets the count, before anything is allocated: a
+/// failed allocation of the results would abort the process. A batch that
+/// fits may still fail to allocate: that is [`Error::OutOfMemory`].
+pub fn check_batch_size(name: &str, count: usize, bytes_each: usize) -> Result<()> {
+    let free = free_memory();
+    let bytes = count.checked_mul(bytes_each);
+    match (bytes, free) {
+        (Some(b), Some(free)) if b <= free => Ok(()),
+        (Some(b), None) if b <= isize::MAX as usize => Ok(()),
+        (bytes, free) => Err(Error::argument(
+            name,
+            format!(
+                "{count} samples need {} for their results, more than {}: run the batch in parts",
+                bytes.map_or_else(|| "more bytes than an address space holds".into(), in_bytes),
+                free.map_or_else(
+                    || "an address space holds".into(),
+                    |f| format!("the {} free on this machine", in_bytes(f))
+                ),
+            ),
+        )),
+    }
+}
+
+/// A byte count for a person: `1.5 GB`.
+fn in_bytes(b: usize) -> String {
+    let b = b as f64;
+    match b {
+        b if b >= 1e12 => format!("{:.1} TB", b / 1e12),
+        b if b >= 1e9 => format!("{:.1} GB", b / 1e9),
+        b if b >= 1e6 => format!("{:.1} MB", b / 1e6),
+        b => format!("{b:.0} bytes"),
+    }
+}
+
+/// The memory available to new allocations [bytes] (Linux: `MemAvailable`
+/// of `/proc/meminfo`); None where the system does not say.
+fn free_memory() -> Option<usize> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
 }
 
 /// Progress and interruption of a running batch, shared with its caller.
@@ -147,31 +234,52 @@ impl IkSample {
     }
 }
 
-/// Run `work` over `items` in chunks (see the module's documentation).
-/// `start` makes a chunk's state (its solver); `work` solves one item.
-fn run_chunks<T, S, R>(
-    items: &[T],
+/// What a batch's results hold: the argument that sets their count (named
+/// when the batch is refused) and the bytes of one.
+#[derive(Clone, Copy)]
+struct ResultSize<'a> {
+    name: &'a str,
+    bytes_each: usize,
+}
+
+/// Run `work` over the items `0..count` in chunks (see the module's
+/// documentation), once their results are known to fit
+/// ([`check_batch_size`]). `start` makes a chunk's state (its solver);
+/// `work` solves one item, by its index.
+fn run_chunks<S, R>(
+    count: usize,
+    size: ResultSize,
     settings: &BatchSettings,
     control: &BatchControl,
     start: impl Fn() -> Result<S> + Sync,
-    work: impl Fn(&mut S, &T) -> Result<R> + Sync,
+    work: impl Fn(&mut S, usize) -> Result<R> + Sync,
 ) -> Result<Vec<R>>
 where
-    T: Sync,
     R: Send,
 {
     settings.validate()?;
+    check_batch_size(size.name, count, size.bytes_each)?;
+    // Before any work: a batch that cannot hold its results fails at once.
+    let mut joined = Vec::new();
+    joined
+        .try_reserve_exact(count)
+        .map_err(|_| Error::OutOfMemory {
+            what: format!("{}: the results", size.name),
+            bytes: count.saturating_mul(std::mem::size_of::<R>()),
+        })?;
+    let chunk = settings.chunk;
     let chunks = || -> Result<Vec<Vec<R>>> {
-        items
-            .par_chunks(settings.chunk)
-            .map(|chunk| {
+        (0..count.div_ceil(chunk))
+            .into_par_iter()
+            .map(|c| {
+                let items = c * chunk..count.min((c + 1) * chunk);
                 let stop = Arc::clone(&control.stop);
                 crate::interrupt::with_check(
                     move || stop.load(Ordering::Relaxed),
                     || {
                         let mut state = start()?;
-                        let mut out = Vec::with_capacity(chunk.len());
-                        for item in chunk {
+                        let mut out = Vec::with_capacity(items.len());
+                        for item in items {
                             // Between samples directly (the interrupt check
                             // inside a solve polls only every 20 ms).
                             if control.stop.load(Ordering::Relaxed) {
@@ -190,7 +298,10 @@ where
     if control.stop.load(Ordering::Relaxed) {
         return Err(Error::Interrupted);
     }
-    Ok(parts.into_iter().flatten().collect())
+    for part in parts {
+        joined.extend(part);
+    }
+    Ok(joined)
 }
 
 /// Largest change of a section's rest turn (curvature times section length)
@@ -326,11 +437,15 @@ impl Robot {
                 format!("must be finite (sample {})", row.unwrap_or(0) / m),
             ));
         }
-        let samples: Vec<&[[f64; 2]]> = actuations.chunks(m).collect();
         let start = self.chunk_solver(tip_mass)?;
-        run_chunks(&samples, settings, control, start, |state, kappa| {
-            self.forward_sample(state, kappa, settings)
-        })
+        run_chunks(
+            actuations.len() / m,
+            self.result_size("actuations", settings),
+            settings,
+            control,
+            start,
+            |state, i| self.forward_sample(state, &actuations[i * m..(i + 1) * m], settings),
+        )
     }
 
     /// Inverse kinematics of many targets [m], each on its own (the
@@ -358,22 +473,25 @@ impl Robot {
             // Tensions or a field: a chunk reuses one inverse solver of them.
             self.check_actuated_ik(options)?;
             return run_chunks(
-                targets,
+                targets.len(),
+                self.result_size("targets", settings),
                 settings,
                 control,
                 || ActuatedInverseSolver::new(self, options.tip_mass),
-                |solver, target| Ok(IkSample::of(solver.solve_with(*target, options)?)),
+                |solver, i| Ok(IkSample::of(solver.solve_with(targets[i], options)?)),
             );
         }
         run_chunks(
-            targets,
+            targets.len(),
+            self.result_size("targets", settings),
             settings,
             control,
             || match ik.strategy {
                 Strategy::Equilibrium => Ok(Some(InverseSolver::new(self, options.tip_mass)?)),
                 Strategy::Geometric => Ok(None),
             },
-            |solver, target| {
+            |solver, i| {
+                let target = &targets[i];
                 let r = match solver {
                     Some(solver) => solver.solve(
                         *target,
@@ -471,9 +589,14 @@ impl Robot {
                     other => other,
                 })?;
         }
-        run_chunks(&actuations, settings, control, start, |state, a| {
-            self.actuated_sample(state, a, stiffness, settings)
-        })
+        run_chunks(
+            actuations.len(),
+            self.result_size("actuations", settings),
+            settings,
+            control,
+            start,
+            |state, i| self.actuated_sample(state, &actuations[i], stiffness, settings),
+        )
     }
 
     /// What makes a chunk's state for whole actuations (a forward solver
@@ -584,14 +707,64 @@ impl Robot {
     ) -> Result<(Vec<Actuation>, Vec<Sample>)> {
         self.validate()?;
         self.random_drives(seed, first)?;
-        let indices: Vec<u64> = (first..first + samples as u64).collect();
+        self.check_workspace(samples, first, settings)?;
         let (start, stiffness) = self.actuated_chunk(tip_mass)?;
-        let out = run_chunks(&indices, settings, control, start, |state, index| {
-            let drives = self.random_drives(seed, *index)?;
-            let sample = self.actuated_sample(state, &drives, stiffness, settings)?;
-            Ok((drives, sample))
-        })?;
+        let out = run_chunks(
+            samples,
+            self.result_size("samples", settings),
+            settings,
+            control,
+            start,
+            |state, i| {
+                let drives = self.random_drives(seed, first + i as u64)?;
+                let sample = self.actuated_sample(state, &drives, stiffness, settings)?;
+                Ok((drives, sample))
+            },
+        )?;
         Ok(out.into_iter().unzip())
+    }
+}
+
+impl Robot {
+    /// Refuse a workspace of `samples` from index `first` that cannot be
+    /// drawn (its indices run past the last) or whose results cannot fit
+    /// in memory ([`check_batch_size`]): before anything is allocated, on
+    /// one machine or before a cluster's parts are cut.
+    pub fn check_workspace(
+        &self,
+        samples: usize,
+        first: u64,
+        settings: &BatchSettings,
+    ) -> Result<()> {
+        if first.checked_add(samples as u64).is_none() {
+            return Err(Error::argument(
+                "first",
+                format!(
+                    "{first} + {samples} samples runs past the last sample index {}",
+                    u64::MAX
+                ),
+            ));
+        }
+        settings.validate()?;
+        check_batch_size("samples", samples, self.sample_bytes(settings))
+    }
+
+    /// What one sample of this robot's batch holds (see
+    /// [`BatchSettings::sample_bytes`]), `name` the argument that counts
+    /// the samples.
+    fn result_size<'a>(&self, name: &'a str, settings: &BatchSettings) -> ResultSize<'a> {
+        ResultSize {
+            name,
+            bytes_each: self.sample_bytes(settings),
+        }
+    }
+
+    /// Bytes one sample of this robot's batches holds: its result, its
+    /// shape if kept, its drives (see [`BatchSettings::sample_bytes`]).
+    pub fn sample_bytes(&self, settings: &BatchSettings) -> usize {
+        let nodes = self.n_elements + 1;
+        let drives = 2 * self.sections + self.tendons.len() + 3;
+        settings.sample_bytes(nodes, drives)
     }
 }
 
@@ -654,14 +827,27 @@ impl Robot {
                 ),
             ));
         }
-        let indices: Vec<u64> = (first..first + samples as u64).collect();
+        self.check_workspace(samples, first, settings)?;
         let start = self.chunk_solver(tip_mass)?;
-        let out = run_chunks(&indices, settings, control, start, |state, index| {
-            let kappa = self.random_actuation(seed, *index)?;
-            let sample = self.forward_sample(state, &kappa, settings)?;
-            Ok((kappa, sample))
-        })?;
-        let mut actuations = Vec::with_capacity(samples * self.sections);
+        let out = run_chunks(
+            samples,
+            self.result_size("samples", settings),
+            settings,
+            control,
+            start,
+            |state, i| {
+                let kappa = self.random_actuation(seed, first + i as u64)?;
+                let sample = self.forward_sample(state, &kappa, settings)?;
+                Ok((kappa, sample))
+            },
+        )?;
+        let mut actuations = Vec::new();
+        actuations
+            .try_reserve_exact(samples * self.sections)
+            .map_err(|_| Error::OutOfMemory {
+                what: "samples: the actuations".into(),
+                bytes: samples * self.sections * 16,
+            })?;
         let mut results = Vec::with_capacity(samples);
         for (kappa, sample) in out {
             actuations.extend(kappa);
@@ -680,13 +866,23 @@ pub fn solve_batch(
     control: &BatchControl,
 ) -> Result<Vec<Sample>> {
     solver_settings.validate()?;
+    // The finest scene's shape for every sample: a bound, not a sum.
+    let nodes = scenes
+        .iter()
+        .map(|s| solver_settings.elements_for(s) + 1)
+        .max()
+        .unwrap_or(0);
     run_chunks(
-        scenes,
+        scenes.len(),
+        ResultSize {
+            name: "scenes",
+            bytes_each: settings.sample_bytes(nodes, 0),
+        },
         settings,
         control,
         || Ok(()),
-        |_, scene| {
-            let sol = crate::solve(scene, solver_settings.clone(), None)?;
+        |_, i| {
+            let sol = crate::solve(&scenes[i], solver_settings.clone(), None)?;
             Ok(Sample::of(&sol, settings.shapes))
         },
     )
@@ -739,6 +935,36 @@ mod tests {
         for (a, b) in warm.iter().zip(&batch) {
             assert!((a.tip_position - b.tip_position).norm() < 1e-9);
         }
+    }
+
+    #[test]
+    fn a_workspace_beyond_memory_is_refused_by_name_before_allocating() {
+        let robot = Robot::default();
+        let settings = BatchSettings::default();
+        let control = BatchControl::default();
+        for samples in [1usize << 40, usize::MAX] {
+            match robot.workspace(samples, 0, 0.0, 0, &settings, &control) {
+                Err(Error::InvalidArgument { name, .. }) => assert_eq!(name, "samples"),
+                other => panic!("{samples}: {:?}", other.map(|r| r.1.len())),
+            }
+        }
+        match robot.workspace(4, u64::MAX - 1, 0.0, 0, &settings, &control) {
+            Err(Error::InvalidArgument { name, .. }) => assert_eq!(name, "first"),
+            other => panic!("{:?}", other.map(|r| r.1.len())),
+        }
+    }
+
+    #[test]
+    fn thread_counts_beyond_the_cores_are_refused() {
+        let at_most = |threads| BatchSettings {
+            threads: Some(threads),
+            ..BatchSettings::default()
+        };
+        assert!(at_most(max_threads()).validate().is_ok());
+        assert!(matches!(
+            at_most(max_threads() + 1).validate(),
+            Err(Error::InvalidArgument { name, .. }) if name == "threads"
+        ));
     }
 
     #[test]

@@ -17,6 +17,8 @@ import pytest
 import softspine
 from softspine.batch import BatchResult, concatenate
 
+from isolated import run_isolated
+
 LOAD = 0.03
 
 
@@ -158,6 +160,71 @@ def test_solve_batch_solves_each_scene_as_solve_does():
 def test_bad_batches_are_refused_by_name(robot, actuations, call, message):
     with pytest.raises(ValueError, match=message):
         call(robot, actuations)
+
+
+TENDON_ROBOT = "examples/robots/tendon_robot.toml"
+CATHETER = "examples/robots/magnetic_catheter.toml"
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        "Robot().workspace(10**12, progress=False)",
+        f"Robot.from_file({TENDON_ROBOT!r}).workspace(10**12, progress=False)",
+        f"Robot.from_file({CATHETER!r}).workspace(10**12, progress=False)",
+        "Robot().workspace(10**12, progress=False, executor=ThreadPoolExecutor(1), part=64)",
+    ],
+)
+def test_a_batch_too_large_for_memory_is_refused_before_allocating(call):
+    # On 3e30b16 the interpreter aborted allocating 8 TB of sample indices.
+    out = run_isolated(
+        f"""
+        from concurrent.futures import ThreadPoolExecutor
+        from softspine import Robot
+        try:
+            {call}
+        except ValueError as e:
+            print(e)
+        """
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("samples: 1000000000000 samples need"), out.stdout
+    assert "free on this machine" in out.stdout
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS and /proc")
+def test_a_batch_whose_results_fail_to_allocate_raises_memory_error():
+    # The results fit the machine's free memory but not the address space
+    # left to the process: the core's allocation fails, before any solve.
+    out = run_isolated(
+        """
+        import resource, softspine
+        robot = softspine.Robot()
+        robot.workspace(2, progress=False)
+        used = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+        resource.setrlimit(resource.RLIMIT_AS, (used + 2**29, resource.RLIM_INFINITY))
+        try:
+            robot.workspace(5_000_000, progress=False)
+        except MemoryError as e:
+            print("MemoryError", e)
+        """
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("MemoryError samples: the results: out of memory"), out.stdout
+
+
+@pytest.mark.parametrize("threads", [2000, 10**6])
+def test_thread_counts_beyond_the_cores_are_refused(robot, threads):
+    # 2000 threads drove the load average above 600; 10**6 ran for minutes.
+    with pytest.raises(ValueError, match=rf"^threads: {threads} is more than ") as refused:
+        robot.workspace(4, threads=threads, progress=False)
+    most = int(str(refused.value).split()[4])
+    assert len(robot.workspace(4, threads=most, progress=False)) == 4
+
+
+def test_workspace_indices_past_the_last_are_refused(robot):
+    with pytest.raises(ValueError, match="^first: "):
+        robot.workspace(4, first=2**64 - 2, progress=False)
 
 
 def test_a_non_finite_actuation_names_its_sample(robot, actuations):

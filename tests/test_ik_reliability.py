@@ -6,14 +6,12 @@ The reached fractions are printed (``pytest -s``)."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
-import textwrap
-
 import numpy as np
 import pytest
 
 from softspine import Robot
+
+from isolated import run_isolated
 
 TILTED = {"base_quaternion": [0.92388, 0.38268, 0, 0], "sections": 5, "n_elements": 20}
 # Upright: the base tangent +z, against gravity (the default robot hangs).
@@ -130,16 +128,6 @@ def test_the_largest_counts_are_accepted():
     # The default n: the smallest multiple of the sections that is at least 20.
     assert Robot({"sections": 10_000}).n_elements == 10_000
     assert Robot({"sections": 1, "n_elements": 1_000_000}).n_elements == 1_000_000
-
-
-def run_isolated(code):
-    """Run code in a fresh interpreter: an abort fails one test, not pytest."""
-    return subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(code)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
 
 
 @pytest.mark.parametrize(

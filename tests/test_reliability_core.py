@@ -19,6 +19,7 @@ import softspine
 from softspine import SolverError
 
 from closed_forms import BISSHOPP_DRUCKER
+from isolated import run_isolated
 from validation import reference
 
 ROUND = {"kx": 1.0, "ky": 1.0, "kz": 1.0}
@@ -73,6 +74,31 @@ def test_huge_finite_loads_end_honestly():
 
 
 # --- 2. Anisotropy -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("kz", [1e300, 1e308])
+def test_a_stiffness_near_the_double_range_ends_at_once(kz):
+    # kz = 1e308 over an element overflows the Jacobian's scale: the damping
+    # counted its shift up to an infinite one and ran for minutes (3e30b16).
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": kz},
+             "tip_force": [1.0, 0.5, 0.0]}
+    out = run_isolated(
+        f"""
+        import time, softspine
+        started = time.perf_counter()
+        try:
+            sol = softspine.solve({scene!r})
+            print(sol.status, sol.converged)
+        except ValueError as e:
+            print("ValueError", e)
+        print(time.perf_counter() - started)
+        """,
+        timeout=60,
+    )
+    assert out.returncode == 0, out.stderr
+    ending, seconds = out.stdout.splitlines()
+    assert float(seconds) < 5.0
+    assert ending.startswith("ValueError stiffness") or not ending.endswith("True"), ending
 
 
 @pytest.mark.parametrize("ratio", [1e2, 1e4, 1e6, 1e8, 1e10])

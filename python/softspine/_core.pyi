@@ -300,7 +300,8 @@ class Robot:
         ``shapes``: keep every node's position and quaternion (default False).
         ``warm_start``: start a solve from the last equilibrium of its chunk
         where the actuation is near (default True; random samples are solved
-        cold). ``threads``: worker threads (default every core). ``chunk``:
+        cold). ``threads``: worker threads (default every core; at most 4 a
+        core). ``chunk``:
         samples a worker solves in order (default 64; the answers depend on
         it, never on the thread count). ``progress``: None (a bar on a
         terminal after 2 s), True, False or ``progress(done, total)``.

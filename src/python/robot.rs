@@ -619,6 +619,10 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let settings = batch_settings(threads, chunk, None, shapes)?;
+        let robot = &slf.get().inner;
+        // Before a cluster's parts are cut too.
+        robot.check_workspace(samples, first, &settings)?;
         if let Some(executor) = given(executor) {
             let (seed, first) = (seed.into_pyobject(py)?, first.into_pyobject(py)?);
             return distributed(
@@ -637,8 +641,6 @@ impl PyRobot {
                 ],
             );
         }
-        let settings = batch_settings(threads, chunk, None, shapes)?;
-        let robot = &slf.get().inner;
         let space = robot.actuation_space();
         if space != crate::robot::ActuationSpace::Curvature {
             let (drives, out) = run_batch(py, samples, progress, |control| {

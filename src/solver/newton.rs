@@ -227,22 +227,22 @@ pub(crate) fn damped_solve(
         .jac
         .max_diagonal()
         .max(model.residual_scale.max() * model.ds);
+    if !scale.is_finite() {
+        // No shift is of this scale: counting up to an infinite one never
+        // ended (kz = 1e308 N m^2 ran for minutes).
+        return false;
+    }
     // The factorisation leaves the workspace while `solve` borrows it.
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
-    let mut shift = 0.0;
-    let solved = loop {
+    // A fixed number of trials whatever the scale: 0, then 1e-10 to 1 of it.
+    let shifts = std::iter::once(0.0).chain((0..=5).map(|k| scale * 100f64.powi(k - 5)));
+    let mut solved = false;
+    for shift in shifts {
         if lu.factor(&w.jac, shift).is_ok() && solve(&lu, w) {
-            break true;
+            solved = true;
+            break;
         }
-        shift = if shift == 0.0 {
-            1e-10 * scale
-        } else {
-            shift * 100.0
-        };
-        if shift > scale {
-            break false;
-        }
-    };
+    }
     w.lu = lu;
     solved
 }

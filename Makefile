@@ -19,7 +19,8 @@ demo: $(PY)
 
 # Every test: lint (ruff, rustfmt, clippy), the stubs against the extension
 # (stubtest), mypy, pytest (Python API, references, bad input, hard cases,
-# properties, the README's and the examples' code), cargo test and the docs.
+# properties, the README's and the examples' code), cargo test and the docs
+# (--strict, not --quiet: --quiet hides the warnings that --strict counts).
 test: $(PY)
 	$(PY) -m pip install -q ".[test,docs]"
 	$(PY) -m ruff check python tests tools
@@ -29,7 +30,7 @@ test: $(PY)
 	cargo clippy --all-targets --features python -- -D warnings
 	$(PY) -m pytest -q
 	cargo test
-	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --quiet -d site
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict -d site
 
 # The documentation site (site/): guide, conventions, the model, the examples
 # gallery (from examples/) and the API reference (mkdocstrings), --strict.

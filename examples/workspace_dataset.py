@@ -2,7 +2,7 @@
 random actuations within the muscles' range and their loaded equilibria,
 written to a compressed NPZ file (for a learned model, a reachability map).
 
-Run: python examples/workspace_dataset.py [OUT] [--samples N] [--dask WORKERS]
+Run: ``python examples/workspace_dataset.py [OUT] [--samples N] [--dask WORKERS]``
 
 On this machine's two cores a million samples take about 10 s locally. With
 ``--dask`` the same batch runs on a local Dask cluster (a ``Client`` of a real

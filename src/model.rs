@@ -400,6 +400,18 @@ impl RodModel {
         self.load_parameter = moment * self.length / self.stiffness.min();
     }
 
+    /// How much stiffer than the residual's scale ([`RodModel::residual_scale`],
+    /// the softest section's stiffness) any element is about the same axis:
+    /// at least 1. A row's round-off is that of the elastic moments meeting
+    /// there, so a section 100 times stiffer than the scale rounds 100 times
+    /// larger relative to it.
+    fn stiffness_spread(&self) -> f64 {
+        self.element_stiffness
+            .iter()
+            .map(|k| k.component_div(&self.stiffness).max())
+            .fold(1.0, f64::max)
+    }
+
     /// Set the tendons' tensions in place, in the scene's order (checked by
     /// the caller): nothing else of the discretisation depends on them.
     pub(crate) fn set_tensions(&mut self, tensions: &[f64]) {
@@ -1266,6 +1278,12 @@ impl RodModel {
     /// themselves, which balance the loads' moment and the rest curvature, are
     /// of order `kappa L` relative to `k / L` and round to `eps` of that (a tip
     /// force of 1e8 `EI/L^2` leaves a residual noise of about 1e-8).
+    ///
+    /// Sections of their own stiffness round as their own: the floor is
+    /// that of the stiffest relative to the residual's scale
+    /// ([`RodModel::stiffness_spread`]); a section 100 times stiffer than
+    /// the softest left residuals that a `residual_tol` of 1e-13 could never
+    /// meet.
     pub fn roundoff_floor(&self) -> f64 {
         // `L / h` of the shortest element: `n` when the elements are equal.
         let shortest = self
@@ -1275,7 +1293,7 @@ impl RodModel {
             .fold(self.ds, |a, b| a.min(*b));
         let per_length = self.n as f64 * self.ds / shortest;
         let curvature = self.load_parameter + self.max_rest_turn() * per_length;
-        8.0 * f64::EPSILON * (per_length + curvature)
+        8.0 * f64::EPSILON * (per_length + curvature) * self.stiffness_spread()
     }
 
     /// The line-search merit: the sum of squares of the scaled torque rows.

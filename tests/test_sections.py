@@ -234,3 +234,42 @@ def test_a_robots_sections_carry_their_own_stiffness_density_and_disks():
     with pytest.raises(ValueError, match=r"section_properties\[0\].stiffness.E"):
         softspine.Robot({"section_properties": [{"stiffness": {"E": 0, "G": 1, "diameter": 1}}]
                          + [{}] * 9})
+
+
+def random_sectioned_scene(rng):
+    """Sections 100 times softer to 100 times stiffer than the scene's stiffness."""
+    sections = []
+    for _ in range(int(rng.integers(2, 5))):
+        k = 10 ** rng.uniform(-2, 2)
+        sections.append({
+            "stiffness": {"kx": k, "ky": k * rng.uniform(0.5, 2), "kz": 0.7 * k},
+            "linear_density": 10 ** rng.uniform(-2, 0),
+        })
+    return {
+        "length": 1.0,
+        "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 0.7},
+        "sections": sections,
+        "gravity": {"linear_density": 0.1, "vector": [0, 0, -9.81]},
+        "tip_force": list(rng.normal(size=3)),
+    }
+
+
+@pytest.mark.parametrize("residual_tol", [1e-13, 1e-14])
+def test_a_tight_residual_tol_is_met_on_sections_of_their_own_stiffness(residual_tol):
+    # The round-off floor was that of the scene's stiffness: a section 100
+    # times stiffer rounds 100 times larger, and started from its own
+    # converged answer the solve ended at the iteration limit (11 of these
+    # 20 scenes at 1e-13, 13 at 1e-14, on 3e30b16), some on other equilibria.
+    rng = np.random.default_rng(1)
+    for case in range(20):
+        scene = random_sectioned_scene(rng)
+        n = 8 * len(scene["sections"])
+        first = softspine.solve(scene, n_elements=n)
+        if first.status == "underresolved":
+            continue
+        assert first.converged, (case, first.message)
+        again = softspine.solve(scene, n_elements=n, residual_tol=residual_tol, initial=first)
+        assert again.converged and again.stable == first.stable, (case, again.message)
+        np.testing.assert_allclose(again.positions, first.positions, atol=1e-9)
+        cold = softspine.solve(scene, n_elements=n, residual_tol=residual_tol, check=True)
+        np.testing.assert_allclose(cold.positions, first.positions, atol=1e-9)

@@ -444,6 +444,87 @@ def test_inverse_solver_shared_between_threads():
         np.testing.assert_allclose(got.tip_position, want.tip_position, atol=1e-8)
 
 
+# --- One Solver shared between threads ---------------------------------------------
+
+
+def test_a_solver_refuses_a_thread_between_another_threads_set_and_solve():
+    # On 3e30b16 the second thread's set_* went through and the first thread
+    # solved the second's actuation without a word (21 of 400 in a campaign).
+    robot = Robot()
+    mine, theirs = [[0.5, 0.2]] * robot.sections, [[-2.0, 1.0]] * robot.sections
+    solver = softspine.Solver(robot.scene(mine, 0.03), n_elements=20)
+    solver.set_rest_curvature(mine)
+    outcome: list[str] = []
+
+    def other_thread() -> None:
+        for call in (lambda: solver.set_rest_curvature(theirs), solver.solve):
+            try:
+                call()
+                outcome.append("accepted")
+            except RuntimeError as e:
+                outcome.append(str(e))
+
+    t = threading.Thread(target=other_thread)
+    t.start()
+    t.join()
+    assert len(outcome) == 2
+    for message in outcome:
+        assert message.startswith("Solver.") and "another thread changed" in message, message
+    np.testing.assert_allclose(
+        solver.solve().tip_position, robot.forward(mine, 0.03).tip_position, atol=1e-9
+    )
+    # Once solved, the solver serves whichever thread comes next.
+    t = threading.Thread(target=lambda: solver.set_rest_curvature(theirs))
+    t.start()
+    t.join()
+    solver.reset()
+    solver.set_rest_curvature(mine)
+
+
+def test_threads_sharing_a_solver_change_and_solve_in_one_call():
+    robot = Robot()
+    actuations = robot.workspace(16, 0.03, seed=3, progress=False).actuations
+    expected = [robot.forward(k, 0.03).tip_position for k in actuations]
+    solver = softspine.Solver(robot.scene(actuations[0], 0.03), n_elements=20)
+    payload = solver.tip_force
+    results: list = [None] * len(actuations)
+
+    def work(k: int) -> None:
+        for i in range(k, len(actuations), 4):
+            results[i] = solver.solve(rest_curvature=actuations[i], tip_force=payload)
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for got, want in zip(results, expected, strict=True):
+        np.testing.assert_allclose(got.tip_position, want, atol=1e-9)
+
+
+# --- Junk that was accepted ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "junk", [memoryview(b"abc"), b"abc", bytearray(b"abc"), [1, memoryview(b"a"), 2]]
+)
+def test_bytes_are_not_numbers(junk):
+    # memoryview(b"abc") became the tip force [97, 98, 99] on 3e30b16.
+    with pytest.raises(ValueError, match="^tip_force"):
+        Scene({**GOOD, "tip_force": junk})
+
+
+@pytest.mark.parametrize("batch", ["forward_batch", "workspace", "inverse_batch"])
+def test_part_without_an_executor_is_refused(batch):
+    robot = Robot()
+    first = {"forward_batch": np.zeros((2, robot.sections, 2)), "workspace": 2,
+             "inverse_batch": [[0.05, 0.0, -0.9]]}[batch]
+    with pytest.raises(ValueError, match="^part: "):
+        getattr(robot, batch)(first, part={1, 2}, progress=False)
+    with pytest.raises(ValueError, match="^part: "):
+        softspine.solve_batch([GOOD], part=64, progress=False)
+
+
 # --- solve()'s own arguments --
 
 @pytest.mark.parametrize(

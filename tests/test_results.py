@@ -146,6 +146,23 @@ def test_solution_round_trips_through_to_dict_and_pickle():
         assert np.array_equal(copy.curvatures, sol.curvatures)
 
 
+def test_a_converged_solution_with_a_nan_reaction_is_refused():
+    pinned = {"type": "pinned", "position": [0.5, 0.0, 0.7]}
+    d = softspine.solve({**loaded_cantilever(), "tip": pinned}, n_elements=24).to_dict()
+    d["tip_reaction_force"][1] = np.nan
+    with pytest.raises(ValueError, match="^solution.tip_reaction_force: .* got NaN"):
+        softspine.Solution.from_dict(d)
+    d["status"] = "not_converged"
+    assert np.isnan(softspine.Solution.from_dict(d).tip_reaction_force[1])
+
+
+def test_an_ik_result_with_an_unknown_key_is_refused():
+    d = softspine.Robot().inverse([0.05, 0.0, -0.9], load=0.03).to_dict()
+    d["spare"] = 1
+    with pytest.raises(ValueError, match="^ik_result: unknown key 'spare'"):
+        softspine.IkResult.from_dict(d)
+
+
 def test_a_failed_state_with_non_finite_values_still_pickles():
     d = softspine.solve(loaded_cantilever(), n_elements=10).to_dict()
     d["positions"][3] = np.nan
@@ -164,6 +181,14 @@ def test_a_failed_state_with_non_finite_values_still_pickles():
          "solution.rest_curvature: 3 sections do not divide"),
         (lambda d: d.update(status="fine"), "status: unknown status 'fine'"),
         (lambda d: d.update(stable=1), "solution.stable: expected a bool"),
+        # Accepted as a converged solution on 3e30b16:
+        (lambda d: d.update(spare=1), "solution: unknown key 'spare'"),
+        (lambda d: d["positions"].__setitem__((4, 1), np.nan),
+         r"solution.positions\[4\]: a converged solution is finite, got NaN"),
+        (lambda d: d.update(energy=float("inf")),
+         "solution.energy: a converged solution is finite, got inf"),
+        (lambda d: d["quaternions"].__setitem__(2, [0.5, 0, 0, 0]),
+         r"solution.quaternions\[2\]: a converged solution has unit quaternions"),
     ],
 )
 def test_from_dict_names_a_bad_field(change, message):

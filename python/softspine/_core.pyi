@@ -392,7 +392,12 @@ class Robot:
 @final
 class Solver:
     """A reusable solver of one scene (its workspace allocated once): set the
-    actuation or the tip load, solve warm from the last equilibrium."""
+    actuation or the tip load, solve warm from the last equilibrium.
+
+    Safe to share between threads: one solve runs at a time. A ``set_*`` and
+    the ``solve`` that uses it belong to one thread: another thread's
+    ``set_*`` or ``solve`` in between raises ``RuntimeError``; threads that
+    share a solver pass the drives to ``solve`` (one call)."""
 
     def __new__(
         cls,
@@ -411,12 +416,19 @@ class Solver:
         *,
         warm: bool = True,
         check: bool = False,
+        rest_curvature: npt.ArrayLike | None = None,
+        tip_force: npt.ArrayLike | None = None,
+        tip_moment: npt.ArrayLike | None = None,
+        tensions: npt.ArrayLike | None = None,
+        field: npt.ArrayLike | None = None,
     ) -> Solution:
         """Solve from ``initial`` (a Solution or quaternions (n + 1, 4)) or,
         without it, from the last converged, stable equilibrium of this solver
         (``warm=True``; the straight rod before there is one) or the straight
         rod (``warm=False``). ``check=True`` raises ``SolverError`` unless the
-        solve converged."""
+        solve converged. ``rest_curvature``, ``tip_force``, ``tip_moment``,
+        ``tensions`` and ``field``, where given, are set first as by their
+        ``set_*``, in the same call."""
     def set_rest_curvature(self, rest_curvature: npt.ArrayLike) -> None:
         """The actuation, ``[kappa_x, kappa_y]`` per section (m, 2), 1/m."""
     def set_tip_force(self, force: npt.ArrayLike) -> None:
@@ -436,7 +448,8 @@ class Solver:
         ``.pose``). Free, pinned and clamped tips; by the implicit function
         theorem on the factored equilibrium system."""
     def reset(self) -> None:
-        """Forget the last equilibrium (the next solve starts straight)."""
+        """Forget the last equilibrium (the next solve starts straight) and
+        which thread changed the scene last."""
     @property
     def scene(self) -> Scene: ...
     @property

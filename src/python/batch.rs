@@ -61,6 +61,22 @@ pub(super) fn progress_arg<'py>(
     }
 }
 
+/// The executor of a batch on a cluster, or None for a local batch, which
+/// has no parts: a `part` without an executor was ignored.
+pub(super) fn on_cluster<'py>(
+    executor: Option<&Bound<'py, PyAny>>,
+    part: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    let executor = given(executor);
+    if executor.is_none() && given(part).is_some() {
+        return Err(Path::argument("part").error(
+            "the samples of one task on a cluster: give it with executor= (a local batch is cut \
+             into chunk= samples a worker)",
+        ));
+    }
+    Ok(executor)
+}
+
 /// A batch on a cluster: `softspine.distributed.<function>(*args, **given
 /// keywords)`, which cuts the batch into parts and runs them on the executor.
 pub(super) fn distributed<'py>(
@@ -217,7 +233,7 @@ pub(super) fn solve_batch<'py>(
     executor: Option<&Bound<'py, PyAny>>,
     part: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    if let Some(executor) = given(executor) {
+    if let Some(executor) = on_cluster(executor, part)? {
         return distributed(
             py,
             "solve_batch",

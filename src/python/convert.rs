@@ -177,7 +177,7 @@ pub(super) fn scalar(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Option<Val
 }
 
 /// Python object -> value tree: dicts, lists, tuples, scalars (NumPy's too) and
-/// arrays (anything with `tolist()`, called once per level). At most
+/// arrays (of the array protocol, by `tolist()`, called once per level). At most
 /// `MAX_DEPTH` levels deep, so that a deep or self-containing input is refused
 /// instead of overflowing the stack.
 pub(super) fn to_value(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
@@ -221,7 +221,11 @@ pub(super) fn to_value(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
             .collect::<PyResult<_>>()
             .map(Value::List);
     }
-    if obj.hasattr("tolist")? {
+    // Arrays (NumPy's and every array library's speak its protocol), not
+    // anything with a `tolist`: a memoryview of bytes became their codes.
+    if (obj.hasattr("__array__")? || obj.hasattr("__array_interface__")?)
+        && obj.hasattr("tolist")?
+    {
         let list = obj.call_method0("tolist")?;
         return to_value(&list, &path.child(Step::Same));
     }
@@ -414,17 +418,36 @@ pub(super) struct Fields<'py> {
 }
 
 impl<'py> Fields<'py> {
-    pub(super) fn new(owner: &'static str, data: &Bound<'py, PyAny>) -> PyResult<Self> {
-        match data.cast::<PyDict>() {
-            Ok(d) => Ok(Fields {
-                owner,
-                dict: d.clone(),
-            }),
-            Err(_) => Err(Path::input(owner).error(format!(
+    /// The fields of `data`, every key of which is one of `keys` (a key
+    /// that `to_dict()` never writes is a mistake, not something to drop).
+    pub(super) fn new(
+        owner: &'static str,
+        data: &Bound<'py, PyAny>,
+        keys: &[&str],
+    ) -> PyResult<Self> {
+        let dict = data.cast::<PyDict>().map_err(|_| {
+            Path::input(owner).error(format!(
                 "expected a dict (from to_dict()), got {}",
                 type_name(data)
-            ))),
+            ))
+        })?;
+        for key in dict.keys() {
+            let known = key
+                .cast::<PyString>()
+                .ok()
+                .and_then(|k| k.to_str().ok().map(|k| keys.contains(&k)));
+            if known != Some(true) {
+                return Err(Path::input(owner).error(format!(
+                    "unknown key {} (expected the keys of to_dict(): {})",
+                    key.repr()?,
+                    keys.join(", ")
+                )));
+            }
         }
+        Ok(Fields {
+            owner,
+            dict: dict.clone(),
+        })
     }
 
     fn name(&self, key: &str) -> String {
@@ -527,12 +550,23 @@ pub(super) fn floats_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64
     if let Ok(a) = obj.extract::<PyReadonlyArray1<f64>>() {
         return Ok(a.as_array().to_vec());
     }
-    obj.extract::<Vec<f64>>().map_err(|_| {
-        Path::argument(name).error(format!(
+    let path = Path::argument(name);
+    let Value::List(items) = to_value(obj, &path)? else {
+        return Err(path.error(format!(
             "expected a sequence of numbers, got {}",
             type_name(obj)
-        ))
-    })
+        )));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| match item {
+            Value::Number(x) => Ok(*x),
+            other => Err(path
+                .index(i)
+                .error(format!("expected a number, got {}", other.kind()))),
+        })
+        .collect()
 }
 
 // `#[pyo3(from_py_with = ...)]` takes a function path: one converter a name.
@@ -548,12 +582,17 @@ pub(super) fn samples_count(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
     int_arg("samples", obj)
 }
 
-/// An array-like as a NumPy array of float64 and its shape.
+/// An array-like as a NumPy array of float64 and its shape. What is not an
+/// array (lists, tuples) is read as a value first, so that junk inside it
+/// (bytes, sets) is refused where it sits rather than converted by NumPy.
 fn float_array<'py>(
     name: &str,
     obj: &Bound<'py, PyAny>,
 ) -> PyResult<(Bound<'py, PyAny>, Vec<usize>)> {
     let py = obj.py();
+    if !(obj.hasattr("__array__")? || obj.hasattr("__array_interface__")?) {
+        to_value(obj, &Path::argument(name))?;
+    }
     let array = py
         .import("numpy")?
         .call_method1("asarray", (obj, "float64"))

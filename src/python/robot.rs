@@ -1,7 +1,8 @@
 //! `Robot`, its inverse kinematics (`InverseSolver`, `IkResult`) and the seed's trajectories.
 
 use super::batch::{
-    batch_result, batch_result_with, batch_settings, distributed, ik_batch_result, run_batch,
+    batch_result, batch_result_with, batch_settings, distributed, ik_batch_result, on_cluster,
+    run_batch,
 };
 use super::convert::*;
 use super::detach::detach_solve;
@@ -145,7 +146,23 @@ impl PyIkResult {
     /// An IkResult from ``to_dict()``'s dict (every key required).
     #[staticmethod]
     fn from_dict(data: &Bound<'_, PyAny>) -> PyResult<Self> {
-        let d = Fields::new("ik_result", data)?;
+        const KEYS: [&str; 14] = [
+            "rest_curvature",
+            "muscle_lengths",
+            "inflation_times",
+            "tensions",
+            "field",
+            "solution",
+            "tip_position",
+            "tip_miss",
+            "reached",
+            "ending",
+            "message",
+            "iterations",
+            "starts",
+            "time",
+        ];
+        let d = Fields::new("ik_result", data, &KEYS)?;
         let inner = IkResult {
             rest_curvature: d.rows::<2>("rest_curvature")?,
             muscle_lengths: d.rows::<3>("muscle_lengths")?,
@@ -514,7 +531,7 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        if let Some(executor) = given(executor) {
+        if let Some(executor) = on_cluster(executor, part)? {
             return distributed(
                 py,
                 "forward_batch",
@@ -623,7 +640,7 @@ impl PyRobot {
         let robot = &slf.get().inner;
         // Before a cluster's parts are cut too.
         robot.check_workspace(samples, first, &settings)?;
-        if let Some(executor) = given(executor) {
+        if let Some(executor) = on_cluster(executor, part)? {
             let (seed, first) = (seed.into_pyobject(py)?, first.into_pyobject(py)?);
             return distributed(
                 py,
@@ -680,7 +697,7 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        if let Some(executor) = given(executor) {
+        if let Some(executor) = on_cluster(executor, part)? {
             return distributed(
                 py,
                 "inverse_batch",

@@ -217,7 +217,7 @@ impl PySolution {
     /// ``ValueError`` names a missing, malformed or inconsistent field.
     #[staticmethod]
     pub(super) fn from_dict(data: &Bound<'_, PyAny>) -> PyResult<Self> {
-        let d = Fields::new("solution", data)?;
+        let d = Fields::new("solution", data, &SOLUTION_KEYS)?;
         let solution = Solution {
             n_elements: int_arg("solution.n_elements", &d.get("n_elements")?)?,
             scheme: {
@@ -297,6 +297,34 @@ impl PySolution {
         )
     }
 }
+
+/// The keys of `Solution.to_dict()`.
+const SOLUTION_KEYS: [&str; 24] = [
+    "n_elements",
+    "scheme",
+    "length",
+    "section_lengths",
+    "positions",
+    "quaternions",
+    "forces",
+    "stiffness",
+    "section_stiffness",
+    "rest_curvature",
+    "tip_moment",
+    "tip_reaction_force",
+    "tip_reaction_moment",
+    "guide_reactions",
+    "status",
+    "iterations",
+    "continuation_steps",
+    "residual_norm",
+    "energy",
+    "stable",
+    "message",
+    "error_estimate",
+    "extrapolated_tip",
+    "solve_time",
+];
 
 /// Node quaternions: a Solution's, or an array of shape (n+1, 4).
 pub(super) fn quaternions_arg(name: &str, q: &Bound<'_, PyAny>) -> PyResult<Vec<Quat>> {

@@ -11,12 +11,40 @@ use nalgebra::Vector3;
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use std::sync::{Arc, Mutex};
+use std::thread::ThreadId;
 
 /// The solver and the warm start it keeps.
 pub(super) struct Held {
     solver: Solver,
     /// The last converged and stable equilibrium (`initial="last"`).
     last: Option<Vec<Quat>>,
+    /// The thread that changed the scene (`set_*`) since the last solve: a
+    /// `set_*` and the `solve` that uses it belong to one thread, or a
+    /// thread would solve another's actuation without knowing it.
+    changed_by: Option<ThreadId>,
+}
+
+impl Held {
+    /// Refuse to go on when another thread changed the scene and has not
+    /// solved it yet.
+    fn check_turn(&self, what: &str) -> PyResult<()> {
+        match self.changed_by {
+            Some(other) if other != std::thread::current().id() => Err(not_your_turn(what)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Run a change of the scene as the current thread's.
+    fn change(
+        &mut self,
+        what: &str,
+        set: impl FnOnce(&mut Solver) -> crate::Result<()>,
+    ) -> PyResult<()> {
+        self.check_turn(what)?;
+        set(&mut self.solver)?;
+        self.changed_by = Some(std::thread::current().id());
+        Ok(())
+    }
 }
 
 /// A reusable solver of one scene: build once, then ``set_rest_curvature``,
@@ -24,7 +52,10 @@ pub(super) struct Held {
 /// equilibrium by default.
 ///
 /// Safe to share between threads: one solve runs at a time, and a thread
-/// waiting for its turn does not hold the GIL.
+/// waiting for its turn does not hold the GIL. A ``set_*`` and the ``solve``
+/// that uses it belong to one thread: another thread's ``set_*`` or
+/// ``solve`` in between raises ``RuntimeError`` (pass the drives to
+/// ``solve`` to change and solve in one call).
 #[pyclass(name = "Solver", module = "softspine._core", frozen)]
 pub struct PySolver {
     inner: Arc<Mutex<Held>>,
@@ -76,7 +107,11 @@ impl PySolver {
         let long_passes = settings.resolved(&scene).has_long_passes();
         let solver = py.detach(|| Solver::new(&scene, settings))?;
         Ok(PySolver {
-            inner: Arc::new(Mutex::new(Held { solver, last: None })),
+            inner: Arc::new(Mutex::new(Held {
+                solver,
+                last: None,
+                changed_by: None,
+            })),
             long_passes,
         })
     }
@@ -85,26 +120,61 @@ impl PySolver {
     /// without it, from the last converged and stable equilibrium of this
     /// solver (``warm=True``, the default; the straight rod before there is
     /// one) or the straight rod (``warm=False``). ``check=True`` raises
-    /// ``SolverError`` unless the solve converged.
-    #[pyo3(signature = (initial=None, *, warm=true, check=false))]
+    /// ``SolverError`` unless the solve converged. ``rest_curvature``,
+    /// ``tip_force``, ``tip_moment``, ``tensions`` and ``field``, where
+    /// given, are set first as by their ``set_*``, in the same call (what
+    /// threads sharing a solver use).
+    #[pyo3(signature = (initial=None, *, warm=true, check=false, rest_curvature=None, tip_force=None, tip_moment=None, tensions=None, field=None))]
+    #[allow(clippy::too_many_arguments)]
     fn solve(
         &self,
         py: Python<'_>,
         initial: Option<&Bound<'_, PyAny>>,
-        warm: bool,
-        check: bool,
+        #[pyo3(from_py_with = warm_arg)] warm: bool,
+        #[pyo3(from_py_with = check_arg)] check: bool,
+        rest_curvature: Option<&Bound<'_, PyAny>>,
+        tip_force: Option<&Bound<'_, PyAny>>,
+        tip_moment: Option<&Bound<'_, PyAny>>,
+        tensions: Option<&Bound<'_, PyAny>>,
+        field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PySolution> {
-        let start = match (initial, warm) {
-            (Some(x), _) => Start::Given(quaternions_arg("initial", x)?),
+        let start = match (given(initial), warm) {
+            (Some(x), _) => Start::Given(quaternions_arg("initial", &x)?),
             (None, true) => Start::Last,
             (None, false) => Start::Straight,
         };
+        let drives = Drives {
+            rest_curvature: given(rest_curvature)
+                .map(|k| rows_arg::<2>("rest_curvature", &k))
+                .transpose()?,
+            tip_force: given(tip_force)
+                .map(|f| vec3_arg("tip_force", &f))
+                .transpose()?,
+            tip_moment: given(tip_moment)
+                .map(|m| vec3_arg("tip_moment", &m))
+                .transpose()?,
+            tensions: given(tensions)
+                .map(|t| floats_arg("tensions", &t))
+                .transpose()?,
+            field: given(field).map(|b| vec3_arg("field", &b)).transpose()?,
+        };
+        let caller = std::thread::current().id();
         let inner = Arc::clone(&self.inner);
         let sol = detach_solve(py, self.long_passes, move || {
             let Ok(mut held) = inner.lock() else {
                 return Ok(None);
             };
             let held = &mut *held;
+            // The solve may run on a worker thread: the turn is the caller's.
+            if held.changed_by.is_some_and(|t| t != caller) {
+                return Ok(Some(Err(())));
+            }
+            if let Err(e) = drives.apply(&mut held.solver) {
+                // Some of them may be set: this thread's, unsolved.
+                held.changed_by = Some(caller);
+                return Err(e);
+            }
+            held.changed_by = None;
             let initial = match &start {
                 Start::Last => held.last.as_deref(),
                 Start::Straight => None,
@@ -118,9 +188,10 @@ impl PySolver {
                     None => held.last = Some(sol.quaternions.clone()),
                 }
             }
-            Ok(Some(sol))
+            Ok(Some(Ok(sol)))
         })?
         .ok_or_else(poisoned)?;
+        let sol = sol.map_err(|()| not_your_turn("solve"))?;
         let sol = if check { sol.check()? } else { sol };
         Ok(PySolution { inner: sol })
     }
@@ -129,23 +200,26 @@ impl PySolver {
     /// (m, 2), 1/m; the number of sections must divide ``n_elements``.
     fn set_rest_curvature(&self, rest_curvature: &Bound<'_, PyAny>) -> PyResult<()> {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
-        Ok(self.held()?.solver.set_rest_curvature(&k)?)
+        self.held()?
+            .change("set_rest_curvature", |s| s.set_rest_curvature(&k))
     }
 
     /// Set the dead force at the tip, world frame, N.
     fn set_tip_force(&self, force: &Bound<'_, PyAny>) -> PyResult<()> {
         let f = vec3_arg("force", force)?;
-        let mut held = self.held()?;
-        let moment = held.solver.scene().tip_moment;
-        Ok(held.solver.set_tip_load(f, moment)?)
+        self.held()?.change("set_tip_force", |s| {
+            let moment = s.scene().tip_moment;
+            s.set_tip_load(f, moment)
+        })
     }
 
     /// Set the dead moment at the tip, world frame, N m.
     fn set_tip_moment(&self, moment: &Bound<'_, PyAny>) -> PyResult<()> {
         let m = vec3_arg("moment", moment)?;
-        let mut held = self.held()?;
-        let force = held.solver.scene().tip_force;
-        Ok(held.solver.set_tip_load(force, m)?)
+        self.held()?.change("set_tip_moment", |s| {
+            let force = s.scene().tip_force;
+            s.set_tip_load(force, m)
+        })
     }
 
     /// Sensitivity of the last solve's equilibrium (solve first) to the
@@ -175,18 +249,22 @@ impl PySolver {
     /// Set the tendons' tensions, N: one a tendon, in the scene's order, >= 0.
     fn set_tensions(&self, tensions: &Bound<'_, PyAny>) -> PyResult<()> {
         let t = floats_arg("tensions", tensions)?;
-        Ok(self.held()?.solver.set_tensions(&t)?)
+        self.held()?.change("set_tensions", |s| s.set_tensions(&t))
     }
 
     /// Set the uniform magnetic field, world frame, T.
     fn set_magnetic_field(&self, field: &Bound<'_, PyAny>) -> PyResult<()> {
         let b = vec3_arg("field", field)?;
-        Ok(self.held()?.solver.set_magnetic_field(b)?)
+        self.held()?
+            .change("set_magnetic_field", |s| s.set_magnetic_field(b))
     }
 
-    /// Forget the last equilibrium: the next ``solve()`` starts from the straight rod.
+    /// Forget the last equilibrium (the next ``solve()`` starts from the
+    /// straight rod) and which thread changed the scene last.
     fn reset(&self) -> PyResult<()> {
-        self.held()?.last = None;
+        let mut held = self.held()?;
+        held.last = None;
+        held.changed_by = None;
         Ok(())
     }
 
@@ -219,6 +297,54 @@ impl PySolver {
             python_bool(held.last.is_some())
         ))
     }
+}
+
+/// The scene's changes a `solve` call makes first.
+struct Drives {
+    rest_curvature: Option<Vec<[f64; 2]>>,
+    tip_force: Option<Vector3<f64>>,
+    tip_moment: Option<Vector3<f64>>,
+    tensions: Option<Vec<f64>>,
+    field: Option<Vector3<f64>>,
+}
+
+impl Drives {
+    fn apply(&self, solver: &mut Solver) -> crate::Result<()> {
+        if let Some(k) = &self.rest_curvature {
+            solver.set_rest_curvature(k)?;
+        }
+        if self.tip_force.is_some() || self.tip_moment.is_some() {
+            let scene = solver.scene();
+            let force = self.tip_force.unwrap_or(scene.tip_force);
+            let moment = self.tip_moment.unwrap_or(scene.tip_moment);
+            solver.set_tip_load(force, moment)?;
+        }
+        if let Some(t) = &self.tensions {
+            solver.set_tensions(t)?;
+        }
+        if let Some(b) = self.field {
+            solver.set_magnetic_field(b)?;
+        }
+        Ok(())
+    }
+}
+
+/// The refusal of a `set_*` or `solve` between another thread's `set_*`
+/// and its solve.
+fn not_your_turn(what: &str) -> PyErr {
+    PyRuntimeError::new_err(format!(
+        "Solver.{what}: another thread changed this solver's scene (set_*) and has not solved \
+         it yet; between a set_* and its solve a Solver serves one thread: give the drives to \
+         solve(rest_curvature=..., tensions=..., ...) in one call, or use a Solver per thread"
+    ))
+}
+
+fn warm_arg(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    bool_arg("warm", obj)
+}
+
+fn check_arg(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    bool_arg("check", obj)
 }
 
 /// Where a solve starts.

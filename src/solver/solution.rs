@@ -283,6 +283,71 @@ impl Solution {
                 format!("{sections} sections do not divide n_elements = {n}"),
             ));
         }
+        if self.converged() {
+            self.check_converged_state()?;
+        }
+        Ok(())
+    }
+
+    /// What a converged answer is: a finite state of unit quaternions with
+    /// finite reactions, residual and energy (a stored failure may hold the
+    /// overflow that ended it; a converged one may not).
+    fn check_converged_state(&self) -> Result<()> {
+        let vectors: [(&str, &[Vector3<f64>]); 4] = [
+            ("positions", &self.positions),
+            ("forces", &self.forces),
+            ("section_stiffness", &self.section_stiffness),
+            ("guide_reactions", &self.guide_reactions),
+        ];
+        let single = [
+            ("stiffness", Some(self.stiffness)),
+            ("tip_moment", Some(self.tip_moment)),
+            ("tip_reaction_force", self.tip_reaction_force),
+            ("tip_reaction_moment", self.tip_reaction_moment),
+            ("extrapolated_tip", self.extrapolated_tip),
+        ];
+        let rows = vectors.into_iter().flat_map(|(name, rows)| {
+            rows.iter().enumerate().map(move |(i, v)| {
+                (
+                    format!("{name}[{i}]"),
+                    v.iter().copied().collect::<Vec<_>>(),
+                )
+            })
+        });
+        let singles = single
+            .into_iter()
+            .filter_map(|(name, v)| v.map(|v| (name.to_string(), v.iter().copied().collect())));
+        let curvature = self
+            .rest_curvature
+            .iter()
+            .enumerate()
+            .map(|(i, k)| (format!("rest_curvature[{i}]"), k.to_vec()));
+        let scalars = [
+            ("residual_norm", Some(self.residual_norm)),
+            ("energy", Some(self.energy)),
+            ("error_estimate", self.error_estimate),
+        ]
+        .into_iter()
+        .filter_map(|(name, x)| x.map(|x| (name.to_string(), vec![x])));
+        for (name, values) in rows.chain(singles).chain(curvature).chain(scalars) {
+            if let Some(x) = values.iter().find(|x| !x.is_finite()) {
+                return Err(Error::argument(
+                    format!("solution.{name}"),
+                    format!("a converged solution is finite, got {x}"),
+                ));
+            }
+        }
+        if let Some((i, q)) = self.quaternions.iter().enumerate().find(|(_, q)| {
+            !q.to_array().iter().all(|x| x.is_finite()) || (q.norm() - 1.0).abs() > 1e-9
+        }) {
+            return Err(Error::argument(
+                format!("solution.quaternions[{i}]"),
+                format!(
+                    "a converged solution has unit quaternions, got norm {}",
+                    q.norm()
+                ),
+            ));
+        }
         Ok(())
     }
 

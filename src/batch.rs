@@ -84,6 +84,23 @@ impl BatchSettings {
         Ok(())
     }
 
+    /// Refuse a cluster's task size `part` that is not a positive multiple
+    /// of `chunk`: only then is every part solved as the same samples of a
+    /// local batch (the same answers, to the bit).
+    pub fn check_part(&self, part: usize) -> Result<()> {
+        if part == 0 || part % self.chunk != 0 {
+            return Err(Error::argument(
+                "part",
+                format!(
+                    "must be a positive multiple of chunk ({}) for the results to be those of \
+                     a local batch, got {part}",
+                    self.chunk
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Bytes one sample's result holds while a batch returns it (the core's
     /// [`Sample`] with its shape of `nodes` nodes if kept, and `drive_values`
     /// numbers of its drives), twice: the parts and the joined results, or

@@ -46,6 +46,17 @@ impl Error {
             reason: reason.into(),
         }
     }
+
+    /// A refusal of the parameter `name`, said as entry `i` of the caller's
+    /// `parameters` (a sensitivity's, a calibration's).
+    pub(crate) fn of_parameter(self, i: usize, name: &str) -> Self {
+        match self {
+            Error::InvalidArgument { reason, .. } | Error::InvalidScene { reason, .. } => {
+                Error::argument(format!("parameters[{i}]"), format!("'{name}': {reason}"))
+            }
+            other => other,
+        }
+    }
 }
 
 /// Result alias of the crate.

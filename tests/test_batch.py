@@ -312,6 +312,11 @@ def test_a_solver_refuses_bad_input_by_name(robot):
         solver.set_tip_force([0, 0, np.nan])
     with pytest.raises(ValueError, match="rest_curvature"):
         solver.set_rest_curvature(np.zeros((3, 2)))
+    # One row turned the ten sections into one, and the solve went on (3e30b16).
+    with pytest.raises(ValueError, match=r"^rest_curvature: expected one row a section .*\(10\)"):
+        solver.set_rest_curvature([[1.0, 2.0]])
+    with pytest.raises(ValueError, match="^rest_curvature: expected 10 sections, got 1"):
+        robot.muscle_lengths([[1.0, 2.0]])
     with pytest.raises(ValueError, match="initial"):
         solver.solve("last")
     with pytest.raises(ValueError, match="initial"):

@@ -16,6 +16,7 @@ import struct
 import subprocess
 import sys
 import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -216,7 +217,7 @@ ZERO = np.zeros((10, 2))
         ),
         (lambda r: trajectories.circle(HUGE), "points: too large"),
         (lambda r: trajectories.circle(-3), "points: must not be negative, got -3"),
-        (lambda r: trajectories.by_name(None), "trajectory: expected a string, got NoneType"),
+        (lambda r: trajectories.by_name(None), "name: expected a string, got NoneType"),
     ],
 )
 def test_bad_robot_arguments_name_the_argument(robot, call, message):
@@ -367,7 +368,7 @@ def test_toml_errors_fit_on_one_line():
     with pytest.raises(ValueError) as info:
         Scene.from_toml("length = 1\nlength = 2\n")
     message = str(info.value)
-    assert "\n" not in message and message.startswith("invalid TOML:"), message
+    assert "\n" not in message and message.startswith("text: invalid TOML:"), message
     assert "line 2" in message
 
 
@@ -542,3 +543,86 @@ def test_part_without_an_executor_is_refused(batch):
 def test_bad_solve_arguments_name_the_argument(kwargs, message):
     with pytest.raises(ValueError, match="^" + re.escape(message)):
         softspine.solve(GOOD, **kwargs)
+
+
+# --- Every argument's refusal names it ----------------------------------------------
+
+JUNK = [object(), None, True, -1, 2**64, math.nan, "abc", b"abc", memoryview(b"abc"),
+        {1, 2}, [[1, 2]], 1 + 2j, np.zeros((2, 3)), np.full((1, 10, 2), np.nan)]
+TENDON_ROBOT = "examples/robots/tendon_robot.toml"
+
+
+def entry_points():
+    """(entry point, the argument replaced, a call with that argument): every
+    other argument valid. A refusal must name the argument."""
+    robot = Robot()
+    kappa = np.full((1, robot.sections, 2), 0.5)
+    tips = robot.forward_batch(kappa, 0.01, progress=False).tip_positions
+    solver = softspine.Solver(GOOD, n_elements=20)
+    solver.solve()
+    pool = ThreadPoolExecutor(1)
+    calls = {
+        "solve": ("scene settings n_elements method scheme initial tol residual_tol "
+                  "max_iterations check",
+                  lambda **k: softspine.solve(**{"scene": GOOD, **k})),
+        "solve_batch": ("scenes settings shapes threads chunk",
+                        lambda **k: softspine.solve_batch(**{"scenes": [GOOD], **k})),
+        "calibrate": ("robot actuations measured_tips parameters load max_iterations threads",
+                      lambda **k: softspine.calibrate(**{
+                          "robot": robot, "actuations": kappa, "measured_tips": tips,
+                          "parameters": ["stiffness.E"], "max_iterations": 1, **k})),
+        "Robot.workspace": ("samples load seed first shapes threads chunk",
+                            lambda **k: robot.workspace(**{"samples": 1, "progress": False,
+                                                           **k})),
+        "Robot.forward_batch": ("actuations load shapes warm_start threads chunk",
+                                lambda **k: robot.forward_batch(**{"actuations": kappa,
+                                                                   "progress": False, **k})),
+        "Robot.inverse_batch": ("targets load reference direction settings threads chunk",
+                                lambda **k: robot.inverse_batch(**{"targets": tips,
+                                                                   "progress": False, **k})),
+        "Robot.sensitivity": ("rest_curvature load parameters",
+                              lambda **k: robot.sensitivity(**{"rest_curvature": kappa[0],
+                                                               "parameters": "load", **k})),
+        "Robot.muscle_lengths": ("rest_curvature",
+                                 lambda **k: robot.muscle_lengths(**{"rest_curvature": kappa[0],
+                                                                     **k})),
+        "Robot.from_file": ("path", lambda **k: Robot.from_file(**{"path": TENDON_ROBOT, **k})),
+        "Robot.from_json": ("text", lambda **k: Robot.from_json(**{"text": "{}", **k})),
+        "Scene.from_toml": ("text", lambda **k: Scene.from_toml(**{"text": "length = 1", **k})),
+        "Solver.solve": ("initial warm check rest_curvature tip_force tensions field",
+                         lambda **k: solver.solve(**k)),
+        "Solver.sensitivity": ("parameters",
+                               lambda **k: solver.sensitivity(**{"parameters": "tip_force[0]",
+                                                                 **k})),
+        "trajectories.by_name": ("name points robot",
+                                 lambda **k: trajectories.by_name(**{"name": "circle", **k})),
+        "batch.concatenate": ("parts", lambda **k: softspine.batch.concatenate(**k)),
+    }
+    for name, (arguments, call) in calls.items():
+        for argument in arguments.split():
+            yield name, argument, call
+    # On a cluster: every argument read before the batch is cut into parts.
+    for argument in ("chunk", "part", "seed", "first"):
+        yield "Robot.workspace(executor)", argument, lambda **k: robot.workspace(
+            **{"samples": 1, "progress": False, "executor": pool, **k})
+    for argument in ("actuations", "chunk", "part"):
+        yield "Robot.forward_batch(executor)", argument, lambda **k: robot.forward_batch(
+            **{"actuations": kappa, "progress": False, "executor": pool, **k})
+
+
+@pytest.mark.parametrize("junk", JUNK, ids=lambda j: type(j).__name__)
+def test_every_refusal_is_a_value_or_type_error_naming_the_argument(junk):
+    # On 3e30b16: bare OverflowErrors (seed=-1), pyo3's "'int' object is not an
+    # instance of 'bool'" (check=1), another argument blamed (calibrate's NaN
+    # actuations as rest_curvature), int() and float() errors on a cluster.
+    bad = []
+    for name, argument, call in entry_points():
+        try:
+            call(**{argument: junk})
+        except (ValueError, TypeError) as e:
+            named = re.match(rf"^(\w+\.)?{argument}\b", str(e))
+            if not named:
+                bad.append(f"{name}({argument}={junk!r}): {type(e).__name__}: {e}")
+        except Exception as e:  # noqa: BLE001 - every other type is the failure
+            bad.append(f"{name}({argument}={junk!r}): {type(e).__name__}: {e}")
+    assert not bad, "\n".join(bad)

@@ -183,3 +183,14 @@ def test_calibration_refuses_what_it_cannot_fit():
         softspine.calibrate(robot, k, np.zeros((3, 2)), ["linear_density"])
     with pytest.raises(ValueError, match="actuations"):
         softspine.calibrate(robot, k[:2], tips, ["linear_density"])
+
+
+def test_the_payload_sensitivity_at_no_payload_differences_through_zero():
+    # At load=0 the central difference stepped to a negative mass, refused as
+    # "load: must be a mass >= 0 kg" (3e30b16); the tip force is linear in it.
+    robot = softspine.Robot()
+    kappa = np.full((robot.sections, 2), 0.5)
+    sens = robot.sensitivity(kappa, 0.0, parameters="load")
+    h = 1e-3
+    one_sided = (robot.forward(kappa, h).tip_position - robot.forward(kappa, 0.0).tip_position) / h
+    np.testing.assert_allclose(sens.tip_position[:, 0], one_sided, rtol=1e-2)

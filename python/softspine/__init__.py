@@ -164,7 +164,7 @@ def solve(
         With ``check=True``, a solve that did not converge.
     """
     return _solve(
-        load_scene(scene),
+        scene,
         settings,
         n_elements=n_elements,
         method=method,

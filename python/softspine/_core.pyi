@@ -50,11 +50,15 @@ class SolverError(Exception):
 class Scene:
     """What is being solved; ``ValueError`` naming the key on invalid input."""
 
-    def __new__(cls, data: dict[str, Any] | Scene) -> Scene: ...
+    def __new__(cls, data: dict[str, Any] | Scene | str | PathLike[str]) -> Scene:
+        """From a dict, a Scene or the path of a ``.json`` / ``.toml`` file."""
     @staticmethod
     def from_json(text: str) -> Scene: ...
     @staticmethod
     def from_toml(text: str) -> Scene: ...
+    @staticmethod
+    def from_file(path: str | PathLike[str]) -> Scene:
+        """Read a scene from a ``.json`` or ``.toml`` file."""
     def to_dict(self) -> dict[str, Any]: ...
     @property
     def length(self) -> float: ...

@@ -101,9 +101,15 @@ class IkBatchResult:
 
 def concatenate(parts: list[Any]) -> Any:
     """One result from the results of consecutive parts of a batch (in order)."""
+    if not isinstance(parts, (list, tuple)):
+        raise TypeError(f"parts: expected a list of batch results, got {type(parts).__name__}")
     if not parts:
         raise ValueError("parts: nothing to concatenate")
     kind = type(parts[0])
+    for i, p in enumerate(parts):
+        if not isinstance(p, (BatchResult, IkBatchResult)) or type(p) is not kind:
+            expected = kind.__name__ if i else "BatchResult or IkBatchResult"
+            raise TypeError(f"parts[{i}]: expected a {expected}, got {type(p).__name__}")
     merged: dict[str, Any] = {}
     for f in fields(kind):
         values = [getattr(p, f.name) for p in parts]

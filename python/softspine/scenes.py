@@ -5,26 +5,14 @@ from __future__ import annotations
 import math
 from importlib import resources
 from os import PathLike
-from pathlib import Path
 
 from ._core import Scene
 
 
-def load_scene(source: Scene | dict | str | PathLike) -> Scene:
-    """A ``Scene`` from a Scene, a dict, or the path of a ``.json``/``.toml`` file."""
-    if isinstance(source, Scene):
-        return source
-    if isinstance(source, dict):
-        return Scene(source)
-    if isinstance(source, (str, PathLike)):
-        path = Path(source)
-        text = path.read_text(encoding="utf-8")  # JSON and TOML are UTF-8 by definition
-        if path.suffix == ".json":
-            return Scene.from_json(text)
-        if path.suffix == ".toml":
-            return Scene.from_toml(text)
-        raise ValueError(f"{path}: expected a .json or .toml file")
-    raise ValueError(f"scene: expected a Scene, a dict or a file path, got {type(source).__name__}")
+def load_scene(scene: Scene | dict | str | PathLike) -> Scene:
+    """A ``Scene`` from a Scene, a dict, or the path of a ``.json``/``.toml`` file
+    (``Scene(scene)``)."""
+    return Scene(scene)
 
 
 def demo_robot_scene() -> Scene:

@@ -61,20 +61,34 @@ pub(super) fn progress_arg<'py>(
     }
 }
 
-/// The executor of a batch on a cluster, or None for a local batch, which
-/// has no parts: a `part` without an executor was ignored.
+/// A batch on a cluster: its executor and the samples of a task.
+pub(super) struct Cluster<'py> {
+    executor: Bound<'py, PyAny>,
+    part: Option<usize>,
+}
+
+/// The cluster of a batch, or None for a local batch, which has no parts
+/// (a `part` without an executor was ignored). Called once every other
+/// argument is read: a cluster's batch is refused as a local one is.
 pub(super) fn on_cluster<'py>(
     executor: Option<&Bound<'py, PyAny>>,
     part: Option<&Bound<'py, PyAny>>,
-) -> PyResult<Option<Bound<'py, PyAny>>> {
-    let executor = given(executor);
-    if executor.is_none() && given(part).is_some() {
-        return Err(Path::argument("part").error(
-            "the samples of one task on a cluster: give it with executor= (a local batch is cut \
-             into chunk= samples a worker)",
-        ));
+    settings: &BatchSettings,
+) -> PyResult<Option<Cluster<'py>>> {
+    let part = given(part).map(|p| int_arg("part", &p)).transpose()?;
+    let Some(executor) = given(executor) else {
+        if part.is_some() {
+            return Err(Path::argument("part").error(
+                "the samples of one task on a cluster: give it with executor= (a local batch is \
+                 cut into chunk= samples a worker)",
+            ));
+        }
+        return Ok(None);
+    };
+    if let Some(p) = part {
+        settings.check_part(p)?;
     }
-    Ok(executor)
+    Ok(Some(Cluster { executor, part }))
 }
 
 /// A batch on a cluster: `softspine.distributed.<function>(*args, **given
@@ -82,6 +96,7 @@ pub(super) fn on_cluster<'py>(
 pub(super) fn distributed<'py>(
     py: Python<'py>,
     function: &str,
+    cluster: Cluster<'py>,
     args: impl pyo3::call::PyCallArgs<'py>,
     keywords: &[(&str, Option<&Bound<'py, PyAny>>)],
 ) -> PyResult<Bound<'py, PyAny>> {
@@ -91,6 +106,8 @@ pub(super) fn distributed<'py>(
             kwargs.set_item(key, v)?;
         }
     }
+    kwargs.set_item("executor", cluster.executor)?;
+    kwargs.set_item("part", cluster.part)?;
     py.import("softspine.distributed")?
         .getattr(function)?
         .call(args, Some(&kwargs))
@@ -233,31 +250,14 @@ pub(super) fn solve_batch<'py>(
     executor: Option<&Bound<'py, PyAny>>,
     part: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    if let Some(executor) = on_cluster(executor, part)? {
-        return distributed(
-            py,
-            "solve_batch",
-            (scenes, settings),
-            &[
-                ("n_elements", n_elements),
-                ("method", method),
-                ("scheme", scheme),
-                ("residual_tol", residual_tol),
-                ("max_iterations", max_iterations),
-                ("shapes", shapes),
-                ("threads", threads),
-                ("chunk", chunk),
-                ("progress", progress),
-                ("executor", Some(&executor)),
-                ("part", part),
-            ],
-        );
-    }
-    let scenes: Vec<crate::Scene> = scenes
-        .try_iter()
-        .map_err(|_| {
-            pyo3::exceptions::PyValueError::new_err(format!(
-                "scenes: expected a sequence of Scene or dict, got {}",
+    let text = scenes.is_instance_of::<pyo3::types::PyString>()
+        || scenes.is_instance_of::<pyo3::types::PyBytes>();
+    let scenes: Vec<crate::Scene> = (!text)
+        .then(|| scenes.try_iter().ok())
+        .flatten()
+        .ok_or_else(|| {
+            Path::argument("scenes").error(format!(
+                "expected a sequence of Scene or dict, got {}",
                 type_name(scenes)
             ))
         })?
@@ -280,6 +280,31 @@ pub(super) fn solve_batch<'py>(
         ],
     )?;
     let batch = batch_settings(threads, chunk, None, shapes)?;
+    if let Some(cluster) = on_cluster(executor, part, &batch)? {
+        let scenes = PyList::new(
+            py,
+            scenes
+                .into_iter()
+                .map(|inner| super::scene::PyScene { inner }),
+        )?;
+        return distributed(
+            py,
+            "solve_batch",
+            cluster,
+            (scenes, settings),
+            &[
+                ("n_elements", n_elements),
+                ("method", method),
+                ("scheme", scheme),
+                ("residual_tol", residual_tol),
+                ("max_iterations", max_iterations),
+                ("shapes", shapes),
+                ("threads", threads),
+                ("chunk", chunk),
+                ("progress", progress),
+            ],
+        );
+    }
     let samples = run_batch(py, scenes.len(), progress, |control| {
         crate::solve_batch(&scenes, &solver_settings, &batch, control)
     })?;

@@ -261,6 +261,20 @@ pub(super) fn int_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
     }
 }
 
+/// A 64-bit unsigned argument (a seed, a sample index): an int or NumPy
+/// integer (not a bool) in `[0, 2**64)`, refused by name.
+pub(super) fn u64_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<u64> {
+    let path = Path::argument(name);
+    let py = obj.py();
+    let integer = !obj.is_instance_of::<PyBool>()
+        && (obj.is_instance_of::<PyInt>() || obj.is_instance(numpy_types(py)?.integer.bind(py))?);
+    if !integer {
+        return Err(path.error(format!("expected an integer, got {}", type_name(obj))));
+    }
+    obj.extract::<u64>()
+        .map_err(|_| path.error(format!("must be an integer in [0, 2**64), got {obj}")))
+}
+
 /// A finite real argument (int, float, NumPy scalar or 0-d array), refused by name.
 pub(super) fn float_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<f64> {
     let path = Path::argument(name);
@@ -582,6 +596,42 @@ pub(super) fn samples_count(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
     int_arg("samples", obj)
 }
 
+pub(super) fn seed_arg(obj: &Bound<'_, PyAny>) -> PyResult<u64> {
+    u64_arg("seed", obj)
+}
+
+pub(super) fn first_arg(obj: &Bound<'_, PyAny>) -> PyResult<u64> {
+    u64_arg("first", obj)
+}
+
+pub(super) fn check_arg(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    bool_arg("check", obj)
+}
+
+pub(super) fn text_arg(obj: &Bound<'_, PyAny>) -> PyResult<String> {
+    str_arg("text", obj)
+}
+
+/// A file's path: a string or an `os.PathLike`, refused by name.
+pub(super) fn path_arg(obj: &Bound<'_, PyAny>) -> PyResult<std::path::PathBuf> {
+    let path = Path::argument("path");
+    let text = obj
+        .py()
+        .import("os")?
+        .call_method1("fspath", (obj,))
+        .map_err(|_| path.error(format!("expected a path, got {}", type_name(obj))))?;
+    Ok(std::path::PathBuf::from(str_arg("path", &text)?))
+}
+
+/// A core error about what an argument holds (text that does not parse, a
+/// file that cannot be read), said as that argument's: `text: invalid JSON: ...`.
+pub(super) fn of_argument(name: &str, e: crate::Error) -> PyErr {
+    match e {
+        crate::Error::Parse(reason) => PyValueError::new_err(format!("{name}: {reason}")),
+        other => other.into(),
+    }
+}
+
 /// An array-like as a NumPy array of float64 and its shape. What is not an
 /// array (lists, tuples) is read as a value first, so that junk inside it
 /// (bytes, sets) is refused where it sits rather than converted by NumPy.
@@ -590,12 +640,23 @@ fn float_array<'py>(
     obj: &Bound<'py, PyAny>,
 ) -> PyResult<(Bound<'py, PyAny>, Vec<usize>)> {
     let py = obj.py();
+    let path = Path::argument(name);
     if !(obj.hasattr("__array__")? || obj.hasattr("__array_interface__")?) {
-        to_value(obj, &Path::argument(name))?;
+        to_value(obj, &path)?;
     }
-    let array = py
-        .import("numpy")?
-        .call_method1("asarray", (obj, "float64"))
+    let np = py.import("numpy")?;
+    let given = np.call_method1("asarray", (obj,)).map_err(|e| {
+        PyValueError::new_err(format!("{name}: not an array of numbers ({})", e.value(py)))
+    })?;
+    // Real numbers only: NumPy casts complex to real with a mere warning,
+    // and booleans, strings and objects to numbers they never were.
+    let kind: String = given.getattr("dtype")?.getattr("kind")?.extract()?;
+    if !matches!(kind.as_str(), "i" | "u" | "f") {
+        let dtype = given.getattr("dtype")?.str()?;
+        return Err(path.error(format!("expected real numbers, got an array of {dtype}")));
+    }
+    let array = np
+        .call_method1("asarray", (given, "float64"))
         .map_err(|e| {
             PyValueError::new_err(format!("{name}: not an array of numbers ({})", e.value(py)))
         })?;

@@ -2,27 +2,43 @@
 //! `softspine.calibrate`, into the dataclasses of `softspine.sensitivity`.
 
 use super::convert::*;
-use super::robot::PyRobot;
+use super::robot::{robot_arg, PyRobot};
 use super::solution::PySolution;
-use crate::{CalibrationSettings, Sensitivity, Solution};
+use crate::{CalibrationSettings, Robot, Sensitivity, Solution};
 use nalgebra::Vector3;
 use numpy::ndarray::{Array1, Array2};
 use numpy::IntoPyArray;
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 
-/// `parameters`: a name or a sequence of names.
+/// `parameters`: a name or a sequence of names, each refused by its index.
 pub(super) fn parameter_names(obj: &Bound<'_, PyAny>) -> PyResult<Vec<String>> {
-    if let Ok(s) = obj.extract::<String>() {
-        return Ok(vec![s]);
+    if obj.is_instance_of::<PyString>() {
+        return Ok(vec![str_arg("parameters", obj)?]);
     }
-    obj.extract::<Vec<String>>().map_err(|_| {
-        PyValueError::new_err(format!(
-            "parameters: expected a name or a list of names, got {}",
-            type_name(obj)
-        ))
-    })
+    let path = Path::argument("parameters");
+    let items: Vec<Bound<'_, PyAny>> = match (obj.cast::<PyList>(), obj.cast::<PyTuple>()) {
+        (Ok(l), _) => l.iter().collect(),
+        (_, Ok(t)) => t.iter().collect(),
+        _ => {
+            return Err(path.error(format!(
+                "expected a name or a list of names, got {}",
+                type_name(obj)
+            )))
+        }
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            x.cast::<PyString>()
+                .map_err(|_| {
+                    path.index(i)
+                        .error(format!("expected a name, got {}", type_name(x)))
+                })
+                .and_then(|s| Ok(s.to_str()?.to_owned()))
+        })
+        .collect()
 }
 
 fn matrix<'py>(py: Python<'py>, m: &nalgebra::Matrix3xX<f64>) -> Bound<'py, PyAny> {
@@ -61,7 +77,7 @@ pub(super) fn sensitivity_result<'py>(
 #[allow(clippy::too_many_arguments)]
 pub(super) fn calibrate<'py>(
     py: Python<'py>,
-    robot: &Bound<'py, PyRobot>,
+    #[pyo3(from_py_with = robot_arg)] robot: Robot,
     actuations: &Bound<'py, PyAny>,
     measured_tips: &Bound<'py, PyAny>,
     parameters: &Bound<'py, PyAny>,
@@ -69,7 +85,6 @@ pub(super) fn calibrate<'py>(
     max_iterations: Option<&Bound<'py, PyAny>>,
     threads: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let robot = robot.get().inner.clone();
     let k = samples_arg::<2>("actuations", actuations, robot.sections)?;
     let measured: Vec<Vector3<f64>> = rows_of::<3>("measured_tips", measured_tips)?
         .into_iter()

@@ -179,6 +179,7 @@ impl PyIkResult {
             starts: int_arg("ik_result.starts", &d.get("starts")?)?,
             seconds: float_arg("ik_result.time", &d.get("time")?)?,
         };
+        inner.check_stored()?;
         Ok(PyIkResult { inner })
     }
 
@@ -315,25 +316,25 @@ impl PyRobot {
 
     /// Read a robot from JSON text (the fields of ``Robot().to_dict()``, each optional).
     #[staticmethod]
-    fn from_json(text: &str) -> PyResult<Self> {
+    fn from_json(#[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
         Ok(PyRobot {
-            inner: Robot::from_json_str(text)?,
+            inner: Robot::from_json_str(&text).map_err(|e| of_argument("text", e))?,
         })
     }
 
     /// Read a robot from TOML text.
     #[staticmethod]
-    fn from_toml(text: &str) -> PyResult<Self> {
+    fn from_toml(#[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
         Ok(PyRobot {
-            inner: Robot::from_toml_str(text)?,
+            inner: Robot::from_toml_str(&text).map_err(|e| of_argument("text", e))?,
         })
     }
 
     /// Read a robot from a ``.json`` or ``.toml`` file.
     #[staticmethod]
-    fn from_file(path: std::path::PathBuf) -> PyResult<Self> {
+    fn from_file(#[pyo3(from_py_with = path_arg)] path: std::path::PathBuf) -> PyResult<Self> {
         Ok(PyRobot {
-            inner: Robot::from_file(&path)?,
+            inner: Robot::from_file(&path).map_err(|e| of_argument("path", e))?,
         })
     }
 
@@ -407,6 +408,7 @@ impl PyRobot {
         rest_curvature: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        self.inner.check_rows("rest_curvature", k.len())?;
         Ok(rows_n(py, &self.inner.muscle_lengths(&k)))
     }
 
@@ -417,6 +419,7 @@ impl PyRobot {
         muscle_lengths: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let l = rows_arg::<3>("muscle_lengths", muscle_lengths)?;
+        self.inner.check_rows("muscle_lengths", l.len())?;
         Ok(rows_n(py, &self.inner.rest_curvature(&l)?))
     }
 
@@ -427,6 +430,7 @@ impl PyRobot {
         muscle_lengths: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let l = rows_arg::<3>("muscle_lengths", muscle_lengths)?;
+        self.inner.check_rows("muscle_lengths", l.len())?;
         Ok(rows_n(py, &self.inner.inflation_times(&l)))
     }
 
@@ -437,14 +441,15 @@ impl PyRobot {
         times: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let t = rows_arg::<3>("times", times)?;
+        self.inner.check_rows("times", t.len())?;
         Ok(rows_n(py, &self.inner.muscle_lengths_from_times(&t)))
     }
 
     /// Whether every muscle length lies in the range for this actuation.
     fn within_bounds(&self, rest_curvature: &Bound<'_, PyAny>) -> PyResult<bool> {
-        Ok(self
-            .inner
-            .within_bounds(&rows_arg::<2>("rest_curvature", rest_curvature)?))
+        let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
+        self.inner.check_rows("rest_curvature", k.len())?;
+        Ok(self.inner.within_bounds(&k))
     }
 
     /// Forward statics: the loaded equilibrium of an actuation, from the
@@ -531,10 +536,33 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        if let Some(executor) = on_cluster(executor, part)? {
+        let this = slf.get();
+        let robot = &this.inner;
+        let m = robot.sections;
+        let settings = batch_settings(threads, chunk, warm_start, shapes)?;
+        let k = given(actuations)
+            .map(|a| samples_arg::<2>("actuations", &a, m))
+            .transpose()?;
+        let (tensions_given, field_given) = (given(tensions), given(field));
+        let muscles_only = tensions_given.is_none()
+            && field_given.is_none()
+            && robot.actuation_space() == crate::robot::ActuationSpace::Curvature;
+        if muscles_only && k.is_none() {
+            return Err(PyValueError::new_err(
+                "actuations: missing (the rest curvature of each sample)",
+            ));
+        }
+        let t = tensions_given
+            .map(|t| sample_rows("tensions", &t, robot.tendons.len()))
+            .transpose()?;
+        let b = field_given
+            .map(|b| sample_rows("field", &b, 3))
+            .transpose()?;
+        if let Some(cluster) = on_cluster(executor, part, &settings)? {
             return distributed(
                 py,
                 "forward_batch",
+                cluster,
                 (slf, actuations, load),
                 &[
                     ("tensions", tensions),
@@ -544,35 +572,16 @@ impl PyRobot {
                     ("threads", threads),
                     ("chunk", chunk),
                     ("progress", progress),
-                    ("executor", Some(&executor)),
-                    ("part", part),
                 ],
             );
         }
-        let this = slf.get();
-        let robot = &this.inner;
-        let m = robot.sections;
-        let settings = batch_settings(threads, chunk, warm_start, shapes)?;
-        let k = given(actuations)
-            .map(|a| samples_arg::<2>("actuations", &a, m))
-            .transpose()?;
-        let (tensions, field) = (given(tensions), given(field));
-        if tensions.is_none()
-            && field.is_none()
-            && robot.actuation_space() == crate::robot::ActuationSpace::Curvature
-        {
-            let k = k.ok_or_else(|| {
-                PyValueError::new_err("actuations: missing (the rest curvature of each sample)")
-            })?;
+        if muscles_only {
+            let k = k.expect("checked above");
             let samples = run_batch(py, k.len() / m, progress, |control| {
                 robot.forward_batch(&k, load, &settings, control)
             })?;
             return batch_result(py, &samples, Some((&k, m)));
         }
-        let t = tensions
-            .map(|t| sample_rows("tensions", &t, robot.tendons.len()))
-            .transpose()?;
-        let b = field.map(|b| sample_rows("field", &b, 3)).transpose()?;
         let counts = [
             ("actuations", k.as_ref().map(|k| k.len() / m)),
             ("tensions", t.as_ref().map(Vec::len)),
@@ -627,8 +636,8 @@ impl PyRobot {
         py: Python<'py>,
         #[pyo3(from_py_with = samples_count)] samples: usize,
         #[pyo3(from_py_with = load_arg)] load: f64,
-        seed: u64,
-        first: u64,
+        #[pyo3(from_py_with = seed_arg)] seed: u64,
+        #[pyo3(from_py_with = first_arg)] first: u64,
         shapes: Option<&Bound<'py, PyAny>>,
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
@@ -640,11 +649,12 @@ impl PyRobot {
         let robot = &slf.get().inner;
         // Before a cluster's parts are cut too.
         robot.check_workspace(samples, first, &settings)?;
-        if let Some(executor) = on_cluster(executor, part)? {
+        if let Some(cluster) = on_cluster(executor, part, &settings)? {
             let (seed, first) = (seed.into_pyobject(py)?, first.into_pyobject(py)?);
             return distributed(
                 py,
                 "workspace",
+                cluster,
                 (slf, samples, load),
                 &[
                     ("seed", Some(seed.as_any())),
@@ -653,8 +663,6 @@ impl PyRobot {
                     ("threads", threads),
                     ("chunk", chunk),
                     ("progress", progress),
-                    ("executor", Some(&executor)),
-                    ("part", part),
                 ],
             );
         }
@@ -697,25 +705,8 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        if let Some(executor) = on_cluster(executor, part)? {
-            return distributed(
-                py,
-                "inverse_batch",
-                (slf, targets, load),
-                &[
-                    ("reference", reference),
-                    ("direction", direction),
-                    ("settings", settings),
-                    ("pretension", pretension),
-                    ("threads", threads),
-                    ("chunk", chunk),
-                    ("progress", progress),
-                    ("executor", Some(&executor)),
-                    ("part", part),
-                ],
-            );
-        }
         let this = slf.get();
+        let given_targets = targets;
         let targets: Vec<Vector3<f64>> = rows_of::<3>("targets", targets)?
             .into_iter()
             .map(Vector3::from)
@@ -735,6 +726,23 @@ impl PyRobot {
             initial: None,
         };
         let batch = batch_settings(threads, chunk, None, None)?;
+        if let Some(cluster) = on_cluster(executor, part, &batch)? {
+            return distributed(
+                py,
+                "inverse_batch",
+                cluster,
+                (slf, given_targets, load),
+                &[
+                    ("reference", reference),
+                    ("direction", direction),
+                    ("settings", settings),
+                    ("pretension", pretension),
+                    ("threads", threads),
+                    ("chunk", chunk),
+                    ("progress", progress),
+                ],
+            );
+        }
         let robot = &this.inner;
         let samples = run_batch(py, targets.len(), progress, |control| {
             robot.inverse_batch(&targets, &options, &batch, control)
@@ -899,6 +907,15 @@ fn ik_start(x: &Bound<'_, PyAny>) -> PyResult<IkStart> {
     })
 }
 
+/// A `Robot` argument, refused by name.
+pub(super) fn robot_arg(obj: &Bound<'_, PyAny>) -> PyResult<Robot> {
+    obj.cast::<PyRobot>()
+        .map(|r| r.get().inner.clone())
+        .map_err(|_| {
+            Path::argument("robot").error(format!("expected a Robot, got {}", type_name(obj)))
+        })
+}
+
 impl PyRobot {
     fn ik_options(
         &self,
@@ -930,19 +947,20 @@ pub(super) fn trajectory_points<'py>(
     py: Python<'py>,
     name: &Bound<'py, PyAny>,
     #[pyo3(from_py_with = points_arg)] points: usize,
-    robot: Option<PyRef<'py, PyRobot>>,
+    robot: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let name = str_arg("trajectory", name)?;
+    let robot = given(robot).map(|r| robot_arg(&r)).transpose()?;
+    let name = str_arg("name", name)?;
     if points == 0 {
         return Err(PyValueError::new_err("points: must be positive"));
     }
     let pts = trajectory::by_name(&name, points).ok_or_else(|| {
         PyValueError::new_err(format!(
-            "trajectory: unknown '{name}' (expected pentagram, circle or spiral)"
+            "name: unknown trajectory '{name}' (expected pentagram, circle or spiral)"
         ))
     })?;
     let pts = match robot {
-        Some(r) => trajectory::placed(&pts, &r.inner),
+        Some(r) => trajectory::placed(&pts, &r),
         None => pts,
     };
     Ok(rows3(py, &pts))

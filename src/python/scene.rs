@@ -30,9 +30,19 @@ impl PyScene {
         if let Ok(s) = data.cast::<PyScene>() {
             return Ok(s.get().clone());
         }
+        let os = data.py().import("os")?;
+        if data.is_instance_of::<pyo3::types::PyString>()
+            || data.is_instance(&os.getattr("PathLike")?)?
+        {
+            let path: String = os.call_method1("fspath", (data,))?.extract()?;
+            return Ok(PyScene {
+                inner: Scene::from_file(std::path::Path::new(&path))
+                    .map_err(|e| of_argument("scene", e))?,
+            });
+        }
         if !data.is_instance_of::<PyDict>() {
             return Err(PyValueError::new_err(format!(
-                "scene: expected a dict, got {}",
+                "scene: expected a Scene, a dict or a file's path, got {}",
                 data.get_type().name()?
             )));
         }
@@ -43,17 +53,25 @@ impl PyScene {
 
     /// Read a scene from a JSON string.
     #[staticmethod]
-    fn from_json(text: &str) -> PyResult<Self> {
+    fn from_json(#[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
         Ok(PyScene {
-            inner: Scene::from_json_str(text)?,
+            inner: Scene::from_json_str(&text).map_err(|e| of_argument("text", e))?,
         })
     }
 
     /// Read a scene from a TOML string.
     #[staticmethod]
-    fn from_toml(text: &str) -> PyResult<Self> {
+    fn from_toml(#[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
         Ok(PyScene {
-            inner: Scene::from_toml_str(text)?,
+            inner: Scene::from_toml_str(&text).map_err(|e| of_argument("text", e))?,
+        })
+    }
+
+    /// Read a scene from a ``.json`` or ``.toml`` file.
+    #[staticmethod]
+    fn from_file(#[pyo3(from_py_with = path_arg)] path: std::path::PathBuf) -> PyResult<Self> {
+        Ok(PyScene {
+            inner: Scene::from_file(&path).map_err(|e| of_argument("path", e))?,
         })
     }
 
@@ -114,6 +132,7 @@ impl PyScene {
     }
 }
 
+/// A scene: a Scene, a dict or the path of a `.json` / `.toml` file.
 pub(super) fn scene_arg(scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
     Ok(PyScene::new(scene)?.inner)
 }

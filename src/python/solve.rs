@@ -32,7 +32,7 @@ pub(super) fn solve(
     refine: Option<&Bound<'_, PyAny>>,
     residual_tol: Option<&Bound<'_, PyAny>>,
     max_iterations: Option<&Bound<'_, PyAny>>,
-    check: bool,
+    #[pyo3(from_py_with = check_arg)] check: bool,
     paper: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PySolution> {
     let scene = scene_arg(scene)?;

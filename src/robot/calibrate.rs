@@ -31,70 +31,84 @@ impl Robot {
     /// standing for all of a section's components.
     fn parameters(&self, names: &[&str]) -> Result<Vec<(String, Parameter)>> {
         let mut out = Vec::new();
-        let index = |name: &str, prefix: &str, columns: usize| -> Result<Option<(usize, usize)>> {
-            let Some(rest) = name.strip_prefix(prefix) else {
-                return Ok(None);
-            };
-            let parsed: Vec<usize> = rest
-                .split(']')
-                .filter(|s| !s.is_empty())
-                .map(|s| s.strip_prefix('[').and_then(|x| x.parse().ok()))
-                .collect::<Option<_>>()
-                .unwrap_or_default();
-            match parsed[..] {
-                [s, c] if s < self.sections && c < columns => Ok(Some((s, c))),
-                _ => Err(Error::argument(
-                    name.to_string(),
-                    format!(
-                        "expected {prefix}[section][0..{columns}] with fewer than {} sections",
-                        self.sections
-                    ),
-                )),
-            }
+        for (i, &name) in names.iter().enumerate() {
+            self.parameter(name, &mut out)
+                .map_err(|e| e.of_parameter(i, name))?;
+        }
+        Ok(out)
+    }
+
+    /// `(section, column)` of a name `prefix[section][column]`, None for
+    /// another prefix.
+    fn section_index(
+        &self,
+        name: &str,
+        prefix: &str,
+        columns: usize,
+    ) -> Result<Option<(usize, usize)>> {
+        let Some(rest) = name.strip_prefix(prefix) else {
+            return Ok(None);
         };
-        for &name in names {
-            match name {
-                "rest_curvature" | "muscle_lengths" => {
-                    let columns = if name == "rest_curvature" { 2 } else { 3 };
-                    for s in 0..self.sections {
-                        for c in 0..columns {
-                            let p = if columns == 2 {
-                                Parameter::Curvature(s, c)
-                            } else {
-                                Parameter::Length(s, c)
-                            };
-                            out.push((format!("{name}[{s}][{c}]"), p));
-                        }
-                    }
-                }
-                "load" => out.push((name.into(), Parameter::Load)),
-                "tensions" => out.extend(
-                    (0..self.tendons.len())
-                        .map(|i| (format!("tensions[{i}]"), Parameter::Tension(i))),
+        let parsed: Vec<usize> = rest
+            .split(']')
+            .filter(|s| !s.is_empty())
+            .map(|s| s.strip_prefix('[').and_then(|x| x.parse().ok()))
+            .collect::<Option<_>>()
+            .unwrap_or_default();
+        match parsed[..] {
+            [s, c] if s < self.sections && c < columns => Ok(Some((s, c))),
+            _ => Err(Error::argument(
+                name.to_string(),
+                format!(
+                    "expected {prefix}[section][0..{columns}] with fewer than {} sections",
+                    self.sections
                 ),
-                "field" => {
-                    out.extend((0..3).map(|c| (format!("field[{c}]"), Parameter::MagneticField(c))))
-                }
-                _ => {
-                    if let Some(i) = one_index(name, "tensions", self.tendons.len())? {
-                        out.push((name.into(), Parameter::Tension(i)));
-                    } else if let Some(c) = one_index(name, "field", 3)? {
-                        out.push((name.into(), Parameter::MagneticField(c)));
-                    } else if let Some((s, c)) = index(name, "rest_curvature", 2)? {
-                        out.push((name.into(), Parameter::Curvature(s, c)));
-                    } else if let Some((s, c)) = index(name, "muscle_lengths", 3)? {
-                        out.push((name.into(), Parameter::Length(s, c)));
-                    } else {
-                        if matches!(name, "sections" | "n_elements") {
-                            return Err(Error::argument(name, "a count, not a parameter"));
-                        }
-                        self.to_value().number_at_mut(name)?;
-                        out.push((name.into(), Parameter::Field(name.into())));
+            )),
+        }
+    }
+
+    /// Append the parameters `name` stands for to `out`.
+    fn parameter(&self, name: &str, out: &mut Vec<(String, Parameter)>) -> Result<()> {
+        match name {
+            "rest_curvature" | "muscle_lengths" => {
+                let columns = if name == "rest_curvature" { 2 } else { 3 };
+                for s in 0..self.sections {
+                    for c in 0..columns {
+                        let p = if columns == 2 {
+                            Parameter::Curvature(s, c)
+                        } else {
+                            Parameter::Length(s, c)
+                        };
+                        out.push((format!("{name}[{s}][{c}]"), p));
                     }
+                }
+            }
+            "load" => out.push((name.into(), Parameter::Load)),
+            "tensions" => out.extend(
+                (0..self.tendons.len()).map(|i| (format!("tensions[{i}]"), Parameter::Tension(i))),
+            ),
+            "field" => {
+                out.extend((0..3).map(|c| (format!("field[{c}]"), Parameter::MagneticField(c))))
+            }
+            _ => {
+                if let Some(i) = one_index(name, "tensions", self.tendons.len())? {
+                    out.push((name.into(), Parameter::Tension(i)));
+                } else if let Some(c) = one_index(name, "field", 3)? {
+                    out.push((name.into(), Parameter::MagneticField(c)));
+                } else if let Some((s, c)) = self.section_index(name, "rest_curvature", 2)? {
+                    out.push((name.into(), Parameter::Curvature(s, c)));
+                } else if let Some((s, c)) = self.section_index(name, "muscle_lengths", 3)? {
+                    out.push((name.into(), Parameter::Length(s, c)));
+                } else {
+                    if matches!(name, "sections" | "n_elements") {
+                        return Err(Error::argument(name, "a count, not a parameter"));
+                    }
+                    self.to_value().number_at_mut(name)?;
+                    out.push((name.into(), Parameter::Field(name.into())));
                 }
             }
         }
-        Ok(out)
+        Ok(())
     }
 
     /// The value of a parameter at an actuation and a tip mass.
@@ -138,7 +152,14 @@ impl Robot {
                 lengths[*s][*c] += delta;
                 moved.rest_curvature = self.rest_curvature(&lengths)?;
             }
-            Parameter::Load => return self.actuated_scene(a, tip_mass + delta),
+            Parameter::Load => {
+                // The tip mass enters only as the tip force `(m + tool) g`,
+                // linearly: a difference through zero (no payload) is as
+                // exact as any, past the check that a mass is not negative.
+                let mut scene = self.actuated_scene(a, tip_mass)?;
+                scene.tip_force += delta * self.gravity;
+                return Ok(scene);
+            }
             Parameter::Tension(i) => {
                 // The equations are linear in a tension: a difference through
                 // zero (a slack tendon) is as exact as any, so the scene is
@@ -311,21 +332,31 @@ impl Robot {
     pub fn calibrate(
         &self,
         actuations: &[[f64; 2]],
-        measured: &[Vector3<f64>],
+        measured_tips: &[Vector3<f64>],
         tip_mass: f64,
         names: &[&str],
         settings: &CalibrationSettings,
     ) -> Result<Calibration> {
         settings.batch.validate()?;
         let m = self.sections;
+        let measured = measured_tips;
         if actuations.len() != measured.len() * m {
             return Err(Error::argument(
-                "actuations",
+                "measured_tips",
                 format!(
-                    "{} samples of actuation for {} measured tips",
-                    actuations.len() / m.max(1),
-                    measured.len()
+                    "{} tips for {} samples of actuations",
+                    measured.len(),
+                    actuations.len() / m.max(1)
                 ),
+            ));
+        }
+        if let Some(i) = actuations
+            .iter()
+            .position(|k| !k.iter().all(|x| x.is_finite()))
+        {
+            return Err(Error::argument(
+                format!("actuations[{}][{}]", i / m, i % m),
+                "must be finite",
             ));
         }
         if let Some(i) = measured
@@ -333,8 +364,8 @@ impl Robot {
             .position(|t| !t.iter().all(|x| x.is_finite()))
         {
             return Err(Error::argument(
-                "measured",
-                format!("must be finite (sample {i})"),
+                format!("measured_tips[{i}]"),
+                "must be finite",
             ));
         }
         let parameters = self.parameters(names)?;

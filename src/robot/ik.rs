@@ -292,6 +292,72 @@ pub struct IkResult {
     pub seconds: f64,
 }
 
+impl IkResult {
+    /// Refuse a stored result (`IkResult.from_dict`) that no inverse solve
+    /// returns: a NaN anywhere, a negative miss or time, a reached target
+    /// with a non-finite answer or an equilibrium that did not converge.
+    pub fn check_stored(&self) -> Result<()> {
+        let rows = self
+            .rest_curvature
+            .iter()
+            .enumerate()
+            .map(|(i, k)| (format!("rest_curvature[{i}]"), k.to_vec()))
+            .chain(
+                self.muscle_lengths
+                    .iter()
+                    .enumerate()
+                    .map(|(i, l)| (format!("muscle_lengths[{i}]"), l.to_vec())),
+            )
+            .chain(
+                self.inflation_times
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| (format!("inflation_times[{i}]"), t.to_vec())),
+            )
+            .chain([
+                ("tensions".to_string(), self.tensions.clone()),
+                ("field".to_string(), self.field.iter().copied().collect()),
+                (
+                    "tip_position".to_string(),
+                    self.tip_position.iter().copied().collect(),
+                ),
+            ]);
+        for (name, values) in rows {
+            let bad = values
+                .iter()
+                .find(|x| x.is_nan() || (self.reached && !x.is_finite()));
+            if let Some(x) = bad {
+                return Err(Error::argument(
+                    format!("ik_result.{name}"),
+                    format!("an inverse solve never answers {x}"),
+                ));
+            }
+        }
+        if self.tip_miss.is_nan()
+            || self.tip_miss < 0.0
+            || (self.reached && self.tip_miss.is_infinite())
+        {
+            return Err(Error::argument(
+                "ik_result.tip_miss",
+                format!("a distance: finite and >= 0, got {}", self.tip_miss),
+            ));
+        }
+        if !(self.seconds.is_finite() && self.seconds >= 0.0) {
+            return Err(Error::argument(
+                "ik_result.time",
+                format!("a duration: finite and >= 0 s, got {}", self.seconds),
+            ));
+        }
+        if self.reached && !self.solution.converged() {
+            return Err(Error::argument(
+                "ik_result.reached",
+                "a target is reached only on a converged equilibrium",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// What one inverse solve aims at.
 struct Goal {
     target: Vector3<f64>,

@@ -485,18 +485,21 @@ impl Robot {
         field: Vector3<f64>,
     ) -> Result<()> {
         self.check_actuation(tensions, field)?;
-        if rest_curvature.len() != self.sections {
-            return Err(Error::argument(
-                "rest_curvature",
-                format!(
-                    "expected {} sections, got {}",
-                    self.sections,
-                    rest_curvature.len()
-                ),
-            ));
-        }
+        self.check_rows("rest_curvature", rest_curvature.len())?;
         if rest_curvature.iter().flatten().any(|k| !k.is_finite()) {
             return Err(Error::argument("rest_curvature", "must be finite"));
+        }
+        Ok(())
+    }
+
+    /// Refuse `rows` rows of a per-section array (rest curvature, muscle
+    /// lengths, inflation times) named `name` unless there is one a section.
+    pub fn check_rows(&self, name: &str, rows: usize) -> Result<()> {
+        if rows != self.sections {
+            return Err(Error::argument(
+                name,
+                format!("expected {} sections, got {rows}", self.sections),
+            ));
         }
         Ok(())
     }

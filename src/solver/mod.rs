@@ -123,22 +123,14 @@ impl Solver {
     /// Change the actuation (rest curvature per section) without rebuilding the
     /// solver: the next `solve` starts warm from wherever it is told.
     pub fn set_rest_curvature(&mut self, sections: &[[f64; 2]]) -> Result<()> {
+        // One row a section of the scene: another count silently redrew the
+        // sections (ten became one, and the solve converged on that rod).
         let m = sections.len();
-        if m == 0 || self.model.n % m != 0 {
+        let expected = self.scene.sections();
+        if m != expected {
             return Err(Error::argument(
                 "rest_curvature",
-                format!("{m} sections do not divide the {} elements", self.model.n),
-            ));
-        }
-        // Sections of their own lengths: one curvature each.
-        let own = &self.scene.sections;
-        if own.first().is_some_and(|p| p.length.is_some()) && m != own.len() {
-            return Err(Error::argument(
-                "rest_curvature",
-                format!(
-                    "{m} sections, but the rod has {} of their own lengths",
-                    own.len()
-                ),
+                format!("expected one row a section of the scene ({expected}), got {m}"),
             ));
         }
         if sections.iter().flatten().any(|k| !k.is_finite()) {

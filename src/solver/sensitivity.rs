@@ -184,7 +184,9 @@ impl Solver {
     pub fn sensitivity(&mut self, parameters: &[&str]) -> Result<Sensitivity> {
         let base = self.scene.to_value();
         let mut names = Vec::new();
-        for p in parameters {
+        let mut values = Vec::new();
+        for (i, p) in parameters.iter().enumerate() {
+            let first = names.len();
             match *p {
                 "rest_curvature" => {
                     for s in 0..self.scene.rest_curvature.len() {
@@ -197,10 +199,10 @@ impl Solver {
                 }
                 other => names.push(other.to_string()),
             }
-        }
-        let mut values = Vec::with_capacity(names.len());
-        for name in &names {
-            values.push(*base.clone().number_at_mut(name)?);
+            for name in &names[first..] {
+                let value = base.clone().number_at_mut(name).map(|x| *x);
+                values.push(value.map_err(|e| e.of_parameter(i, p))?);
+            }
         }
         // A tension is differenced through zero (a slack tendon: the
         // equations are linear in it), past what a scene may be given.

@@ -283,6 +283,20 @@ impl Solution {
                 format!("{sections} sections do not divide n_elements = {n}"),
             ));
         }
+        for (name, x) in [
+            ("residual_norm", Some(self.residual_norm)),
+            ("error_estimate", self.error_estimate),
+            ("solve_time", Some(self.solve_time)),
+        ] {
+            // A norm, an error and a duration: never negative (a failure's
+            // may be infinite or NaN).
+            if x.is_some_and(|x| x < 0.0) {
+                return Err(Error::argument(
+                    format!("solution.{name}"),
+                    format!("must not be negative, got {}", x.unwrap_or_default()),
+                ));
+            }
+        }
         if self.converged() {
             self.check_converged_state()?;
         }

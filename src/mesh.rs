@@ -80,6 +80,54 @@ impl Mesh {
     }
 }
 
+/// The element counts whose mesh has a node at arc length `s` (up to
+/// [`Mesh::node_at`]'s round-off): the multiples of the count returned, a
+/// multiple of the `sections` (of the given lengths, or equal ones when
+/// `section_lengths` is empty); None when no count up to `limit` has one.
+pub fn counts_with_node(
+    length: f64,
+    section_lengths: &[f64],
+    sections: usize,
+    s: f64,
+    limit: usize,
+) -> Option<usize> {
+    let unequal =
+        section_lengths.len() > 1 && section_lengths.iter().any(|l| *l != section_lengths[0]);
+    if !unequal {
+        // One uniform mesh: node k sits at k L / n.
+        let d = denominator(s / length, limit)?;
+        return Some(lcm(sections, d));
+    }
+    // n / sections equal elements in each section: the fraction of its section.
+    let mut start = 0.0;
+    for l in section_lengths {
+        if s <= start + l * (1.0 + 1e-12) {
+            let d = denominator(((s - start) / l).clamp(0.0, 1.0), limit)?;
+            return Some(sections * d);
+        }
+        start += l;
+    }
+    None
+}
+
+/// The smallest `d` in `1..=limit` for which `x d` is an integer up to
+/// round-off (relative 1e-9, as [`Mesh::node_at`]).
+fn denominator(x: f64, limit: usize) -> Option<usize> {
+    (1..=limit).find(|d| {
+        let y = x * *d as f64;
+        (y - y.round()).abs() <= 1e-9 * y.abs().max(1.0)
+    })
+}
+
+/// The least common multiple (`a`, `b` positive and small).
+pub fn lcm(a: usize, b: usize) -> usize {
+    let (mut x, mut y) = (a, b);
+    while y != 0 {
+        (x, y) = (y, x % y);
+    }
+    a / x * b
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -98,6 +146,24 @@ mod tests {
         assert_eq!(mesh.node_at(0.5), None);
         assert_eq!(mesh.nearest_node(0.5), 3);
         assert_eq!(mesh.nearest_node(0.6), 4);
+    }
+
+    #[test]
+    fn the_counts_with_a_node_are_the_multiples_of_one() {
+        // 0.35 L: n a multiple of 20; in 3 equal sections also of 3.
+        assert_eq!(counts_with_node(1.0, &[], 1, 0.35, 1000), Some(20));
+        assert_eq!(counts_with_node(1.0, &[], 3, 0.35, 1000), Some(60));
+        assert_eq!(counts_with_node(2.0, &[], 1, 2.0, 1000), Some(1));
+        // 0.45 is the end of the second of 0.2, 0.25, 0.55: any count.
+        let lengths = [0.2, 0.25, 0.55];
+        assert_eq!(counts_with_node(1.0, &lengths, 3, 0.45, 1000), Some(3));
+        // 0.3 is a fifth into the second section: 5 elements a section.
+        assert_eq!(counts_with_node(1.0, &lengths, 3, 0.25, 1000), Some(15));
+        for n in [15, 30, 60] {
+            assert!(Mesh::new(1.0, &lengths, n).node_at(0.25).is_some(), "{n}");
+        }
+        assert!(Mesh::new(1.0, &lengths, 12).node_at(0.25).is_none());
+        assert_eq!(counts_with_node(1.0, &[], 1, 0.123456789, 1000), None);
     }
 
     #[test]

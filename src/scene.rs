@@ -799,6 +799,61 @@ impl Scene {
         Ok(())
     }
 
+    /// The element counts this scene can be solved with: every multiple of
+    /// the count returned is a multiple of the sections and of the
+    /// magnetised sections that puts every point load, tendon anchor and
+    /// guide on a node ([`Scene::check_elements`] accepts it). A located
+    /// input on a node of no count up to `limit` is refused by its key.
+    pub fn node_multiple(&self, limit: usize) -> Result<usize> {
+        let lengths = self.section_lengths();
+        let m = self.sections();
+        let mut multiple = crate::mesh::lcm(m, self.magnetization.len().max(1));
+        let located = self
+            .point_loads
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (format!("point_loads[{i}].s"), p.s))
+            .chain(
+                self.tendons
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| (format!("tendons[{i}].end"), t.end)),
+            )
+            .chain(
+                self.guides
+                    .iter()
+                    .enumerate()
+                    .map(|(i, g)| (format!("guides[{i}].s"), g.s)),
+            );
+        for (key, s) in located {
+            let counts = crate::mesh::counts_with_node(self.length, &lengths, m, s, limit);
+            multiple = counts
+                .map(|c| crate::mesh::lcm(multiple, c))
+                .filter(|g| *g <= limit)
+                .ok_or_else(|| {
+                    Error::scene(
+                        key,
+                        format!(
+                            "must fall on a node: s = {s} and the other located inputs fall on \
+                             the nodes of no n up to {limit}"
+                        ),
+                    )
+                })?;
+        }
+        Ok(multiple)
+    }
+
+    /// The default discretisation: the smallest n of [`Scene::node_multiple`]
+    /// that is at least [`crate::solver::DEFAULT_ELEMENTS`] (or, if none is,
+    /// the sections' default, which [`Scene::check_elements`] then refuses).
+    pub fn default_elements(&self) -> usize {
+        let fallback = crate::solver::default_elements(self.sections());
+        match self.node_multiple(crate::solver::MAX_ELEMENTS) {
+            Ok(g) => crate::solver::DEFAULT_ELEMENTS.div_ceil(g) * g,
+            Err(_) => fallback,
+        }
+    }
+
     /// Check a discretisation: `n` a positive multiple of the number of sections.
     pub fn check_elements(&self, n: usize) -> Result<()> {
         self.check_section_lengths()?;

@@ -107,3 +107,37 @@ def test_the_default_scheme_is_the_faster_for_the_accuracy():
     assert softspine.solve(pinned, tol=1e-6).scheme == "fd2"
     assert softspine.solve(pinned, tol=1e-7).scheme == "fe4"
     assert softspine.solve(CANTILEVER_10, method="shooting").scheme == "rk4"
+
+
+ROUND = {"kx": 1.0, "ky": 1.0, "kz": 1.0}
+
+
+@pytest.mark.parametrize(
+    "located",
+    [
+        {"point_loads": [{"s": 0.35, "force": [1.0, 0.0, 0.0]}]},
+        {"guides": [{"s": 0.7, "position": [0.1, 0.0, 0.6]}]},
+        {"rest_curvature": [[6.0, 0.0]], "point_loads": [{"s": 0.35, "force": [1.0, 0.0, 0.0]}]},
+        {"tendons": [{"tension": 10.0, "offset": [0.01, 0.0], "end": 0.35}]},
+    ],
+    ids=["point_load", "guide", "coiled_point_load", "tendon_anchor"],
+)
+@pytest.mark.parametrize("kwargs", [{"tol": 1e-7}, {"tol": 1e-4, "scheme": "fe4"}],
+                         ids=["tol_1e-7", "fe4"])
+def test_accuracy_on_demand_picks_n_that_put_located_inputs_on_nodes(located, kwargs):
+    # fe4 starts at n = 4 and a coiled rod at a resolving n: 0.35 L and 0.7 L
+    # fell between nodes and tol= raised "must fall on a node" (3e30b16).
+    scene = {"length": 1.0, "stiffness": ROUND, **located}
+    sol = softspine.solve(scene, check=True, **kwargs)
+    assert sol.n_elements % 20 == 0
+    assert sol.error_estimate <= kwargs["tol"]
+    # The answer is the scene's: the solve at that n, plainly.
+    plain = softspine.solve(scene, n_elements=sol.n_elements, scheme=sol.scheme)
+    np.testing.assert_allclose(sol.positions, plain.positions, atol=1e-9)
+
+
+def test_the_default_n_puts_located_inputs_on_nodes():
+    # s = 0.3 L on 3 sections: 20 does not place it, 30 does; 20 was refused.
+    scene = {"length": 1.0, "stiffness": ROUND, "rest_curvature": [[1.0, 0.0]] * 3,
+             "point_loads": [{"s": 0.3, "force": [0.5, 0.0, 0.0]}]}
+    assert softspine.solve(scene, check=True).n_elements == 30

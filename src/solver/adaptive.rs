@@ -168,17 +168,21 @@ impl Accuracy {
     }
 }
 
-/// The first n of accuracy on demand: at least `requested`, a multiple of the
-/// sections, and fine enough that no element turns by more than
-/// [`ASYMPTOTIC_TURN`] at rest (a coiled rod needs many elements before any
-/// estimate means anything).
+/// The first n of accuracy on demand: at least `requested`, a count that
+/// puts every located input on a node ([`Scene::node_multiple`]: so do its
+/// multiples, the n that refinement tries), and fine enough that no element
+/// turns by more than [`ASYMPTOTIC_TURN`] at rest (a coiled rod needs many
+/// elements before any estimate means anything).
 pub fn starting_elements(scene: &Scene, requested: usize) -> usize {
     starting_elements_of_order(scene, requested, 2)
 }
 
 /// [`starting_elements`] for a scheme of order `order` (see [`asymptotic_turn`]).
 pub fn starting_elements_of_order(scene: &Scene, requested: usize, order: i32) -> usize {
-    let m = scene.sections();
+    // A count no located input allows is refused by the solve's own check.
+    let m = scene
+        .node_multiple(MAX_ELEMENTS)
+        .unwrap_or_else(|_| scene.sections());
     let rest_turn = scene
         .rest_curvature
         .iter()

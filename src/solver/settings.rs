@@ -211,8 +211,7 @@ impl Settings {
     /// The number of elements of a solve of `scene`: `n_elements`, or
     /// [`default_elements`] of its sections.
     pub fn elements_for(&self, scene: &Scene) -> usize {
-        self.n_elements
-            .unwrap_or_else(|| default_elements(scene.sections()))
+        self.n_elements.unwrap_or_else(|| scene.default_elements())
     }
 
     /// These settings with the number of elements for `scene` filled in.

@@ -169,7 +169,8 @@ except ValueError as e:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr
-    assert "refused: rest_curvature: expected one row a section of the scene (2), got 3" in done.stdout
+    expected = "refused: rest_curvature: expected one row a section of the scene (2), got 3"
+    assert expected in done.stdout
 
 
 def test_solution_dicts_check_their_section_lengths_and_older_dicts_still_load():

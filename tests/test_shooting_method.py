@@ -4,6 +4,8 @@ the whole backbone converges at order 4, the reactions of held tips too."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from test_held_references import ROD, held_scenes
@@ -120,3 +122,47 @@ def test_an_unstable_direct_answer_gives_way_to_the_load_path(scene):
     newton = softspine.solve(scene, n_elements=96, scheme="fe4", check=True)
     assert shot.stable and newton.stable
     assert np.abs(shot.positions - newton.positions).max() < 1e-6 * scene["length"]
+
+
+@pytest.mark.parametrize(
+    "scene",
+    [
+        # A buckled cantilever and a heavy precurved rod: shooting's path jumped
+        # to unstable equilibria 0.8 and 1.5 L from the load path's (3e30b16).
+        {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 0.7, "kz": 0.7},
+         "tip_force": [0.002, 0.2, -3.0]},
+        {"length": 2.0, "stiffness": {"kx": 2.0, "ky": 2.0, "kz": 4.0},
+         "gravity": {"linear_density": 2.0, "vector": [0.0, 0.0, -3.0]},
+         "rest_curvature": [[0.06, 0.02]]},
+    ],
+)
+def test_shooting_follows_the_load_path_to_newtons_equilibrium(scene):
+    newton = softspine.solve(scene, n_elements=20, scheme="fe4", check=True)
+    shot = softspine.solve(scene, n_elements=20, method="shooting", check=True)
+    assert newton.stable and shot.stable
+    # Both fourth order at the nodes: the same equilibrium to 1e-5 L.
+    assert np.abs(shot.positions - newton.positions).max() < 1e-5 * scene["length"]
+
+
+def test_shooting_says_when_it_cannot_follow_the_load_path():
+    # Reported converged on an unstable equilibrium 1.1 L from Newton's (3e30b16).
+    scene = {"length": 0.5, "stiffness": {"kx": 0.2, "ky": 0.2, "kz": 0.19},
+             "tip_force": [-11.0, 5.5, -29.0], "rest_curvature": [[1.1, -4.1]]}
+    newton = softspine.solve(scene, n_elements=20, check=True)
+    shot = softspine.solve(scene, n_elements=20, method="shooting")
+    if shot.converged:
+        assert np.abs(shot.positions - newton.positions).max() < 0.05 * scene["length"]
+    else:
+        assert "could not follow the load path" in shot.message
+        assert re.search(r"load scale 0\.\d+ of 1", shot.message), shot.message
+
+
+def test_shooting_crosses_where_the_loading_itself_loses_stability():
+    # A dead end moment of 2 pi EI/L rolls the rod up past half a turn, where
+    # the path loses stability: as the finite-element driver, shooting ends
+    # there, unstable (it refused once it kept stability at every step).
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+             "tip_moment": [0.0, 2 * np.pi, 0.0]}
+    shot = softspine.solve(scene, n_elements=40, method="shooting", check=True)
+    assert not shot.stable
+    np.testing.assert_allclose(shot.tip_position, [0.0, 0.0, 0.0], atol=1e-6)

@@ -296,40 +296,55 @@ struct Shot {
     iterations: usize,
     steps: usize,
     residual: f64,
+    /// Why it did not converge, when a continuation stopped.
+    note: Option<String>,
 }
 
 /// Adaptive continuation over `t` in `[0, 1]`: `solve_at(t, x, budget)` runs
 /// Newton at `t` from `x`. Starts from `x` at `t = 0` (a solved state).
 /// A step is accepted only if no node's frame turned by more than
 /// `MAX_FRAME_TURN` since the last accepted one (`frames(t, x, out)` puts the
-/// node quaternions of `x` at `t` in `out`): shooting problems have many
-/// roots, and a long step can land on another branch.
+/// node quaternions of `x` at `t` in `out`) and `stable(t, x)` is that of
+/// the last accepted state: shooting problems have many roots, and a long
+/// step can land on another branch (on 28 of 2 195 random free scenes the
+/// path ended on an unstable one, 1.1 to 1.6 L from the load path's stable
+/// equilibrium). A change of stability that persists down to a step of
+/// [`CROSSING_STEP`] is the path's own (the loading itself loses stability,
+/// as under a dead end moment past half a turn) and is crossed.
 fn continuation(
     mut solve_at: impl FnMut(f64, &mut Vector6, usize) -> (bool, usize),
     mut frames: impl FnMut(f64, &Vector6, &mut [Quat]),
+    mut stable: impl FnMut(f64, &Vector6) -> bool,
     nodes: usize,
     x: &mut Vector6,
     budget: usize,
     min_step: f64,
-) -> (bool, usize, usize) {
+) -> (bool, usize, usize, f64) {
     let (mut t, mut dt, mut spent, mut steps) = (0.0f64, 0.25f64, 0usize, 0usize);
     let mut accepted = vec![Quat::IDENTITY; nodes];
     let mut trial_frames = accepted.clone();
     frames(0.0, x, &mut accepted);
+    let mut accepted_stable = stable(0.0, x);
     while t < 1.0 && spent < budget && !interrupt::requested() {
         let next = (t + dt).min(1.0);
         let mut trial = *x;
         let (mut ok, its) = solve_at(next, &mut trial, (budget - spent).min(STEP_ITERATIONS));
         spent += its;
         steps += 1;
+        let mut trial_stable = accepted_stable;
         if ok {
             frames(next, &trial, &mut trial_frames);
             ok = accepted
                 .iter()
                 .zip(&trial_frames)
                 .all(|(a, b)| element_turn(*a, *b) <= MAX_FRAME_TURN);
+            if ok {
+                trial_stable = stable(next, &trial);
+                ok = trial_stable == accepted_stable || next - t <= CROSSING_STEP;
+            }
         }
         if ok {
+            accepted_stable = trial_stable;
             *x = trial;
             std::mem::swap(&mut accepted, &mut trial_frames);
             t = next;
@@ -337,15 +352,20 @@ fn continuation(
         } else {
             dt *= 0.5;
             if dt < min_step {
-                return (false, spent, steps);
+                return (false, spent, steps, t);
             }
         }
     }
-    (t >= 1.0, spent, steps)
+    (t >= 1.0, spent, steps, t)
 }
 
 /// Largest turn of a node's frame in one continuation step [rad].
 const MAX_FRAME_TURN: f64 = 0.5;
+
+/// Continuation step (of the load scale) at which a change of stability
+/// that persists is taken as the path's own rather than a jump to another
+/// branch.
+const CROSSING_STEP: f64 = 1e-3;
 
 /// Newton iterations of one continuation step, and of the direct attempt.
 const STEP_ITERATIONS: usize = 25;
@@ -390,12 +410,12 @@ impl Solver {
         // direct answer on an unstable branch (found on 8 of 426 random free
         // scenes) gives way to the load path from rest, which stays on the
         // stable branch, as in the finite-element driver.
-        let direct_unstable = converged && !held && !free_rod_is_stable(model, &full, work, &x);
-        let direct_x = x;
+        let direct_unstable = converged && !shot_is_stable(model, &full, work, &x, held);
+        let mut note = None;
         if !converged || direct_unstable {
             // Leg 1: the loads from zero on the free rod (exact rest shape at 0).
             let mut free = Vector6::zeros();
-            let (ok, spent, taken) = continuation(
+            let (ok, spent, taken, reached) = continuation(
                 |lambda, x, its| {
                     let rod = Rod::new(model, &self.scene, lambda);
                     let newton = Newton {
@@ -411,6 +431,12 @@ impl Solver {
                     let m0 = x.fixed_rows::<3>(0).into_owned();
                     rod.integrate(m0, rod.free_base_force, Some(out), None);
                 },
+                // The rest shape is stable: the path keeps its stability but
+                // where the loading itself changes it.
+                |lambda, x| {
+                    let rod = Rod::new(model, &self.scene, lambda);
+                    free_rod_is_stable(model, &rod, work, x, lambda)
+                },
                 model.n + 1,
                 &mut free,
                 budget - iterations.min(budget),
@@ -419,6 +445,12 @@ impl Solver {
             iterations += spent;
             steps += taken;
             converged = ok;
+            if !ok {
+                note = Some(format!(
+                    "shooting could not follow the load path from the rest shape: it stopped \
+                     at load scale {reached:.3} of 1"
+                ));
+            }
             x = free;
             x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
             if ok && held {
@@ -437,7 +469,7 @@ impl Solver {
                         released.quaternion
                     }
                 });
-                let (ok, spent, taken) = continuation(
+                let (ok, spent, taken, reached) = continuation(
                     |mu, x, its| {
                         let target = TipTarget {
                             position: goal
@@ -460,6 +492,9 @@ impl Solver {
                         let (m0, n0) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
                         full.integrate(m0.into_owned(), n0.into_owned(), Some(out), None);
                     },
+                    // The held leg moves the tip along an arbitrary route:
+                    // its stability is judged at the end, as the FE driver's.
+                    |_, _| true,
                     model.n + 1,
                     &mut x,
                     budget - iterations.min(budget),
@@ -468,11 +503,16 @@ impl Solver {
                 iterations += spent;
                 steps += taken;
                 converged = ok;
+                if !ok {
+                    note = Some(format!(
+                        "shooting could not move the held tip from where the loaded free rod \
+                         puts it to its target: it stopped at {reached:.3} of the way"
+                    ));
+                }
             }
-            if direct_unstable && !(converged && free_rod_is_stable(model, &full, work, &x)) {
-                // The path failed or ended unstable too: the direct answer stands.
-                (x, converged) = (direct_x, true);
-            }
+            // An unstable direct answer is no answer: the load path from the
+            // rest shape leads to the equilibrium the finite-element driver
+            // finds, and when shooting cannot follow it, it says so.
         }
         let residual = direct.residual(&x).amax();
         self.finish_shooting(Shot {
@@ -481,6 +521,7 @@ impl Solver {
             iterations,
             steps,
             residual,
+            note,
         })
     }
 
@@ -531,10 +572,12 @@ impl Solver {
                     String::new()
                 }
             ),
-            _ => format!(
-                "shooting did not converge: tip mismatch {:.1e} after {} iterations",
-                shot.residual, shot.iterations
-            ),
+            _ => shot.note.clone().unwrap_or_else(|| {
+                format!(
+                    "shooting did not converge: tip mismatch {:.1e} after {} iterations",
+                    shot.residual, shot.iterations
+                )
+            }),
         });
         let reactions = w.kkt.reactions.clone();
         Solution {
@@ -566,17 +609,54 @@ impl Solver {
     }
 }
 
+/// Whether the rod shot with the base wrench `x` (the base force too when
+/// `held`) is a stable equilibrium at full load, judged by the
+/// finite-difference scheme's Hessian at its nodes, the held tip's
+/// reaction included (`w.q` and the reactions are overwritten).
+fn shot_is_stable(
+    model: &RodModel,
+    rod: &Rod,
+    w: &mut super::Workspace,
+    x: &Vector6,
+    held: bool,
+) -> bool {
+    if !held {
+        return free_rod_is_stable(model, rod, w, x, 1.0);
+    }
+    let (m0, n0) = (
+        x.fixed_rows::<3>(0).into_owned(),
+        x.fixed_rows::<3>(3).into_owned(),
+    );
+    let tip = rod.integrate(m0, n0, Some(&mut w.q), None);
+    w.kkt
+        .reactions
+        .iter_mut()
+        .for_each(|r| *r = Vector3::zeros());
+    if let Some(r) = w.kkt.reactions.last_mut() {
+        *r = tip.force - (rod.point[model.n] + rod.tip_force);
+    }
+    w.kkt.tip_torque = tip.quaternion.inverse_rotate(tip.moment - rod.tip_moment);
+    evaluate(model, w, 1.0);
+    is_stable(model, w)
+}
+
 /// Whether the free rod shot with the base wrench `x` is a stable
 /// equilibrium, judged by the finite-difference scheme's Hessian at its nodes
 /// (`w.q` is overwritten).
-fn free_rod_is_stable(model: &RodModel, rod: &Rod, w: &mut super::Workspace, x: &Vector6) -> bool {
+fn free_rod_is_stable(
+    model: &RodModel,
+    rod: &Rod,
+    w: &mut super::Workspace,
+    x: &Vector6,
+    lambda: f64,
+) -> bool {
     rod.integrate(
         x.fixed_rows::<3>(0).into_owned(),
         rod.free_base_force,
         Some(&mut w.q),
         None,
     );
-    evaluate(model, w, 1.0);
+    evaluate(model, w, lambda);
     is_stable(model, w)
 }
 

@@ -21,6 +21,9 @@
 //! name              free text
 //! ```
 
+mod plausible;
+pub use plausible::{MAX_LOAD_PARAMETER, MODULUS_RANGE, ROUNDOFF_LOAD, SLENDER_LIMIT};
+
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::model::clamped_end_deficit;
@@ -563,89 +566,154 @@ impl Scene {
                 ),
             ));
         }
-        let l = self.length;
-        let k_min = k.min();
-        let check = |key: &str, what: &str, value: f64| -> Result<()> {
-            if value.is_finite() && (k.max() / l).is_finite() && (k_min / l) > 0.0 {
-                return Ok(());
+        if !((k.max() / self.length).is_finite() && k.min() / self.length > 0.0) {
+            return Err(Error::scene(
+                stiffness_key,
+                format!(
+                    "the stiffness over the length overflows or underflows (length {:e} m, \
+                     stiffness {:e} to {:e} N m^2)",
+                    self.length,
+                    k.min(),
+                    k.max()
+                ),
+            ));
+        }
+        self.check_plausible()?;
+        for (key, what, value) in self.load_parameters() {
+            self.check_load(|| key, what, value)?;
+        }
+        // No load: a rest shape too coiled for any n is underresolved, not refused.
+        for (i, kappa) in self.rest_curvature.iter().enumerate() {
+            let value = kappa[0].hypot(kappa[1]) * self.length;
+            if !value.is_finite() {
+                return Err(Error::scene(
+                    format!("rest_curvature[{i}]"),
+                    format!(
+                        "L |kappa0| = {value:e} overflows (length {:e} m)",
+                        self.length
+                    ),
+                ));
             }
-            Err(Error::scene(
-                key,
-                format!("the load parameter {what} = {value:e} overflows (length {l:e} m, smallest stiffness {k_min:e} N m^2)"),
-            ))
-        };
+        }
+        Ok(())
+    }
+
+    /// Every load's dimensionless parameter, by key: its bending moment over
+    /// the softest stiffness and the length (the curvature scale `kappa L` it
+    /// alone gives the rod), with its formula.
+    fn load_parameters(&self) -> Vec<(String, &'static str, f64)> {
+        let (l, k_min) = (self.length, self.stiffness().min());
         let f = (0..self.sections())
             .map(|k| self.section_force(k).norm())
             .fold(self.distributed_force().norm(), f64::max);
-        let force_key = if self.gravity.is_some() {
-            "gravity"
-        } else {
-            "distributed_force"
+        let force_key = match self.gravity.is_some() {
+            true => "gravity",
+            false => "distributed_force",
         };
-        check(force_key, "|f| L^3 / k", f * l / k_min * l * l)?;
-        check(
-            "tip_force",
-            "|P| L^2 / k",
-            self.tip_force.norm() * l / k_min * l,
-        )?;
-        check(
-            "tip_moment",
-            "|M| L / k",
-            self.tip_moment.norm() * l / k_min,
-        )?;
+        let mut out = vec![
+            (force_key.to_string(), "|f| L^3 / k", f * l / k_min * l * l),
+            (
+                "tip_force".into(),
+                "|P| L^2 / k",
+                self.tip_force.norm() * l / k_min * l,
+            ),
+            (
+                "tip_moment".into(),
+                "|M| L / k",
+                self.tip_moment.norm() * l / k_min,
+            ),
+            (
+                "tip_force_offset".into(),
+                "|F| |c| L / k",
+                self.tip_force.norm() * self.tip_force_offset.norm() * l / k_min,
+            ),
+        ];
         for (i, p) in self.point_loads.iter().enumerate() {
-            let key = format!("point_loads[{i}].force");
-            check(&key, "|F| L^2 / k", p.force.norm() * l / k_min * l)?;
+            let value = p.force.norm() * l / k_min * l;
+            out.push((format!("point_loads[{i}].force"), "|F| L^2 / k", value));
         }
-        for (i, kappa) in self.rest_curvature.iter().enumerate() {
-            let key = format!("rest_curvature[{i}]");
-            check(&key, "L |kappa0|", kappa[0].hypot(kappa[1]) * l)?;
-        }
-        check(
-            "tip_force_offset",
-            "|F| |c| L / k",
-            self.tip_force.norm() * self.tip_force_offset.norm() * l / k_min,
-        )?;
-        self.check_field_load(self.magnetic_field)?;
+        out.extend(self.field_load_parameters(self.magnetic_field));
         let tensions: Vec<f64> = self.tendons.iter().map(|t| t.tension).collect();
-        self.check_tension_load(&tensions)
+        out.extend(self.tension_load_parameters(&tensions));
+        out
     }
 
-    /// Refuse a load parameter that overflows, naming `key` (the scene's
-    /// stiffness and length are valid).
+    /// Refuse a load parameter that overflows, or one so large that no
+    /// solve resolves it (the likely unit mistake said), naming `key` (the
+    /// scene's stiffness and length are valid).
     fn check_load(&self, key: impl FnOnce() -> String, what: &str, value: f64) -> Result<()> {
-        if value.is_finite() {
-            return Ok(());
-        }
         let (l, k_min) = (self.length, self.stiffness().min());
-        Err(Error::scene(
-            key(),
-            format!("the load parameter {what} = {value:e} overflows (length {l:e} m, smallest stiffness {k_min:e} N m^2)"),
-        ))
+        if !value.is_finite() {
+            return Err(Error::scene(
+                key(),
+                format!("the load parameter {what} = {value:e} overflows (length {l:e} m, smallest stiffness {k_min:e} N m^2)"),
+            ));
+        }
+        if value > MAX_LOAD_PARAMETER {
+            return Err(Error::scene(
+                key(),
+                format!(
+                    "the load parameter {what} = {value:.1e} is beyond what any solve resolves \
+                     (a curvature scale kappa L above {MAX_LOAD_PARAMETER:.0e}; length {l:e} m, \
+                     smallest stiffness {k_min:e} N m^2): check the units (SI: Pa, m, kg, N; E \
+                     in GPa or a diameter in mm is a factor 1e9 or 1e12 off)"
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// The field's load parameters (on the magnetisation and the tip
     /// magnet) at `field`, without changing the scene.
     pub(crate) fn check_field_load(&self, field: Vector3<f64>) -> Result<()> {
-        let (l, k_min, b) = (self.length, self.stiffness().min(), field.norm());
-        for (i, m) in self.magnetization.iter().enumerate() {
-            let value = m.norm() * b * l / k_min * l;
-            self.check_load(|| format!("magnetization[{i}]"), "|m| |B| L^2 / k", value)?;
+        for (key, what, value) in self.field_load_parameters(field) {
+            self.check_load(|| key, what, value)?;
         }
+        Ok(())
+    }
+
+    /// The field's load parameters at `field` (see [`Scene::load_parameters`]).
+    fn field_load_parameters(&self, field: Vector3<f64>) -> Vec<(String, &'static str, f64)> {
+        let (l, k_min, b) = (self.length, self.stiffness().min(), field.norm());
+        let mut out: Vec<_> = self
+            .magnetization
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let value = m.norm() * b * l / k_min * l;
+                (format!("magnetization[{i}]"), "|m| |B| L^2 / k", value)
+            })
+            .collect();
         let value = self.tip_magnet.norm() * b * l / k_min;
-        self.check_load(|| "tip_magnet".into(), "|mu| |B| L / k", value)
+        out.push(("tip_magnet".into(), "|mu| |B| L / k", value));
+        out
     }
 
     /// The tendons' load parameters at `tensions` (one a tendon), without
     /// changing the scene.
     pub(crate) fn check_tension_load(&self, tensions: &[f64]) -> Result<()> {
-        let (l, k_min) = (self.length, self.stiffness().min());
-        for (i, (t, tension)) in self.tendons.iter().zip(tensions).enumerate() {
-            let value = tension * t.largest_offset() * l / k_min;
-            let key = || format!("tendons[{i}].tension");
-            self.check_load(key, "|tension| |offset| L / k", value)?;
+        for (key, what, value) in self.tension_load_parameters(tensions) {
+            self.check_load(|| key, what, value)?;
         }
         Ok(())
+    }
+
+    /// The tendons' load parameters at `tensions` (see [`Scene::load_parameters`]).
+    fn tension_load_parameters(&self, tensions: &[f64]) -> Vec<(String, &'static str, f64)> {
+        let (l, k_min) = (self.length, self.stiffness().min());
+        self.tendons
+            .iter()
+            .zip(tensions)
+            .enumerate()
+            .map(|(i, (t, tension))| {
+                let value = tension * t.largest_offset() * l / k_min;
+                (
+                    format!("tendons[{i}].tension"),
+                    "|tension| |offset| L / k",
+                    value,
+                )
+            })
+            .collect()
     }
 
     /// The scene as a value tree (the inverse of [`Scene::from_value`]).

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import re
+import warnings
 
 import numpy as np
 import pytest
@@ -102,3 +104,62 @@ def test_files(tmp_path):
         softspine.solve(broken)
     with pytest.raises(ValueError, match="scene: expected"):
         softspine.solve(42)
+
+
+# --- Units no rod can mean, and units merely suspicious ---------------------------
+
+TENDON_ROD = {"length": 0.2425, "stiffness": {"E": 210e9, "G": 80e9, "diameter": 1.4e-3},
+              "tendons": [{"tension": 5.0, "offset": [0.01, 0.0], "end": 0.2425}]}
+
+
+@pytest.mark.parametrize(
+    "changes,key,hint",
+    [
+        # 1.4 meant in millimetres: converged after 0 iterations, straight (3e30b16).
+        ({"stiffness": {"E": 210e9, "G": 80e9, "diameter": 1.4}}, "stiffness.diameter",
+         "millimetres meant"),
+        ({"tendons": [{"tension": 5.0, "offset": [10.0, 0.0], "end": 0.2425}]},
+         r"tendons\[0\].offset", "millimetres meant"),
+        ({"stiffness": {"kx": 1e-9, "ky": 1e-9, "kz": 1e-9}, "tip_force": [1e5, 0.0, 0.0]},
+         "tip_force", "check the units"),
+    ],
+)
+def test_inputs_no_rod_can_mean_are_refused_with_the_likely_mistake(changes, key, hint):
+    with pytest.raises(ValueError, match=f"^{key}: .*{hint}"):
+        softspine.solve({**TENDON_ROD, **changes})
+
+
+@pytest.mark.parametrize(
+    "changes,key,hint",
+    [
+        # E = 210 meant in GPa: 500 iterations, then a failure naming nothing.
+        ({"stiffness": {"E": 210.0, "G": 80e9, "diameter": 1.4e-3}}, "stiffness.E", "GPa"),
+        ({"tendons": [{"tension": 0.5, "offset": [0.1, 0.0], "end": 0.2425}]},
+         r"tendons\[0\].offset", "millimetres meant"),
+        ({"stiffness": {"E": 1e6, "G": 3e5, "diameter": 0.05}}, "stiffness.diameter",
+         "slender-rod model"),
+        ({"stiffness": {"kx": 1e9, "ky": 1e9, "kz": 1e9}, "tendons": [],
+          "tip_force": [1e-5, 0.0, 0.0]}, "tip_force", "less than round-off"),
+    ],
+)
+def test_suspicious_units_warn_naming_the_key(changes, key, hint):
+    with pytest.warns(UserWarning, match=f"^{key}.*{hint}"):
+        softspine.Scene({**TENDON_ROD, **changes})
+
+
+def test_a_payload_in_grams_given_as_kilograms_warns():
+    robot = softspine.Robot()
+    kappa = [[0.5, 0.0]] * robot.sections
+    with pytest.warns(UserWarning, match="^load = 30 kg is 100 times the robot's own mass"):
+        robot.forward(kappa, load=30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        robot.forward(kappa, load=0.03)
+
+
+def test_a_failed_solve_names_the_load_scale_it_reached():
+    soft = {**TENDON_ROD, "stiffness": {"E": 210.0, "G": 80.0, "diameter": 1.4e-3}}
+    with pytest.warns(UserWarning):
+        sol = softspine.solve(soft)
+    assert not sol.converged
+    assert re.search(r"at load scale \d\.\d{3} of 1\).*kappa L = 4\.02e8", sol.message), sol.message

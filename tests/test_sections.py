@@ -130,9 +130,14 @@ def test_section_lengths_are_read_checked_and_kept():
         {**UNEQUAL, "sections": [UNEQUAL["sections"][0], {"length": -0.45},
                                  UNEQUAL["sections"][2]]})
     # Loads and anchors fall on the nodes of each section's own elements.
-    err = message({**UNEQUAL, "tendons": [{**UNEQUAL["tendons"][0], "end": 0.6}]})
-    # 21 elements by default: 7 a section, 0.45 / 7 apart in the second.
+    off_node = {**UNEQUAL, "tendons": [{**UNEQUAL["tendons"][0], "end": 0.6}]}
+    with pytest.raises(ValueError) as e:
+        softspine.solve(off_node, n_elements=21)
+    # 21 elements: 7 a section, 0.45 / 7 apart in the second.
+    err = str(e.value)
     assert "tendons[0].end" in err and "nearest nodes are at 0.5857142857142857 and 0.65" in err
+    # The default n is the first that puts it on a node: 8/9 into the second section.
+    assert softspine.solve(off_node).n_elements == 27
     assert "magnetization" in message(
         {**UNEQUAL, "magnetization": [[0, 0, 1], [0, 0, 1]], "magnetic_field": [0.01, 0, 0]})
 

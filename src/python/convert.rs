@@ -623,6 +623,17 @@ pub(super) fn path_arg(obj: &Bound<'_, PyAny>) -> PyResult<std::path::PathBuf> {
     Ok(std::path::PathBuf::from(str_arg("path", &text)?))
 }
 
+/// Show each of the core's warnings about the caller's input (see
+/// `Scene::warnings`) as a `UserWarning` at the caller's line.
+pub(super) fn warn_user(py: Python<'_>, messages: &[String]) -> PyResult<()> {
+    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    for m in messages {
+        let text = std::ffi::CString::new(m.replace('\0', " ")).expect("no interior NUL left");
+        PyErr::warn(py, &category, &text, 1)?;
+    }
+    Ok(())
+}
+
 /// A core error about what an argument holds (text that does not parse, a
 /// file that cannot be read), said as that argument's: `text: invalid JSON: ...`.
 pub(super) fn of_argument(name: &str, e: crate::Error) -> PyErr {

@@ -85,6 +85,7 @@ pub(super) fn calibrate<'py>(
     max_iterations: Option<&Bound<'py, PyAny>>,
     threads: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    warn_user(py, &robot.load_warnings(load))?;
     let k = samples_arg::<2>("actuations", actuations, robot.sections)?;
     let measured: Vec<Vector3<f64>> = rows_of::<3>("measured_tips", measured_tips)?
         .into_iter()

@@ -298,7 +298,7 @@ impl PyInverseSolver {
 impl PyRobot {
     #[new]
     #[pyo3(signature = (data=None), text_signature = "(data=None)")]
-    fn new(data: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+    fn new(py: Python<'_>, data: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
         let inner = match data {
             None => Robot::default(),
             Some(d) if d.is_instance_of::<PyDict>() => {
@@ -311,31 +311,37 @@ impl PyRobot {
                 )))
             }
         };
-        Ok(PyRobot { inner })
+        PyRobot::read(py, inner)
     }
 
     /// Read a robot from JSON text (the fields of ``Robot().to_dict()``, each optional).
     #[staticmethod]
-    fn from_json(#[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
-        Ok(PyRobot {
-            inner: Robot::from_json_str(&text).map_err(|e| of_argument("text", e))?,
-        })
+    fn from_json(py: Python<'_>, #[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
+        PyRobot::read(
+            py,
+            Robot::from_json_str(&text).map_err(|e| of_argument("text", e))?,
+        )
     }
 
     /// Read a robot from TOML text.
     #[staticmethod]
-    fn from_toml(#[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
-        Ok(PyRobot {
-            inner: Robot::from_toml_str(&text).map_err(|e| of_argument("text", e))?,
-        })
+    fn from_toml(py: Python<'_>, #[pyo3(from_py_with = text_arg)] text: String) -> PyResult<Self> {
+        PyRobot::read(
+            py,
+            Robot::from_toml_str(&text).map_err(|e| of_argument("text", e))?,
+        )
     }
 
     /// Read a robot from a ``.json`` or ``.toml`` file.
     #[staticmethod]
-    fn from_file(#[pyo3(from_py_with = path_arg)] path: std::path::PathBuf) -> PyResult<Self> {
-        Ok(PyRobot {
-            inner: Robot::from_file(&path).map_err(|e| of_argument("path", e))?,
-        })
+    fn from_file(
+        py: Python<'_>,
+        #[pyo3(from_py_with = path_arg)] path: std::path::PathBuf,
+    ) -> PyResult<Self> {
+        PyRobot::read(
+            py,
+            Robot::from_file(&path).map_err(|e| of_argument("path", e))?,
+        )
     }
 
     /// Number of sections (three muscles each).
@@ -390,11 +396,13 @@ impl PyRobot {
     #[pyo3(signature = (rest_curvature=None, load=0.0, *, tensions=None, field=None))]
     fn scene(
         &self,
+        py: Python<'_>,
         rest_curvature: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = load_arg)] load: f64,
         tensions: Option<&Bound<'_, PyAny>>,
         field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyScene> {
+        warn_user(py, &self.inner.load_warnings(load))?;
         let a = actuation_arg(rest_curvature, tensions, field)?;
         Ok(PyScene {
             inner: self.inner.actuated_scene(&a, load)?,
@@ -465,6 +473,7 @@ impl PyRobot {
         tensions: Option<&Bound<'_, PyAny>>,
         field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PySolution> {
+        warn_user(py, &self.inner.load_warnings(load))?;
         let a = actuation_arg(rest_curvature, tensions, field)?;
         let scene = self.inner.actuated_scene(&a, load)?;
         let settings = Settings {
@@ -496,6 +505,7 @@ impl PyRobot {
         tensions: Option<&Bound<'py, PyAny>>,
         field: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        warn_user(py, &self.inner.load_warnings(load))?;
         let k = actuation_arg(rest_curvature, tensions, field)?;
         let names = match given(parameters) {
             Some(p) => super::fitting::parameter_names(&p)?,
@@ -536,6 +546,7 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        warn_user(py, &slf.get().inner.load_warnings(load))?;
         let this = slf.get();
         let robot = &this.inner;
         let m = robot.sections;
@@ -645,6 +656,7 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        warn_user(py, &slf.get().inner.load_warnings(load))?;
         let settings = batch_settings(threads, chunk, None, shapes)?;
         let robot = &slf.get().inner;
         // Before a cluster's parts are cut too.
@@ -705,6 +717,7 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        warn_user(py, &slf.get().inner.load_warnings(load))?;
         let this = slf.get();
         let given_targets = targets;
         let targets: Vec<Vector3<f64>> = rows_of::<3>("targets", targets)?
@@ -754,8 +767,10 @@ impl PyRobot {
     #[pyo3(signature = (load=0.0))]
     fn inverse_solver(
         &self,
+        py: Python<'_>,
         #[pyo3(from_py_with = load_arg)] load: f64,
     ) -> PyResult<PyInverseSolver> {
+        warn_user(py, &self.inner.load_warnings(load))?;
         let engine = match self.inner.actuation_space() {
             crate::robot::ActuationSpace::Curvature => {
                 IkEngine::Muscles(InverseSolver::new(&self.inner, load)?)
@@ -790,6 +805,7 @@ impl PyRobot {
         initial: Option<&Bound<'_, PyAny>>,
         pretension: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
+        warn_user(py, &self.inner.load_warnings(load))?;
         let target = vec3_arg("target", target)?;
         let keywords = [
             ("strategy", strategy),
@@ -824,6 +840,7 @@ impl PyRobot {
         max_iterations: Option<&Bound<'_, PyAny>>,
         pretension: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyIkResult>> {
+        warn_user(py, &self.inner.load_warnings(load))?;
         let pts: Vec<Vector3<f64>> = rows_arg::<3>("points", points)?
             .into_iter()
             .map(Vector3::from)
@@ -917,6 +934,12 @@ pub(super) fn robot_arg(obj: &Bound<'_, PyAny>) -> PyResult<Robot> {
 }
 
 impl PyRobot {
+    /// A robot read from the caller's input, its warnings shown.
+    fn read(py: Python<'_>, inner: Robot) -> PyResult<Self> {
+        warn_user(py, &inner.warnings())?;
+        Ok(PyRobot { inner })
+    }
+
     fn ik_options(
         &self,
         load: f64,

@@ -35,10 +35,10 @@ impl PyScene {
             || data.is_instance(&os.getattr("PathLike")?)?
         {
             let path: String = os.call_method1("fspath", (data,))?.extract()?;
-            return Ok(PyScene {
-                inner: Scene::from_file(std::path::Path::new(&path))
-                    .map_err(|e| of_argument("scene", e))?,
-            });
+            let inner = Scene::from_file(std::path::Path::new(&path))
+                .map_err(|e| of_argument("scene", e))?;
+            warn_user(data.py(), &inner.warnings())?;
+            return Ok(PyScene { inner });
         }
         if !data.is_instance_of::<PyDict>() {
             return Err(PyValueError::new_err(format!(
@@ -46,9 +46,9 @@ impl PyScene {
                 data.get_type().name()?
             )));
         }
-        Ok(PyScene {
-            inner: Scene::from_value(&to_value(data, &Path::input("scene"))?)?,
-        })
+        let inner = Scene::from_value(&to_value(data, &Path::input("scene"))?)?;
+        warn_user(data.py(), &inner.warnings())?;
+        Ok(PyScene { inner })
     }
 
     /// Read a scene from a JSON string.

@@ -53,6 +53,11 @@ pub const MAX_ROBOT_ELEMENTS: usize = 1_000_000;
 /// bend a section in every direction) or two at one angle.
 const MIN_ANGLE_SPREAD: f64 = 1e-6;
 
+/// A payload this many times the robot's own mass or more is warned about
+/// (a mass in grams given as kilograms is a thousand times too heavy; soft
+/// robots carry a few times their own mass at most).
+pub const PAYLOAD_WARNING: f64 = 20.0;
+
 /// A multi-section pneumatic continuum robot. `Robot::default()` resembles the
 /// seed's prototype: 1 m, 10 sections, hanging from its base.
 #[derive(Debug, Clone, PartialEq)]
@@ -502,6 +507,47 @@ impl Robot {
             ));
         }
         Ok(())
+    }
+
+    /// The robot's own mass [kg]: its backbone, disks and tool.
+    pub fn own_mass(&self) -> f64 {
+        let lengths = self.section_lengths();
+        (1..=self.sections)
+            .map(|k| {
+                let p = self.section_properties.get(k - 1);
+                let density = p
+                    .and_then(|p| p.linear_density)
+                    .unwrap_or(self.linear_density);
+                let length = lengths.get(k - 1).copied().unwrap_or(self.section_length());
+                density * length + self.disk_mass_of(k)
+            })
+            .sum::<f64>()
+            + self.tool_mass
+    }
+
+    /// What a robot may carry but is more likely a unit mistake: a payload
+    /// of [`PAYLOAD_WARNING`] times its own mass or more (30 given for 30 g).
+    /// One message each; a caller shows them (Python: `UserWarning`).
+    pub fn load_warnings(&self, tip_mass: f64) -> Vec<String> {
+        let own = self.own_mass();
+        if own > 0.0 && tip_mass >= PAYLOAD_WARNING * own {
+            vec![format!(
+                "load = {tip_mass} kg is {:.0} times the robot's own mass ({own:.3} kg): grams \
+                 meant? (the load is a mass in kg)",
+                tip_mass / own
+            )]
+        } else {
+            Vec::new()
+        }
+    }
+
+    /// The warnings of the robot itself: its scene's (its moduli, how
+    /// slender it is, its tendons), see [`Scene::warnings`].
+    pub fn warnings(&self) -> Vec<String> {
+        let straight = vec![[0.0; 2]; self.sections];
+        self.scene(&straight, 0.0)
+            .map(|s| s.warnings())
+            .unwrap_or_default()
     }
 
     /// Mass of the disk at the end of section `k` (1-based) [kg].

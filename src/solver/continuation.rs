@@ -229,6 +229,7 @@ fn continuation(
             steps += 1;
             path_stable = path_stable && (dlambda > STABILITY_STEP || is_stable(model, w));
             lambda = target;
+            w.reached_load = w.reached_load.max(lambda);
             w.saved.copy_from_slice(&w.q);
             w.kkt.reactions_saved.copy_from_slice(&w.kkt.reactions);
             if out.iterations <= 6 {

@@ -291,6 +291,7 @@ impl Solver {
         }
         let tol = self.model.effective_tol(self.settings.residual_tol);
         let (model, w) = (&self.model, &mut self.work);
+        w.reached_load = 0.0;
         w.kkt
             .reactions
             .iter_mut()
@@ -419,7 +420,10 @@ impl Solver {
             }
         }
         let mut msg = format!(
-            "no convergence: the direct solve and load continuation (stopped after {steps} steps) both failed"
+            "no convergence: the direct solve and load continuation (stopped after {steps} steps \
+             at load scale {:.3} of 1) both failed; the loads bend the rod to a curvature scale \
+             kappa L = {:.2e}",
+            w.reached_load, model.load_parameter
         );
         let reach = model.tightest_reach();
         if reach > 0.98 {

@@ -23,6 +23,9 @@ pub(crate) struct Workspace {
     pub lu: BlockLu,
     /// Constrained scenes only (empty otherwise): see `constrained.rs`.
     pub kkt: constrained::KktWorkspace,
+    /// The largest load scale a continuation of this solve reached (1 when
+    /// one ended), for the message of a solve that failed.
+    pub reached_load: f64,
 }
 
 impl Workspace {
@@ -42,6 +45,7 @@ impl Workspace {
             jac: BlockTridiagonal::try_zeros(n)?,
             lu: BlockLu::try_new(n)?,
             kkt: constrained::KktWorkspace::new(model),
+            reached_load: 0.0,
         })
     }
 }

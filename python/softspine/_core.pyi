@@ -529,7 +529,7 @@ class Accuracy:
     def __reduce__(self) -> tuple[Any, tuple[float], dict[str, Any]]: ...
 
 def solve(
-    scene: Scene | dict[str, Any],
+    scene: Scene | dict[str, Any] | str | PathLike[str],
     settings: Settings | dict[str, Any] | None = None,
     *,
     n_elements: int | None = None,

@@ -116,7 +116,7 @@ impl Scene {
                     let hint = if modulus < lo {
                         "GPa or MPa meant?"
                     } else {
-                        "MPa or GPa given in kPa?"
+                        "a factor of a thousand too many?"
                     };
                     out.push(format!(
                         "{}.{name} = {modulus:e} Pa is outside the moduli of rod materials \

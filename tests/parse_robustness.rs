@@ -175,9 +175,11 @@ fn mutated_scenes_are_refused_without_panicking() {
             ),
         }
     }
-    // Both outcomes occur, so that the mutations reach the validator as well as the parser.
+    // Both outcomes occur, so that the mutations reach the validator as well as the parser
+    // (84 of 4000 accepted since the validator refuses what no rod can mean, such as a
+    // diameter mutated past the length).
     assert!(
-        accepted > 100 && refused > 1000,
+        accepted > 50 && refused > 1000,
         "{accepted} accepted, {refused} refused"
     );
 }

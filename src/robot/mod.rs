@@ -425,6 +425,21 @@ impl Robot {
                 format!("must be a mass >= 0 kg, got {tip_mass}"),
             ));
         }
+        // The payload's weight is the scene's tip force: refused as the
+        // argument the caller gave, not as the scene's key.
+        let weight = tip_mass * self.gravity.norm();
+        let softest = self.stiffness.diagonal().min();
+        let parameter = weight * self.length * self.length / softest;
+        if parameter > crate::scene::MAX_LOAD_PARAMETER {
+            return Err(Error::argument(
+                "load",
+                format!(
+                    "{tip_mass} kg weighs {parameter:.1e} times what bends the robot by a \
+                     radian ({:.1e} N): beyond what any solve resolves (the load is a mass in kg)",
+                    softest / (self.length * self.length)
+                ),
+            ));
+        }
         let mut s = Scene::new(self.length, 1.0, 1.0, 1.0);
         s.name = Some(format!(
             "robot, {} sections, {:.0} g at the tip",

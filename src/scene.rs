@@ -911,17 +911,6 @@ impl Scene {
         Ok(multiple)
     }
 
-    /// The default discretisation: the smallest n of [`Scene::node_multiple`]
-    /// that is at least [`crate::solver::DEFAULT_ELEMENTS`] (or, if none is,
-    /// the sections' default, which [`Scene::check_elements`] then refuses).
-    pub fn default_elements(&self) -> usize {
-        let fallback = crate::solver::default_elements(self.sections());
-        match self.node_multiple(crate::solver::MAX_ELEMENTS) {
-            Ok(g) => crate::solver::DEFAULT_ELEMENTS.div_ceil(g) * g,
-            Err(_) => fallback,
-        }
-    }
-
     /// Check a discretisation: `n` a positive multiple of the number of sections.
     pub fn check_elements(&self, n: usize) -> Result<()> {
         self.check_section_lengths()?;

@@ -121,6 +121,17 @@ pub const FOURTH_ORDER_TOL_HELD: f64 = 1e-6;
 /// The fewest elements of a solve by default (see [`default_elements`]).
 pub const DEFAULT_ELEMENTS: usize = 20;
 
+/// The default discretisation of a scene: the smallest n of
+/// [`Scene::node_multiple`] (one that puts every located input on a node)
+/// that is at least [`DEFAULT_ELEMENTS`]; if there is none, the sections'
+/// default, which the scene's own check then refuses by key.
+pub fn default_elements_of(scene: &Scene) -> usize {
+    match scene.node_multiple(MAX_ELEMENTS) {
+        Ok(g) => DEFAULT_ELEMENTS.div_ceil(g) * g,
+        Err(_) => default_elements(scene.sections()),
+    }
+}
+
 /// The default number of elements of a rod of `sections` sections: the
 /// smallest multiple of them that is at least [`DEFAULT_ELEMENTS`] (every
 /// section gets the same whole number of elements).
@@ -211,7 +222,8 @@ impl Settings {
     /// The number of elements of a solve of `scene`: `n_elements`, or
     /// [`default_elements`] of its sections.
     pub fn elements_for(&self, scene: &Scene) -> usize {
-        self.n_elements.unwrap_or_else(|| scene.default_elements())
+        self.n_elements
+            .unwrap_or_else(|| default_elements_of(scene))
     }
 
     /// These settings with the number of elements for `scene` filled in.

@@ -21,6 +21,8 @@ demo: $(PY)
 # (stubtest), mypy, pytest (Python API, references, bad input, hard cases,
 # properties, the README's and the examples' code), cargo test and the docs
 # (--strict, not --quiet: --quiet hides the warnings that --strict counts).
+# pytest runs a module a worker on every core (the SciPy references of the
+# tendon tests alone take three minutes of one core).
 test: $(PY)
 	$(PY) -m pip install -q ".[test,docs]"
 	$(PY) -m ruff check python tests tools
@@ -28,7 +30,7 @@ test: $(PY)
 	$(PY) -m mypy python/softspine examples
 	cargo fmt --all -- --check
 	cargo clippy --all-targets --features python -- -D warnings
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile
 	cargo test
 	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict -d site
 

@@ -726,19 +726,39 @@ impl Robot {
         self.random_drives(seed, first)?;
         self.check_workspace(samples, first, settings)?;
         let (start, stiffness) = self.actuated_chunk(tip_mass)?;
-        let out = run_chunks(
+        let out = self.drawn_samples(
+            (samples, first),
+            (settings, control),
+            start,
+            |index| self.random_drives(seed, index),
+            |state, drives| self.actuated_sample(state, drives, stiffness, settings),
+        )?;
+        Ok(out.into_iter().unzip())
+    }
+
+    /// The samples `first..first + samples` of a workspace: each drawn by
+    /// `draw(index)` in the workers and solved by `solve` with its chunk's
+    /// state, with what it was drawn.
+    fn drawn_samples<S, D: Send>(
+        &self,
+        (samples, first): (usize, u64),
+        (settings, control): (&BatchSettings, &BatchControl),
+        start: impl Fn() -> Result<S> + Sync,
+        draw: impl Fn(u64) -> Result<D> + Sync,
+        solve: impl Fn(&mut S, &D) -> Result<Sample> + Sync,
+    ) -> Result<Vec<(D, Sample)>> {
+        run_chunks(
             samples,
             self.result_size("samples", settings),
             settings,
             control,
             start,
             |state, i| {
-                let drives = self.random_drives(seed, first + i as u64)?;
-                let sample = self.actuated_sample(state, &drives, stiffness, settings)?;
-                Ok((drives, sample))
+                let drawn = draw(first + i as u64)?;
+                let sample = solve(state, &drawn)?;
+                Ok((drawn, sample))
             },
-        )?;
-        Ok(out.into_iter().unzip())
+        )
     }
 }
 
@@ -846,17 +866,12 @@ impl Robot {
         }
         self.check_workspace(samples, first, settings)?;
         let start = self.chunk_solver(tip_mass)?;
-        let out = run_chunks(
-            samples,
-            self.result_size("samples", settings),
-            settings,
-            control,
+        let out = self.drawn_samples(
+            (samples, first),
+            (settings, control),
             start,
-            |state, i| {
-                let kappa = self.random_actuation(seed, first + i as u64)?;
-                let sample = self.forward_sample(state, &kappa, settings)?;
-                Ok((kappa, sample))
-            },
+            |index| self.random_actuation(seed, index),
+            |state, kappa| self.forward_sample(state, kappa, settings),
         )?;
         let mut actuations = Vec::new();
         actuations

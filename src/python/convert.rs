@@ -244,9 +244,9 @@ pub(super) fn str_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<String> {
     }
 }
 
-/// A count argument: an int or NumPy integer (not a bool or a float) that fits
-/// `usize`, refused by name.
-pub(super) fn int_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+/// The path of argument `name` once `obj` is known to be an int or a NumPy
+/// integer (not a bool or a float); refused by name otherwise.
+fn integer_arg<'a>(name: &'a str, obj: &Bound<'_, PyAny>) -> PyResult<Path<'a>> {
     let path = Path::argument(name);
     let py = obj.py();
     let integer = !obj.is_instance_of::<PyBool>()
@@ -254,6 +254,13 @@ pub(super) fn int_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
     if !integer {
         return Err(path.error(format!("expected an integer, got {}", type_name(obj))));
     }
+    Ok(path)
+}
+
+/// A count argument: an int or NumPy integer (not a bool or a float) that fits
+/// `usize`, refused by name.
+pub(super) fn int_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let path = integer_arg(name, obj)?;
     match obj.extract::<usize>() {
         Ok(n) => Ok(n),
         Err(_) if obj.lt(0)? => Err(path.error(format!("must not be negative, got {obj}"))),
@@ -264,13 +271,7 @@ pub(super) fn int_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
 /// A 64-bit unsigned argument (a seed, a sample index): an int or NumPy
 /// integer (not a bool) in `[0, 2**64)`, refused by name.
 pub(super) fn u64_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<u64> {
-    let path = Path::argument(name);
-    let py = obj.py();
-    let integer = !obj.is_instance_of::<PyBool>()
-        && (obj.is_instance_of::<PyInt>() || obj.is_instance(numpy_types(py)?.integer.bind(py))?);
-    if !integer {
-        return Err(path.error(format!("expected an integer, got {}", type_name(obj))));
-    }
+    let path = integer_arg(name, obj)?;
     obj.extract::<u64>()
         .map_err(|_| path.error(format!("must be an integer in [0, 2**64), got {obj}")))
 }

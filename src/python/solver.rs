@@ -343,10 +343,6 @@ fn warm_arg(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
     bool_arg("warm", obj)
 }
 
-fn check_arg(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
-    bool_arg("check", obj)
-}
-
 /// Where a solve starts.
 enum Start {
     Last,

@@ -124,7 +124,7 @@ impl BlockLu {
         for j in 0..n {
             // A huge n takes long here: an interrupt fails the factorisation,
             // and the solver's loops stop on the same flag.
-            if j % crate::model::INTERRUPT_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
+            if j % crate::interrupt::POLL_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
                 return Err(SingularPivot(j));
             }
             if j > 0 {
@@ -153,7 +153,7 @@ impl BlockLu {
         let scale = a.max_diagonal().max(f64::MIN_POSITIVE);
         let mut negative = 0;
         for j in 0..n {
-            if j % crate::model::INTERRUPT_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
+            if j % crate::interrupt::POLL_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
                 return None;
             }
             let mut pivot = sym(a.diag[j]);
@@ -236,7 +236,7 @@ pub fn symmetric_part_is_positive_definite(a: &BlockTridiagonal) -> bool {
     let scale = a.max_diagonal().max(f64::MIN_POSITIVE);
     for j in 0..n {
         // Interrupted: no verdict, and the caller's loops stop on the flag.
-        if j % crate::model::INTERRUPT_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
+        if j % crate::interrupt::POLL_STRIDE == 0 && j > 0 && crate::interrupt::requested() {
             return false;
         }
         let mut pivot = sym(a.diag[j]);

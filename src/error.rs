@@ -19,7 +19,7 @@ pub enum Error {
     /// The solver stopped without an answer (see the status for how).
     #[error("solve did not converge ({}) after {iterations} iterations (relative residual {residual:.3e}): {reason}", status.name())]
     NotConverged {
-        status: crate::solver::Status,
+        status: crate::status::Status,
         iterations: usize,
         residual: f64,
         reason: String,

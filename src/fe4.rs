@@ -215,14 +215,14 @@ const SIMPSON: [f64; 3] = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
 
 /// The node terms of node `k` of an element (value, gradient, block): the
 /// dead loads' `-h w_k F_k . T(x_k)` and the field's `-h w_k B . R(x_k) m`
-/// (`model::body_vector_terms`, the second-order scheme's node rule).
+/// (`quat::body_vector_terms`, the second-order scheme's node rule).
 #[inline(always)]
 fn node_terms(x: Quat, el: &Element, k: usize) -> (f64, Vector3<f64>, Matrix3<f64>) {
     let (mut value, mut grad, mut block) =
-        crate::model::body_vector_terms(x, &load_weight(el, k), &Vector3::z());
+        crate::quat::body_vector_terms(x, &load_weight(el, k), &Vector3::z());
     if let Some((field, m)) = &el.magnet {
         let c = (-el.h * SIMPSON[k]) * field;
-        let (v, g, b) = crate::model::body_vector_terms(x, &c, m);
+        let (v, g, b) = crate::quat::body_vector_terms(x, &c, m);
         value += v;
         grad += g;
         block += b;
@@ -543,7 +543,7 @@ pub(crate) fn assemble<'a>(
     for i in 1..=n {
         // A huge n takes long here: an interrupt leaves the residual
         // unfinished, and the solver's loops stop on the same flag.
-        if i % crate::model::INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
+        if i % crate::interrupt::POLL_STRIDE == 0 && crate::interrupt::requested() {
             return;
         }
         let c = condensed(

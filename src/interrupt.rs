@@ -18,6 +18,9 @@ use std::time::{Duration, Instant};
 /// expects between Ctrl-C and the prompt.
 pub const POLL_INTERVAL: Duration = Duration::from_millis(20);
 
+/// Elements or nodes between two interrupt polls in the O(n) passes.
+pub(crate) const POLL_STRIDE: usize = 1 << 14;
+
 struct Checker {
     poll: Box<dyn FnMut() -> bool>,
     last: Instant,

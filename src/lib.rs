@@ -41,13 +41,14 @@ mod read;
 pub mod robot;
 pub mod scene;
 pub mod solver;
+pub mod status;
 mod tendon;
 pub mod value;
 
 #[cfg(feature = "python")]
 mod python;
 
-pub use batch::{solve_batch, BatchControl, BatchSettings, IkSample, Sample};
+pub use batch::{solve_batch, BatchControl, BatchSettings, Sample};
 pub use error::{Error, Result};
 /// The linear algebra crate of the public types (`Vector3`, `Matrix3xX`): a
 /// user of softspine needs no dependency of their own on it.
@@ -61,7 +62,8 @@ pub use model::{RodModel, Scheme};
 pub use quat::Quat;
 pub use robot::{
     ActuatedInverseSolver, Actuation, ActuationSpace, Calibration, CalibrationSettings, IkEnding,
-    IkOptions, IkResult, IkSettings, InverseSolver, Robot, SectionSpec, Strategy, TendonRoute,
+    IkOptions, IkResult, IkSample, IkSettings, InverseSolver, Robot, SectionSpec, Strategy,
+    TendonRoute,
 };
 pub use scene::{
     Gravity, Guide, PointLoad, Scene, SectionProperties, Stiffness, Tendon, TipCondition,

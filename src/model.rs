@@ -16,12 +16,12 @@
 use crate::blocktri::BlockTridiagonal;
 use crate::fe4;
 use crate::mesh::Mesh;
-use crate::quat::{rotation_form_apply, skew, tangent_bilinear, tangent_form_apply, Quat};
+use crate::quat::{
+    body_vector_terms, rotation_form_apply, skew, tangent_bilinear, tangent_form_apply, Quat,
+};
+pub use crate::scene::reach::clamped_end_deficit;
 use crate::scene::{Scene, TipCondition};
 use nalgebra::{Matrix3, Vector3};
-
-/// Elements or nodes between two interrupt polls in the O(n) passes.
-pub(crate) const INTERRUPT_STRIDE: usize = 1 << 14;
 
 /// Elements per chunk of the parallel assembly (about 10 ms of work with the
 /// Jacobian); a rod of one chunk, every ordinary one, is assembled in place.
@@ -1006,7 +1006,7 @@ impl RodModel {
         for i in slab.first..slab.end {
             // A huge n takes long here: an interrupt leaves the residual
             // unfinished, and the solver's loops stop on the same flag.
-            if i % INTERRUPT_STRIDE == 0 && crate::interrupt::requested() {
+            if i % crate::interrupt::POLL_STRIDE == 0 && crate::interrupt::requested() {
                 return;
             }
             let mut t = self.element_terms(i, q, load, reactions, with_jacobian);
@@ -1389,63 +1389,6 @@ impl RodModel {
     }
 }
 
-/// How much less than `k ds` a chain of `k` elements reaches along a
-/// direction at angle `theta` from the tangent of its clamped first node, in
-/// units of `ds`. The discrete rod cannot straighten at once: an element's
-/// mean tangent `(T(a) + T(a, b) + T(b)) / 3` keeps a third of its clamped
-/// end's direction, so even an infinite pull leaves a deficit of about
-/// `0.2 theta^2 ds` (the optimal chain turns its nodes by `theta r^j`,
-/// `r = sqrt(24) - 5`: the deficit sits in the first two elements). The
-/// continuous rod's deficit vanishes; the discrete one falls as `1 / n`.
-///
-/// Computed exactly for the planar chain (twist only shortens it): maximise
-/// `sum_i [cos x_{i-1} + cos((x_{i-1} + x_i) / 2) + cos x_i] / 3` over the
-/// node angles `x_j` from the direction of reach, `x_0 = theta`, by
-/// Gauss-Seidel sweeps of one-dimensional Newton steps. Nodes beyond the
-/// 24th are held aligned (their optimal angle is below `1e-23 theta`).
-pub fn clamped_end_deficit(theta: f64, elements: usize) -> f64 {
-    let k = elements;
-    let m = k.min(24);
-    if k == 0 || theta == 0.0 {
-        return 0.0;
-    }
-    let ratio = 24f64.sqrt() - 5.0;
-    let mut x: Vec<f64> = (0..=m).map(|j| theta * ratio.powi(j as i32)).collect();
-    let next = |x: &[f64], j: usize| if j < m { x[j + 1] } else { 0.0 };
-    for _ in 0..100 {
-        let mut largest = 0.0f64;
-        for j in 1..=m {
-            let interior = j < k;
-            let own = if interior { 2.0 } else { 1.0 } / 3.0;
-            let (left, right) = (0.5 * (x[j - 1] + x[j]), 0.5 * (x[j] + next(&x, j)));
-            let mut slope = -own * x[j].sin() - left.sin() / 6.0;
-            let mut curvature = -own * x[j].cos() - left.cos() / 12.0;
-            if interior {
-                slope -= right.sin() / 6.0;
-                curvature -= right.cos() / 12.0;
-            }
-            // A maximum: Newton where the objective is concave, else uphill.
-            let step = if curvature < 0.0 {
-                -slope / curvature
-            } else {
-                slope
-            };
-            let step = step.clamp(-0.5, 0.5);
-            x[j] += step;
-            largest = largest.max(step.abs());
-        }
-        if largest < 1e-15 {
-            break;
-        }
-    }
-    (1..=k.min(m + 1))
-        .map(|i| {
-            let (a, b) = (x[i - 1], next(&x, i - 1));
-            1.0 - (a.cos() + (0.5 * (a + b)).cos() + b.cos()) / 3.0
-        })
-        .sum()
-}
-
 /// The section of element `i` (from 0) of a rod of `n` elements in `sections`
 /// equal sections.
 pub(crate) fn section_of(i: usize, sections: usize, n: usize) -> usize {
@@ -1474,19 +1417,6 @@ pub fn element_turn(a: Quat, b: Quat) -> f64 {
 }
 
 /// Mean tangent of an element: the exact mean of `T` under linear interpolation of `q`.
-/// The potential `c . R(x) m` of a world vector `c` against a body vector
-/// `m` at a unit node `x`: its value, gradient in the body-frame rotation
-/// (`R(x exp(theta/2)) m = R(x) (m + theta x m + ...)`) and that gradient's
-/// derivative under the same update (as the schemes' other node terms).
-pub(crate) fn body_vector_terms(
-    x: Quat,
-    c: &Vector3<f64>,
-    m: &Vector3<f64>,
-) -> (f64, Vector3<f64>, Matrix3<f64>) {
-    let f = x.inverse_rotate(*c);
-    (f.dot(m), m.cross(&f), skew(m) * skew(&f))
-}
-
 pub fn mean_tangent(a: Quat, b: Quat) -> Vector3<f64> {
     (a.tangent() + tangent_bilinear(a, b) + b.tangent()) / 3.0
 }

@@ -174,6 +174,19 @@ impl Mul for Quat {
     }
 }
 
+/// The potential `c . R(x) m` of a world vector `c` against a body vector
+/// `m` at a unit node `x`: its value, gradient in the body-frame rotation
+/// (`R(x exp(theta/2)) m = R(x) (m + theta x m + ...)`) and that gradient's
+/// derivative under the same update (as the schemes' other node terms).
+pub(crate) fn body_vector_terms(
+    x: Quat,
+    c: &Vector3<f64>,
+    m: &Vector3<f64>,
+) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    let f = x.inverse_rotate(*c);
+    (f.dot(m), m.cross(&f), skew(m) * skew(&f))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

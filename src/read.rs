@@ -212,3 +212,14 @@ pub(crate) fn table_list<T>(
         })
         .collect()
 }
+
+/// Refuse a tolerance outside `[min, max]` (or not finite), naming it.
+pub(crate) fn check_tolerance(name: &str, value: f64, (min, max): (f64, f64)) -> Result<()> {
+    if value.is_finite() && (min..=max).contains(&value) {
+        return Ok(());
+    }
+    Err(Error::argument(
+        name,
+        format!("must lie in [{min:e}, {max:e}], got {value:e}"),
+    ))
+}

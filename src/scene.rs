@@ -22,15 +22,16 @@
 //! ```
 
 mod plausible;
+pub mod reach;
 pub use plausible::{MAX_LOAD_PARAMETER, MODULUS_RANGE, ROUNDOFF_LOAD, SLENDER_LIMIT};
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::model::clamped_end_deficit;
 use crate::quat::Quat;
 use crate::read::{finite, numbers, positive, table_list, vec3, Table};
 use crate::value::Value;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use reach::clamped_end_deficit;
 use std::f64::consts::PI;
 
 /// How the stiffness was given.

@@ -128,7 +128,7 @@ impl PaperSettings {
 
     /// Refuse settings that cannot run or cannot mean anything, naming the field.
     pub fn validate(&self) -> Result<()> {
-        crate::solver::check_tolerance("paper.tol", self.tol, (1e-14, 1e-4))?;
+        crate::read::check_tolerance("paper.tol", self.tol, (1e-14, 1e-4))?;
         let sw = &self.swarm;
         if sw.particles == 0 || sw.particles > 100_000 {
             return Err(Error::argument(

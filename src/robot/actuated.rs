@@ -352,7 +352,7 @@ impl ActuatedInverseSolver {
             return Err(Error::argument("target", "must be finite"));
         }
         let length = self.robot.length;
-        crate::solver::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
+        crate::read::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
         let direction = match direction {
             Some(d) if d.iter().all(|x| x.is_finite()) && d.norm() > 0.0 => Some(d.normalize()),
             Some(_) => {

@@ -626,7 +626,7 @@ impl InverseSolver {
         }
         // 1e-12 L is what double precision leaves of a tip; 1e-2 L is a miss.
         let length = self.robot.length;
-        crate::solver::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
+        crate::read::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
         let direction = match direction {
             Some(d) if d.iter().all(|x| x.is_finite()) && d.norm() > 0.0 => Some(d.normalize()),
             Some(_) => {

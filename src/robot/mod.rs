@@ -16,12 +16,14 @@
 //! muscles' range, which leaves the most room for the next move.
 
 mod actuated;
+mod batch;
 mod bounds;
 mod calibrate;
 mod ik;
 pub mod trajectory;
 
 pub use actuated::{ActuatedInverseSolver, ActuationSpace};
+pub use batch::{IkSample, WARM_TURN};
 pub use calibrate::{Calibration, CalibrationSettings};
 pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, Strategy};
 

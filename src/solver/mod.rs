@@ -31,9 +31,9 @@ mod shooting;
 mod solution;
 mod workspace;
 
+pub(crate) use crate::read::check_tolerance;
 pub use adaptive::{solve_to_accuracy, Accuracy};
 pub use sensitivity::{Sensitivity, TipSensitivity};
-pub(crate) use settings::check_tolerance;
 pub use settings::{
     default_elements, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS, MAX_ELEMENTS,
     MAX_PAPER_ELEMENTS, RESIDUAL_TOL_RANGE,

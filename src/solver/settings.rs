@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::model::Scheme;
 use crate::paper_method::PaperSettings;
-use crate::read::{as_argument, count, finite, string, Table};
+use crate::read::{as_argument, check_tolerance, count, finite, string, Table};
 use crate::scene::{Scene, TipCondition};
 use crate::value::Value;
 
@@ -155,17 +155,6 @@ pub const MAX_PAPER_ELEMENTS: usize = 400;
 /// Range of `residual_tol`: below 1e-14 is below what double precision
 /// resolves; above 1e-4 a "converged" state is visibly off equilibrium.
 pub const RESIDUAL_TOL_RANGE: (f64, f64) = (1e-14, 1e-4);
-
-/// Refuse a tolerance outside `[min, max]` (or not finite), naming it.
-pub(crate) fn check_tolerance(name: &str, value: f64, (min, max): (f64, f64)) -> Result<()> {
-    if value.is_finite() && (min..=max).contains(&value) {
-        return Ok(());
-    }
-    Err(Error::argument(
-        name,
-        format!("must lie in [{min:e}, {max:e}], got {value:e}"),
-    ))
-}
 
 /// Smallest discretisations of which one pass may outlast an interrupt poll
 /// ([`Settings::has_long_passes`]): a sweep over 20 000 elements takes about

@@ -25,7 +25,8 @@ use super::solution::judge;
 use super::workspace::{evaluate, is_stable};
 use super::{Settings, Solution, Solver, Status};
 use crate::interrupt;
-use crate::model::{element_turn, slerp, RodModel, INTERRUPT_STRIDE};
+use crate::interrupt::POLL_STRIDE;
+use crate::model::{element_turn, slerp, RodModel};
 use crate::quat::Quat;
 use crate::scene::Scene;
 use nalgebra::{SMatrix, SVector, Vector3};
@@ -123,7 +124,7 @@ impl<'a> Rod<'a> {
         for i in 0..model.n {
             // A huge n takes long here: an interrupt leaves the shot
             // unfinished, and the Newton loops stop on the same flag.
-            if i % INTERRUPT_STRIDE == 0 && interrupt::requested() {
+            if i % POLL_STRIDE == 0 && interrupt::requested() {
                 break;
             }
             let u0 = model.rest_curvature[i];

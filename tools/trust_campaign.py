@@ -4,6 +4,7 @@
     python tools/trust_campaign.py shooting   # shooting against Newton on random scenes
     python tools/trust_campaign.py tol        # accuracy on demand with located inputs
     python tools/trust_campaign.py threads    # one Solver shared by threads (set_* then solve)
+    python tools/trust_campaign.py sensitivity  # sensitivities against whole solves, any units
 
 Each prints what it counted; the regression tests keep the reproducers.
 """
@@ -11,9 +12,12 @@ Each prints what it counted; the regression tests keep the reproducers.
 from __future__ import annotations
 
 import argparse
+import copy
 import math
+import re
 import threading
 from collections import Counter
+from typing import Any
 
 import numpy as np
 
@@ -170,12 +174,111 @@ def threads(count: int) -> None:
     print(f"{sum(tally.values())} set_rest_curvature + solve by 40 threads: {dict(tally)}")
 
 
+def sensitivity_scene(rng: np.random.Generator) -> tuple[dict, list[str]]:
+    """A rod in random units (length 1e-2 to 1e3, stiffness 1e-9 to 1e5) with
+    dimensionless loads of order one, tendons, magnets or sections of their
+    own, and the parameters to differentiate."""
+    length, k = 10 ** rng.uniform(-2, 3), 10 ** rng.uniform(-9, 5)
+    force, m = k / length**2, int(rng.integers(1, 4))
+    scene: dict = {"length": length, "stiffness": {"kx": k, "ky": k * rng.uniform(0.5, 2),
+                                                   "kz": 0.7 * k},
+                   "rest_curvature": [list(rng.normal(size=2) / length) for _ in range(m)],
+                   "gravity": {"linear_density": 0.5 * force / 9.81, "vector": [0, 0, -9.81]},
+                   "tip_force": list(rng.normal(size=3) * force),
+                   "tip_moment": list(rng.normal(size=3) * 0.3 * k / length)}
+    scene["tip_force"][2] = 0.0  # a parameter at zero: its step once came from its units
+    names = ["tip_force[0]", "tip_force[2]", "tip_moment[2]", "stiffness.kx",
+             "gravity.linear_density", f"rest_curvature[{m - 1}][0]"]
+    kind = rng.integers(3)
+    if kind == 0:
+        scene["tendons"] = [{"tension": float(rng.uniform(0, 1)) * k / (0.02 * length**2),
+                             "offset": [0.02 * length, 0.0], "twist": float(rng.normal() / length)}]
+        names += ["tendons[0].tension", "tendons[0].offset[0]"]
+    elif kind == 1:
+        scene["magnetization"] = [[0.0, 0.0, 1.0]]
+        scene["magnetic_field"] = list(rng.normal(size=3) * k / length**2)
+        names += ["magnetic_field[0]", "magnetic_field[2]"]
+    else:
+        fractions = rng.uniform(0.5, 1.5, size=m)
+        scene["sections"] = [{"length": float(f * length / fractions.sum()),
+                              "stiffness": {"kx": k * s, "ky": k * s, "kz": 0.7 * k * s}}
+                             for f, s in zip(fractions, rng.uniform(0.5, 2, size=m), strict=True)]
+        scene["length"] = sum(p["length"] for p in scene["sections"])
+        names += ["sections[0].length", f"sections[{m - 1}].stiffness.kz"]
+    return scene, names
+
+
+def leaf(data: dict, name: str) -> tuple:
+    """The container of the scene's field `name` (a path) and its key."""
+    parts = re.findall(r"[^.\[\]]+", name)
+    box: Any = data
+    for part in parts[:-1]:
+        box = box[int(part)] if isinstance(box, list) else box[part]
+    return box, int(parts[-1]) if isinstance(box, list) else parts[-1]
+
+
+def tip_moved(scene: dict, name: str, delta: float, initial: softspine.Solution):
+    """The converged tip with the field `name` moved by `delta` (a section's
+    length moves the rod's), or None."""
+    data = copy.deepcopy(scene)
+    box, key = leaf(data, name)
+    box[key] += delta
+    if name.startswith("sections[") and name.endswith(".length"):
+        data["length"] += delta
+    sol = softspine.solve(data, n_elements=36, residual_tol=1e-13, initial=initial)
+    return sol.tip_position if sol.converged else None
+
+
+def sensitivity(count: int) -> None:
+    """Every column of Solver.sensitivity against a five-point difference of
+    whole solves (step 1e-3 of the parameter, or of its scale where zero)."""
+    rng = np.random.default_rng(3)
+    worst, tally = [], Counter()
+    for _ in range(count):
+        scene, names = sensitivity_scene(rng)
+        solver = softspine.Solver(scene, n_elements=36, residual_tol=1e-13)
+        base = solver.solve()
+        if not (base.converged and base.stable):
+            tally["not converged"] += 1
+            continue
+        try:
+            sens = solver.sensitivity(names)
+        except ValueError:
+            tally["refused"] += 1
+            continue
+        for j, name in enumerate(names):
+            box, key = leaf(solver.scene.to_dict(), name)
+            scale = scene["stiffness"]["kx"] / scene["length"] ** 2  # only tip_force[2] is 0
+            h = 1e-3 * (abs(float(box[key])) or scale)
+            tips = [tip_moved(scene, name, k * h, base) for k in (2, 1, -1, -2)]
+            if any(t is None for t in tips):
+                tally["difference not converged"] += 1
+                continue
+            fd = (-tips[0] + 8 * tips[1] - 8 * tips[2] + tips[3]) / (12 * h)
+            # Below the whole solves' noise (1e-10 L over the step) a column
+            # is zero (a field the sections' own values override).
+            size = np.abs(fd).max()
+            noise = 1e-10 * scene["length"] / h
+            if size < noise and np.abs(sens.tip_position[:, j]).max() < noise:
+                continue
+            error = np.abs(sens.tip_position[:, j] - fd).max() / max(size, noise)
+            tally["columns"] += 1
+            tally["off by > 1e-3"] += int(error > 1e-3)
+            tally["off by > 1e-6"] += int(error > 1e-6)
+            worst.append((error, name, scene["length"], scene["stiffness"]["kx"]))
+    print(f"{count} scenes: {dict(tally)}")
+    for error, name, length, k in sorted(worst, reverse=True)[:5]:
+        print(f"  {error:.1e}  {name}  (L = {length:.3g}, kx = {k:.3g})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("campaign", choices=["sections", "shooting", "tol", "threads"])
+    parser.add_argument(
+        "campaign", choices=["sections", "shooting", "tol", "threads", "sensitivity"]
+    )
     parser.add_argument("--count", type=int, default=None)
     args = parser.parse_args()
-    counts = {"sections": 200, "shooting": 2000, "tol": 100, "threads": 400}
+    counts = {"sections": 200, "shooting": 2000, "tol": 100, "threads": 400, "sensitivity": 300}
     globals()[args.campaign](args.count or counts[args.campaign])
 
 

@@ -123,6 +123,21 @@ pub struct Sensitivity {
 /// is about its square (1e-10 relative), their round-off 1e-16 over it.
 const OUTPUT_TURN: f64 = 1e-5;
 
+/// Relative change of the discrete equations (of their residual's own scale,
+/// and of a held point's position over `L`) by which a parameter's step moves
+/// them in the central differences of `dF/dp`: truncation about its square
+/// where they are not linear in the parameter (1e-10), round-off about
+/// `eps` over it (1e-11). A step in the parameter's own units instead lost
+/// every digit on a rod in centimetres (a tip force step of 1e-9 N against
+/// a force scale of 1e9 N).
+const PARAMETER_RESPONSE: f64 = 1e-5;
+
+/// Rescalings of a parameter's step before the response is taken as it is
+/// (a parameter that moves nothing has a zero column), and the most one
+/// rescaling grows it.
+const STEP_TRIES: usize = 8;
+const MAX_STEP_GROWTH: f64 = 1e8;
+
 /// What the tip reports at a state, as a `Solution` does.
 struct TipReport {
     position: Vector3<f64>,
@@ -174,6 +189,74 @@ fn tip_report(
     }
 }
 
+/// The section `i` of a parameter `sections[i].length`.
+fn section_index(name: &str) -> Option<usize> {
+    name.strip_prefix("sections[")
+        .and_then(|rest| rest.strip_suffix("].length"))
+        .and_then(|i| i.parse().ok())
+}
+
+/// Lengthen section `i` of the scene's value `v` by `delta`: the rod with
+/// it, and every located input with the section it lies in (in proportion
+/// inside section `i`, shifted beyond it), as the nodes move: an input on a
+/// node stays on one, a tendon anchored at the tip stays there.
+fn stretch_section(v: &mut crate::value::Value, scene: &Scene, i: usize, delta: f64) -> Result<()> {
+    let lengths = scene.section_lengths();
+    let Some(&length) = lengths.get(i) else {
+        return Err(Error::argument(
+            format!("sections[{i}].length"),
+            "no such section length",
+        ));
+    };
+    let start: f64 = lengths[..i].iter().sum();
+    let end = start + length;
+    let moved = |s: f64| {
+        if s <= start {
+            s
+        } else if s <= end {
+            start + (s - start) * (length + delta) / length
+        } else {
+            s + delta
+        }
+    };
+    let located = (0..scene.point_loads.len())
+        .map(|j| format!("point_loads[{j}].s"))
+        .chain((0..scene.tendons.len()).map(|j| format!("tendons[{j}].end")))
+        .chain((0..scene.guides.len()).map(|j| format!("guides[{j}].s")));
+    for key in located {
+        if let Ok(s) = v.number_at_mut(&key) {
+            *s = moved(*s);
+        }
+    }
+    *v.number_at_mut(&format!("sections[{i}].length"))? += delta;
+    *v.number_at_mut("length")? += delta;
+    Ok(())
+}
+
+/// Refuse a parameter the discrete equations are not differentiable in: a
+/// located input's arc length (it sits on a node and moves between them),
+/// and the rod's length when the sections' lengths make it.
+fn differentiable(name: &str, scene: &Scene) -> Result<()> {
+    let located = ["point_loads[", "guides[", "tendons["]
+        .iter()
+        .any(|prefix| name.starts_with(prefix))
+        && (name.ends_with("].s") || name.ends_with("].end"));
+    if located {
+        return Err(Error::argument(
+            name,
+            "an arc length on the rod: the input sits on a node of the discrete rod, \
+             and its equations are not differentiable in where it sits",
+        ));
+    }
+    if name == "length" && !scene.section_lengths().is_empty() {
+        return Err(Error::argument(
+            name,
+            "the sections' lengths make the rod's: take sections[i].length",
+        ));
+    }
+    Ok(())
+}
+
 impl Solver {
     /// Sensitivity of the last solve's equilibrium to numeric fields of the
     /// scene, named by their path in the scene's dict (`"tip_force[0]"`,
@@ -200,7 +283,8 @@ impl Solver {
                 other => names.push(other.to_string()),
             }
             for name in &names[first..] {
-                let value = base.clone().number_at_mut(name).map(|x| *x);
+                let value = differentiable(name, &self.scene)
+                    .and_then(|()| base.clone().number_at_mut(name).map(|x| *x));
                 values.push(value.map_err(|e| e.of_parameter(i, p))?);
             }
         }
@@ -222,7 +306,12 @@ impl Solver {
                 return Ok(moved);
             }
             let mut v = base.clone();
-            *v.number_at_mut(&names[j])? += delta;
+            if section_index(&names[j]).is_none() {
+                *v.number_at_mut(&names[j])? += delta;
+            }
+            if let Some(i) = section_index(&names[j]) {
+                stretch_section(&mut v, &scene, i, delta)?;
+            }
             Scene::from_value(&v)
         })
     }
@@ -230,9 +319,11 @@ impl Solver {
     /// Sensitivity of the last solve's equilibrium to parameters given by
     /// the scene they make: `scene_at(j, delta)` is the scene with parameter
     /// `j` (now `values[j]`) moved by `delta`. `dF/dp` comes from central
-    /// differences of the discrete equations at the fixed equilibrium (exact
-    /// for the parameters the equations are linear in: loads, stiffness, rest
-    /// curvature); one O(n) solve with the factored Jacobian a column.
+    /// differences of the discrete equations at the fixed equilibrium, with
+    /// the step that moves them by [`PARAMETER_RESPONSE`] of their own scale
+    /// whatever the parameter's units (exact for the parameters the
+    /// equations are linear in: loads, stiffness, rest curvature); one O(n)
+    /// solve with the factored Jacobian a column.
     pub fn sensitivity_with(
         &mut self,
         parameters: Vec<String>,
@@ -302,20 +393,65 @@ impl Solver {
             Ok(RodModel::new(&scene, n).with_scheme(scheme))
         };
         for (j, &value) in values.iter().enumerate() {
-            // dF/dp at the fixed state (rotations and reactions).
-            let step = 1e-6 * value.abs().max(1e-3);
-            let (plus, minus) = (model_at(j, step)?, model_at(j, -step)?);
-            evaluate_at(&plus, &q0, &r0, &mut g_plus, &mut scratch);
-            evaluate_at(&minus, &q0, &r0, &mut g_minus, &mut scratch);
-            for (g, (a, b)) in w.g.iter_mut().zip(g_plus.iter().zip(&g_minus)) {
-                *g = (a - b) / (2.0 * step);
-            }
-            if held {
-                plus.constraint_residual(&q0, 1.0, &mut positions, &mut h_plus);
-                minus.constraint_residual(&q0, 1.0, &mut positions, &mut h_minus);
-                for (h, (a, b)) in w.kkt.h.iter_mut().zip(h_plus.iter().zip(&h_minus)) {
-                    *h = (a - b) / (2.0 * step);
+            // dF/dp at the fixed state (rotations and reactions), by central
+            // differences with the step that moves the equations by
+            // PARAMETER_RESPONSE of their own scale: the same in any units.
+            // A first guess in the parameter's units, then rescaled (once
+            // for the equations linear in the parameter, most of them).
+            let mut step = if value == 0.0 {
+                1e-6
+            } else {
+                1e-6 * value.abs()
+            };
+            let mut models = None;
+            let mut refusal = None;
+            for _ in 0..STEP_TRIES {
+                let (plus, minus) = match (model_at(j, step), model_at(j, -step)) {
+                    (Ok(plus), Ok(minus)) => (plus, minus),
+                    // A grown step the scene refuses: the last one serves.
+                    (Err(_), _) | (_, Err(_)) if models.is_some() => break,
+                    // A first guess it refuses (a parameter at zero that
+                    // may not be negative, a load beyond any rod's): smaller.
+                    (Err(e), _) | (_, Err(e)) => {
+                        refusal = Some(e);
+                        step *= 1e-6;
+                        continue;
+                    }
+                };
+                evaluate_at(&plus, &q0, &r0, &mut g_plus, &mut scratch);
+                evaluate_at(&minus, &q0, &r0, &mut g_minus, &mut scratch);
+                for (g, (a, b)) in w.g.iter_mut().zip(g_plus.iter().zip(&g_minus)) {
+                    *g = 0.5 * (a - b);
                 }
+                let mut response = model.residual_norm(&w.g);
+                if held {
+                    plus.constraint_residual(&q0, 1.0, &mut positions, &mut h_plus);
+                    minus.constraint_residual(&q0, 1.0, &mut positions, &mut h_minus);
+                    for (h, (a, b)) in w.kkt.h.iter_mut().zip(h_plus.iter().zip(&h_minus)) {
+                        *h = 0.5 * (a - b);
+                    }
+                    let moved = w.kkt.h.iter().map(|h| h.amax()).fold(0.0, f64::max);
+                    response = response.max(moved / model.length);
+                }
+                models = Some((plus, minus, step));
+                let factor = if !response.is_finite() {
+                    1e-3
+                } else if response > 0.0 {
+                    (PARAMETER_RESPONSE / response).min(MAX_STEP_GROWTH)
+                } else {
+                    MAX_STEP_GROWTH
+                };
+                if (0.25..=4.0).contains(&factor) {
+                    break;
+                }
+                step *= factor;
+            }
+            let Some((plus, minus, step)) = models else {
+                return Err(refusal.expect("an attempt without models was refused"));
+            };
+            w.g.iter_mut().for_each(|g| *g /= step);
+            if held {
+                w.kkt.h.iter_mut().for_each(|h| *h /= step);
                 if clamped {
                     w.g[n - 1] = Vector3::zeros();
                 }

@@ -1341,6 +1341,21 @@ impl RodModel {
         }
     }
 
+    /// The internal nodes of the fourth-order scheme's elements at `q` (as
+    /// [`RodModel::positions`] draws them); empty for the second-order one.
+    pub fn internal_nodes(&self, q: &[Quat]) -> Vec<Quat> {
+        if self.scheme != Scheme::Fe4 {
+            return Vec::new();
+        }
+        let mut mids = self.mids.lock();
+        (1..=self.n)
+            .map(|i| {
+                let el = self.fe4_element(i, 1.0, &[]);
+                fe4::mid_for(&mut mids, i, q[i - 1], q[i], &el)
+            })
+            .collect()
+    }
+
     /// Total potential `Pi` (elastic energy minus the work of the dead forces) [J].
     /// A dead tip moment has no potential in 3D and is not included.
     pub fn energy(&self, q: &[Quat]) -> f64 {

@@ -88,6 +88,12 @@ class Solution:
     def positions(self) -> _Array: ...
     @property
     def quaternions(self) -> _Array: ...
+    def positions_at(self, s: npt.ArrayLike) -> _Array:
+        """Positions at the arc lengths ``s`` (any array in ``[0, L]``), shape
+        ``s.shape + (3,)``: between the nodes at the scheme's order."""
+    def rotations_at(self, s: npt.ArrayLike) -> _Array:
+        """Unit quaternions at the arc lengths ``s``, shape ``s.shape + (4,)``:
+        the scheme's interpolant between the nodes, normalised."""
     @property
     def rotation_matrices(self) -> _Array: ...
     @property

@@ -506,6 +506,15 @@ impl<'py> Fields<'py> {
         }
     }
 
+    /// Rows of a key that the dicts of earlier versions lack: empty when
+    /// absent or None.
+    pub(super) fn rows_or_empty<const N: usize>(&self, key: &str) -> PyResult<Vec<[f64; N]>> {
+        match self.dict.get_item(key)? {
+            Some(v) if !v.is_none() => rows_of::<N>(&self.name(key), &v),
+            _ => Ok(Vec::new()),
+        }
+    }
+
     pub(super) fn optional_vector(&self, key: &str) -> PyResult<Option<Vector3<f64>>> {
         given(Some(&self.get(key)?))
             .map(|v| vector_of(&self.name(key), &v))
@@ -674,6 +683,28 @@ fn float_array<'py>(
         })?;
     let shape: Vec<usize> = array.getattr("shape")?.extract()?;
     Ok((array, shape))
+}
+
+/// Arc lengths `s`: any array-like of numbers (a scalar too), flattened,
+/// and its shape (the core checks the values and names the entry).
+pub(super) fn stations_arg(obj: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<usize>)> {
+    let (array, shape) = float_array("s", obj)?;
+    let flat = array.call_method0("ravel")?;
+    let values = flat.extract::<PyReadonlyArray1<f64>>()?.as_array().to_vec();
+    Ok((values, shape))
+}
+
+/// `data` (rows of `width` numbers, one a station) as an array of shape
+/// `shape + (width,)`.
+pub(super) fn shaped<'py>(
+    py: Python<'py>,
+    data: Vec<f64>,
+    mut shape: Vec<usize>,
+    width: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    shape.push(width);
+    let shape = pyo3::types::PyTuple::new(py, shape)?;
+    data.into_pyarray(py).call_method1("reshape", (shape,))
 }
 
 /// A batch of samples, each `per` rows of `N` numbers: an array-like of

@@ -52,6 +52,42 @@ impl PySolution {
     fn quaternions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows4(py, &self.inner.quaternions)
     }
+    /// Positions at the arc lengths ``s`` (any array of them in ``[0, L]``),
+    /// shape ``s.shape + (3,)``, m: between the nodes at the scheme's order
+    /// (the tangent integrated along each element as the scheme integrates
+    /// it to the next node; a node's arc length gives the node).
+    fn positions_at<'py>(
+        &self,
+        py: Python<'py>,
+        s: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (stations, shape) = stations_arg(s)?;
+        let out = self.inner.positions_at(&stations)?;
+        shaped(
+            py,
+            out.iter().flat_map(|v| v.iter().copied()).collect(),
+            shape,
+            3,
+        )
+    }
+    /// Rotations at the arc lengths ``s`` as unit quaternions ``[w, x, y,
+    /// z]``, shape ``s.shape + (4,)``: the scheme's interpolant between the
+    /// nodes (linear for ``fd2``, quadratic through the internal node for
+    /// ``fe4``), normalised.
+    fn rotations_at<'py>(
+        &self,
+        py: Python<'py>,
+        s: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (stations, shape) = stations_arg(s)?;
+        let out = self.inner.rotations_at(&stations)?;
+        shaped(
+            py,
+            out.iter().flat_map(|q| q.to_array()).collect(),
+            shape,
+            4,
+        )
+    }
     /// Node rotation matrices (material frame to world frame; column 3 is the
     /// tangent), shape (n+1, 3, 3).
     #[getter]
@@ -191,6 +227,7 @@ impl PySolution {
         d.set_item("section_lengths", s.section_lengths.clone())?;
         d.set_item("positions", rows3(py, &s.positions))?;
         d.set_item("quaternions", rows4(py, &s.quaternions))?;
+        d.set_item("internal_quaternions", rows4(py, &s.internal_quaternions))?;
         d.set_item("forces", rows3(py, &s.forces))?;
         d.set_item("stiffness", vec3_array(py, &s.stiffness))?;
         d.set_item("section_stiffness", rows3(py, &s.section_stiffness))?;
@@ -241,6 +278,13 @@ impl PySolution {
             positions: d.vectors("positions")?,
             quaternions: d
                 .rows::<4>("quaternions")?
+                .into_iter()
+                .map(Quat::from_array)
+                .collect(),
+            // Absent from the dicts of earlier versions: no shape between
+            // the nodes of a fourth-order solution.
+            internal_quaternions: d
+                .rows_or_empty::<4>("internal_quaternions")?
                 .into_iter()
                 .map(Quat::from_array)
                 .collect(),
@@ -299,13 +343,14 @@ impl PySolution {
 }
 
 /// The keys of `Solution.to_dict()`.
-const SOLUTION_KEYS: [&str; 24] = [
+const SOLUTION_KEYS: [&str; 25] = [
     "n_elements",
     "scheme",
     "length",
     "section_lengths",
     "positions",
     "quaternions",
+    "internal_quaternions",
     "forces",
     "stiffness",
     "section_stiffness",

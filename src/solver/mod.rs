@@ -496,6 +496,7 @@ impl Solver {
             section_lengths: self.scene.section_lengths(),
             quaternions: w.q.clone(),
             positions,
+            internal_quaternions: model.internal_nodes(&w.q),
             forces: model.node_forces(reactions),
             stiffness: model.stiffness,
             rest_curvature: self.scene.rest_curvature.clone(),

@@ -69,6 +69,7 @@ impl Solver {
             section_lengths: Vec::new(),
             quaternions: out.quaternions.clone(),
             positions: out.positions,
+            internal_quaternions: Vec::new(),
             forces: out.forces.clone(),
             stiffness: model.stiffness,
             section_stiffness: Vec::new(),

@@ -588,6 +588,7 @@ impl Solver {
             section_lengths: Vec::new(),
             quaternions: w.q.clone(),
             positions,
+            internal_quaternions: Vec::new(),
             forces: model.node_forces(&reactions),
             stiffness: model.stiffness,
             section_stiffness: Vec::new(),

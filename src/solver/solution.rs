@@ -4,7 +4,7 @@
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::model::{section_of, RodModel};
-use crate::quat::Quat;
+use crate::quat::{tangent_bilinear, Quat};
 use nalgebra::{Matrix3, Vector3};
 
 pub use crate::status::Status;
@@ -42,6 +42,10 @@ pub struct Solution {
     pub quaternions: Vec<Quat>,
     /// Node positions `r_0..r_n` [m], `r_0` the scene's base position.
     pub positions: Vec<Vector3<f64>>,
+    /// The fourth-order scheme's internal nodes, one an element at its
+    /// middle (empty for the other schemes): with the nodes, the shape
+    /// between them ([`Solution::positions_at`]).
+    pub internal_quaternions: Vec<Quat>,
     /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
     pub forces: Vec<Vector3<f64>>,
     /// Stiffness `(kx, ky, kz)` [N m^2] and rest curvature `[kappa_x, kappa_y]`
@@ -87,7 +91,120 @@ pub struct Solution {
     pub solve_time: f64,
 }
 
+/// `sum_k w_k q_k` (not normalised).
+fn blend(terms: &[(f64, Quat)]) -> Quat {
+    terms
+        .iter()
+        .fold(Quat::new(0.0, 0.0, 0.0, 0.0), |sum, &(w, q)| Quat {
+            w: sum.w + w * q.w,
+            v: sum.v + w * q.v,
+        })
+}
+
+/// Where an arc length falls: its element (from 1) and the fraction `tau`
+/// of the element's length from its start.
+fn element_at(arcs: &[f64], s: f64) -> (usize, f64) {
+    let n = arcs.len() - 1;
+    let i = arcs.partition_point(|&a| a <= s).clamp(1, n);
+    let h = arcs[i] - arcs[i - 1];
+    (i, ((s - arcs[i - 1]) / h).clamp(0.0, 1.0))
+}
+
 impl Solution {
+    /// Refuse arc lengths outside `[0, L]` (or not finite), naming them.
+    fn check_stations(&self, s: &[f64]) -> Result<()> {
+        if let Some((j, x)) = s
+            .iter()
+            .enumerate()
+            .find(|(_, x)| !(x.is_finite() && (0.0..=self.length).contains(*x)))
+        {
+            return Err(Error::argument(
+                format!("s[{j}]"),
+                format!("must lie in [0, L] = [0, {}], got {x}", self.length),
+            ));
+        }
+        if self.scheme == "fe4" && self.internal_quaternions.len() != self.n_elements {
+            return Err(Error::argument(
+                "s",
+                "a fourth-order solution without its internal_quaternions has no shape \
+                 between its nodes",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The rotation at fraction `tau` of element `i`: the scheme's own
+    /// interpolant of the quaternions, normalised (linear between the nodes;
+    /// quadratic through the internal node of the fourth-order scheme).
+    fn rotation_in(&self, i: usize, tau: f64) -> Quat {
+        let (a, b) = (self.quaternions[i - 1], self.quaternions[i]);
+        let q = match self.internal_quaternions.get(i - 1) {
+            Some(&m) => {
+                let (wa, wm, wb) = (
+                    2.0 * (tau - 0.5) * (tau - 1.0),
+                    -4.0 * tau * (tau - 1.0),
+                    2.0 * tau * (tau - 0.5),
+                );
+                blend(&[(wa, a), (wm, m), (wb, b)])
+            }
+            None => blend(&[(1.0 - tau, a), (tau, b)]),
+        };
+        q.normalized()
+    }
+
+    /// Positions at the arc lengths `s` [m] (each in `[0, L]`), at the
+    /// scheme's order between the nodes: the tangent integrated along the
+    /// element as the scheme integrates it to the next node (the exact
+    /// integral of the linear interpolant's tangent for `fd2`; for `fe4` the
+    /// quadratic through the tangents at the ends and the internal node,
+    /// whose integral is the scheme's Simpson rule). Node arc lengths give
+    /// the nodes; any other method's nodes (shooting's) are met too, the
+    /// element's chord mismatch spread along it.
+    pub fn positions_at(&self, s: &[f64]) -> Result<Vec<Vector3<f64>>> {
+        self.check_stations(s)?;
+        let arcs = self.mesh().arcs().to_vec();
+        Ok(s.iter()
+            .map(|&x| {
+                let (i, tau) = element_at(&arcs, x);
+                let h = arcs[i] - arcs[i - 1];
+                let (a, b) = (self.quaternions[i - 1], self.quaternions[i]);
+                let along = |t: f64| -> Vector3<f64> {
+                    match self.internal_quaternions.get(i - 1) {
+                        // The integrals of the Lagrange basis on {0, 1/2, 1}.
+                        Some(m) => {
+                            let (t2, t3) = (t * t, t * t * t);
+                            a.tangent() * (2.0 / 3.0 * t3 - 1.5 * t2 + t)
+                                + m.tangent() * (-4.0 / 3.0 * t3 + 2.0 * t2)
+                                + b.tangent() * (2.0 / 3.0 * t3 - 0.5 * t2)
+                        }
+                        // T((1 - t) a + t b) is quadratic in t: (1 - t)^2 T(a)
+                        // + 2 t (1 - t) T(a, b) + t^2 T(b).
+                        None => {
+                            let u = 1.0 - t;
+                            a.tangent() * ((1.0 - u * u * u) / 3.0)
+                                + tangent_bilinear(a, b) * (t * t - 2.0 / 3.0 * t * t * t)
+                                + b.tangent() * (t * t * t / 3.0)
+                        }
+                    }
+                };
+                let chord = self.positions[i] - self.positions[i - 1];
+                self.positions[i - 1] + h * along(tau) + tau * (chord - h * along(1.0))
+            })
+            .collect())
+    }
+
+    /// Rotations (unit quaternions, scalar first) at the arc lengths `s`
+    /// [m] (each in `[0, L]`): the scheme's interpolant between the nodes.
+    pub fn rotations_at(&self, s: &[f64]) -> Result<Vec<Quat>> {
+        self.check_stations(s)?;
+        let arcs = self.mesh().arcs().to_vec();
+        Ok(s.iter()
+            .map(|&x| {
+                let (i, tau) = element_at(&arcs, x);
+                self.rotation_in(i, tau)
+            })
+            .collect())
+    }
     pub fn converged(&self) -> bool {
         self.status == Status::Converged
     }
@@ -204,6 +321,13 @@ impl Solution {
                 ));
             }
         }
+        let internal = self.internal_quaternions.len();
+        if internal != 0 && internal != n {
+            return Err(Error::argument(
+                "solution.internal_quaternions",
+                format!("has {internal} rows, n_elements = {n} needs {n} (or none)"),
+            ));
+        }
         let lengths = self.section_lengths.len();
         let total: f64 = self.section_lengths.iter().sum();
         let positive = self
@@ -297,16 +421,21 @@ impl Solution {
                 ));
             }
         }
-        if let Some((i, q)) = self.quaternions.iter().enumerate().find(|(_, q)| {
-            !q.to_array().iter().all(|x| x.is_finite()) || (q.norm() - 1.0).abs() > 1e-9
-        }) {
-            return Err(Error::argument(
-                format!("solution.quaternions[{i}]"),
-                format!(
-                    "a converged solution has unit quaternions, got norm {}",
-                    q.norm()
-                ),
-            ));
+        for (name, quaternions) in [
+            ("quaternions", &self.quaternions),
+            ("internal_quaternions", &self.internal_quaternions),
+        ] {
+            if let Some((i, q)) = quaternions.iter().enumerate().find(|(_, q)| {
+                !q.to_array().iter().all(|x| x.is_finite()) || (q.norm() - 1.0).abs() > 1e-9
+            }) {
+                return Err(Error::argument(
+                    format!("solution.{name}[{i}]"),
+                    format!(
+                        "a converged solution has unit quaternions, got norm {}",
+                        q.norm()
+                    ),
+                ));
+            }
         }
         Ok(())
     }

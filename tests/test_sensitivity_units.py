@@ -13,6 +13,7 @@ import re
 
 import numpy as np
 import pytest
+from test_sensitivity import tip_pose
 
 import softspine
 
@@ -120,20 +121,6 @@ def moved(scene, path, delta):
         if path == "sections[0].length":
             out["point_loads"][0]["s"] += delta
     return out
-
-
-def tip_pose(sol, reference):
-    """Tip position and the world-frame turn from `reference` (rotation vector)."""
-    w, x, y, z = sol.tip_quaternion
-    rw, rx, ry, rz = reference
-    turn = np.array([
-        w * rw + x * rx + y * ry + z * rz,
-        -w * rx + x * rw - y * rz + z * ry,
-        -w * ry + x * rz + y * rw - z * rx,
-        -w * rz - x * ry + y * rx + z * rw,
-    ])
-    turn *= np.sign(turn[0])
-    return np.concatenate([sol.tip_position, 2 * turn[1:]])
 
 
 def test_the_issues_rod_gives_one_dimensionless_answer_in_three_unit_systems():

@@ -868,6 +868,18 @@ impl Scene {
         Ok(())
     }
 
+    /// The inputs that sit at an arc length on the rod (each on a node of
+    /// the mesh), by their key: point loads, tendon anchors, guides.
+    pub(crate) fn located_inputs(&self) -> Vec<(String, f64)> {
+        let loads = self.point_loads.iter().enumerate();
+        let loads = loads.map(|(i, p)| (format!("point_loads[{i}].s"), p.s));
+        let anchors = self.tendons.iter().enumerate();
+        let anchors = anchors.map(|(i, t)| (format!("tendons[{i}].end"), t.end));
+        let guides = self.guides.iter().enumerate();
+        let guides = guides.map(|(i, g)| (format!("guides[{i}].s"), g.s));
+        loads.chain(anchors).chain(guides).collect()
+    }
+
     /// The element counts this scene can be solved with: every multiple of
     /// the count returned is a multiple of the sections and of the
     /// magnetised sections that puts every point load, tendon anchor and
@@ -877,24 +889,7 @@ impl Scene {
         let lengths = self.section_lengths();
         let m = self.sections();
         let mut multiple = crate::mesh::lcm(m, self.magnetization.len().max(1));
-        let located = self
-            .point_loads
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (format!("point_loads[{i}].s"), p.s))
-            .chain(
-                self.tendons
-                    .iter()
-                    .enumerate()
-                    .map(|(i, t)| (format!("tendons[{i}].end"), t.end)),
-            )
-            .chain(
-                self.guides
-                    .iter()
-                    .enumerate()
-                    .map(|(i, g)| (format!("guides[{i}].s"), g.s)),
-            );
-        for (key, s) in located {
+        for (key, s) in self.located_inputs() {
             let counts = crate::mesh::counts_with_node(self.length, &lengths, m, s, limit);
             multiple = counts
                 .map(|c| crate::mesh::lcm(multiple, c))

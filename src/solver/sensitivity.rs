@@ -219,11 +219,7 @@ fn stretch_section(v: &mut crate::value::Value, scene: &Scene, i: usize, delta: 
             s + delta
         }
     };
-    let located = (0..scene.point_loads.len())
-        .map(|j| format!("point_loads[{j}].s"))
-        .chain((0..scene.tendons.len()).map(|j| format!("tendons[{j}].end")))
-        .chain((0..scene.guides.len()).map(|j| format!("guides[{j}].s")));
-    for key in located {
+    for (key, _) in scene.located_inputs() {
         if let Ok(s) = v.number_at_mut(&key) {
             *s = moved(*s);
         }
@@ -237,11 +233,7 @@ fn stretch_section(v: &mut crate::value::Value, scene: &Scene, i: usize, delta: 
 /// located input's arc length (it sits on a node and moves between them),
 /// and the rod's length when the sections' lengths make it.
 fn differentiable(name: &str, scene: &Scene) -> Result<()> {
-    let located = ["point_loads[", "guides[", "tendons["]
-        .iter()
-        .any(|prefix| name.starts_with(prefix))
-        && (name.ends_with("].s") || name.ends_with("].end"));
-    if located {
+    if scene.located_inputs().iter().any(|(key, _)| key == name) {
         return Err(Error::argument(
             name,
             "an arc length on the rod: the input sits on a node of the discrete rod, \

@@ -162,10 +162,11 @@ impl Solution {
     /// element's chord mismatch spread along it.
     pub fn positions_at(&self, s: &[f64]) -> Result<Vec<Vector3<f64>>> {
         self.check_stations(s)?;
-        let arcs = self.mesh().arcs().to_vec();
+        let mesh = self.mesh();
+        let arcs = mesh.arcs();
         Ok(s.iter()
             .map(|&x| {
-                let (i, tau) = element_at(&arcs, x);
+                let (i, tau) = element_at(arcs, x);
                 let h = arcs[i] - arcs[i - 1];
                 let (a, b) = (self.quaternions[i - 1], self.quaternions[i]);
                 let along = |t: f64| -> Vector3<f64> {
@@ -197,10 +198,11 @@ impl Solution {
     /// [m] (each in `[0, L]`): the scheme's interpolant between the nodes.
     pub fn rotations_at(&self, s: &[f64]) -> Result<Vec<Quat>> {
         self.check_stations(s)?;
-        let arcs = self.mesh().arcs().to_vec();
+        let mesh = self.mesh();
+        let arcs = mesh.arcs();
         Ok(s.iter()
             .map(|&x| {
-                let (i, tau) = element_at(&arcs, x);
+                let (i, tau) = element_at(arcs, x);
                 self.rotation_in(i, tau)
             })
             .collect())

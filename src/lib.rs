@@ -30,8 +30,8 @@
 
 pub mod batch;
 pub mod blocktri;
+pub mod disc;
 pub mod error;
-mod fe4;
 pub mod interrupt;
 pub mod mesh;
 pub mod model;
@@ -42,7 +42,7 @@ pub mod robot;
 pub mod scene;
 pub mod solver;
 pub mod status;
-mod tendon;
+pub mod terms;
 pub mod value;
 
 #[cfg(feature = "python")]

@@ -79,13 +79,16 @@ pub enum TipCondition {
     },
 }
 
-/// A dead force applied at a node (a disk's weight, a hung mass).
-#[derive(Debug, Clone, PartialEq)]
+/// A dead force and moment applied at a node (a disk's weight, a hung
+/// mass, a wrench at a point).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct PointLoad {
     /// Arc length [m], in `(0, L]`; must fall on a node.
     pub s: f64,
     /// World frame [N].
     pub force: Vector3<f64>,
+    /// World frame [N m] (a dead moment: its direction does not turn with the rod).
+    pub moment: Vector3<f64>,
 }
 
 /// A frictionless tendon: pulled at the base with a constant tension, routed
@@ -234,6 +237,8 @@ pub struct SectionProperties {
     pub stiffness: Option<Stiffness>,
     /// Mass per length [kg/m] (weighs under the scene's gravity).
     pub linear_density: Option<f64>,
+    /// Dead moment per length, world frame [N m / m], in place of the rod's.
+    pub distributed_moment: Option<Vector3<f64>>,
 }
 
 /// A point of the backbone held at a position (a port or a ring the robot
@@ -260,6 +265,9 @@ pub struct Scene {
     pub sections: Vec<SectionProperties>,
     /// Distributed dead force [N/m], world frame, in addition to gravity.
     pub distributed_force: Vector3<f64>,
+    /// Distributed dead moment [N m / m], world frame (a section's own
+    /// replaces it there).
+    pub distributed_moment: Vector3<f64>,
     pub gravity: Option<Gravity>,
     pub tip_force: Vector3<f64>,
     pub tip_moment: Vector3<f64>,
@@ -298,6 +306,7 @@ impl Scene {
             rest_curvature: Vec::new(),
             sections: Vec::new(),
             distributed_force: Vector3::zeros(),
+            distributed_moment: Vector3::zeros(),
             gravity: None,
             tip_force: Vector3::zeros(),
             tip_moment: Vector3::zeros(),
@@ -340,6 +349,20 @@ impl Scene {
         }
     }
 
+    /// Section `s`'s own distributed moment [N m / m], if it gives one.
+    pub fn section_moment(&self, s: usize) -> Option<Vector3<f64>> {
+        self.sections.get(s).and_then(|p| p.distributed_moment)
+    }
+
+    /// Whether a distributed moment acts anywhere.
+    pub fn has_distributed_moment(&self) -> bool {
+        self.distributed_moment != Vector3::zeros()
+            || (0..self.sections.len()).any(|s| {
+                self.section_moment(s)
+                    .is_some_and(|m| m != Vector3::zeros())
+            })
+    }
+
     /// Total distributed force, gravity included [N/m].
     pub fn distributed_force(&self) -> Vector3<f64> {
         let g = self
@@ -371,6 +394,14 @@ impl Scene {
             (
                 self.tip_force_offset != Vector3::zeros(),
                 "a tip force off the tip (tip_force_offset)",
+            ),
+            (
+                self.has_distributed_moment()
+                    || self
+                        .point_loads
+                        .iter()
+                        .any(|p| p.moment != Vector3::zeros()),
+                "point or distributed moments",
             ),
         ]
         .into_iter()
@@ -412,6 +443,7 @@ impl Scene {
             "rest_curvature",
             "sections",
             "distributed_force",
+            "distributed_moment",
             "gravity",
             "tip_force",
             "tip_moment",
@@ -516,6 +548,7 @@ impl Scene {
             rest_curvature,
             sections,
             distributed_force: vec3_or_zero("distributed_force")?,
+            distributed_moment: vec3_or_zero("distributed_moment")?,
             gravity,
             tip_force: vec3_or_zero("tip_force")?,
             tip_moment: vec3_or_zero("tip_moment")?,
@@ -632,7 +665,18 @@ impl Scene {
         for (i, p) in self.point_loads.iter().enumerate() {
             let value = p.force.norm() * l / k_min * l;
             out.push((format!("point_loads[{i}].force"), "|F| L^2 / k", value));
+            let value = p.moment.norm() * l / k_min;
+            out.push((format!("point_loads[{i}].moment"), "|M| L / k", value));
         }
+        let m = (0..self.sections.len())
+            .filter_map(|s| self.section_moment(s))
+            .map(|m| m.norm())
+            .fold(self.distributed_moment.norm(), f64::max);
+        out.push((
+            "distributed_moment".into(),
+            "|m| L^2 / k",
+            m * l / k_min * l,
+        ));
         out.extend(self.field_load_parameters(self.magnetic_field));
         let tensions: Vec<f64> = self.tendons.iter().map(|t| t.tension).collect();
         out.extend(self.tension_load_parameters(&tensions));
@@ -732,11 +776,12 @@ impl Scene {
                 .sections
                 .iter()
                 .map(|p| {
-                    Value::Map(section_entries(
-                        p.length,
-                        p.stiffness.as_ref(),
-                        p.linear_density,
-                    ))
+                    let mut entries =
+                        section_entries(p.length, p.stiffness.as_ref(), p.linear_density);
+                    if let Some(moment) = &p.distributed_moment {
+                        entries.push(("distributed_moment".into(), v3(moment)));
+                    }
+                    Value::Map(entries)
                 })
                 .collect();
             m.push(("sections".into(), Value::List(sections)));
@@ -750,6 +795,9 @@ impl Scene {
             m.push(("rest_curvature".into(), Value::List(rc)));
         }
         m.push(("distributed_force".into(), v3(&self.distributed_force)));
+        if self.distributed_moment != Vector3::zeros() {
+            m.push(("distributed_moment".into(), v3(&self.distributed_moment)));
+        }
         if let Some(g) = &self.gravity {
             m.push((
                 "gravity".into(),
@@ -835,7 +883,13 @@ impl Scene {
             let p = self
                 .point_loads
                 .iter()
-                .map(|p| Value::Map(vec![("s".into(), num(p.s)), ("force".into(), v3(&p.force))]))
+                .map(|p| {
+                    let mut entries = vec![("s".into(), num(p.s)), ("force".into(), v3(&p.force))];
+                    if p.moment != Vector3::zeros() {
+                        entries.push(("moment".into(), v3(&p.moment)));
+                    }
+                    Value::Map(entries)
+                })
                 .collect();
             m.push(("point_loads".into(), Value::List(p)));
         }
@@ -1288,7 +1342,12 @@ fn rod_length(key: Option<&Value>, sections: &[SectionProperties]) -> Result<f64
 /// Per-section properties: a list of `{length, stiffness, linear_density}`
 /// tables (each key optional; a density weighs only under the scene's gravity).
 fn section_properties(v: &Value, has_gravity: bool) -> Result<Vec<SectionProperties>> {
-    let allowed = ["length", "stiffness", "linear_density"];
+    let allowed = [
+        "length",
+        "stiffness",
+        "linear_density",
+        "distributed_moment",
+    ];
     table_list(v, "sections", &allowed, ", one a section", |t| {
         let length = t
             .get("length")
@@ -1317,10 +1376,15 @@ fn section_properties(v: &Value, has_gravity: bool) -> Result<Vec<SectionPropert
                 Some(d)
             }
         };
+        let distributed_moment = t
+            .get("distributed_moment")
+            .map(|m| vec3(m, &t.key("distributed_moment")))
+            .transpose()?;
         Ok(SectionProperties {
             length,
             stiffness,
             linear_density,
+            distributed_moment,
         })
     })
 }
@@ -1472,11 +1536,25 @@ fn located_vectors(v: &Value, key: &str, vector_key: &str) -> Result<Vec<(f64, V
         .collect()
 }
 
+/// Point loads: each a force, a moment or both at an arc length.
 fn point_loads(v: &Value) -> Result<Vec<PointLoad>> {
-    Ok(located_vectors(v, "point_loads", "force")?
-        .into_iter()
-        .map(|(s, force)| PointLoad { s, force })
-        .collect())
+    table_list(v, "point_loads", &["s", "force", "moment"], "", |t| {
+        let vector = |key: &str| {
+            t.get(key)
+                .map_or(Ok(Vector3::zeros()), |x| vec3(x, &t.key(key)))
+        };
+        if t.get("force").is_none() && t.get("moment").is_none() {
+            return Err(Error::scene(
+                t.path(),
+                "give a force, a moment or both (world frame)",
+            ));
+        }
+        Ok(PointLoad {
+            s: finite(t.require("s")?, &t.key("s"))?,
+            force: vector("force")?,
+            moment: vector("moment")?,
+        })
+    })
 }
 
 /// Tendons; a tendon routed section by section (`section_starts`, the base's

@@ -262,6 +262,39 @@ impl Value {
             other => Err(bad(format!("expected a number, got {}", other.kind()))),
         }
     }
+
+    /// Every number of the tree with its path, in the syntax
+    /// [`Value::number_at_mut`] reads (`"sections[1].stiffness.kx"`), in
+    /// the tree's order.
+    pub fn numbers(&self) -> Vec<(String, f64)> {
+        fn walk(v: &Value, path: &mut String, out: &mut Vec<(String, f64)>) {
+            let len = path.len();
+            match v {
+                Value::Number(x) => out.push((path.clone(), *x)),
+                Value::List(items) => {
+                    for (i, item) in items.iter().enumerate() {
+                        path.push_str(&format!("[{i}]"));
+                        walk(item, path, out);
+                        path.truncate(len);
+                    }
+                }
+                Value::Map(entries) => {
+                    for (key, item) in entries {
+                        if !path.is_empty() {
+                            path.push('.');
+                        }
+                        path.push_str(key);
+                        walk(item, path, out);
+                        path.truncate(len);
+                    }
+                }
+                _ => {}
+            }
+        }
+        let mut out = Vec::new();
+        walk(self, &mut String::new(), &mut out);
+        out
+    }
 }
 
 #[cfg(test)]

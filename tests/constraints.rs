@@ -87,14 +87,14 @@ fn position_jacobian_matches_central_differences() {
     let scene = loaded();
     let n = 6;
     let model = softspine::RodModel::new(&scene, n);
-    let mut q = vec![model.base; n + 1];
+    let mut q = vec![model.base(); n + 1];
     for j in 1..=n {
         q[j] = q[j - 1].perturbed(Vector3::new(0.2, -0.1 * j as f64, 0.05));
     }
     let mut d = vec![nalgebra::Matrix3::zeros(); n];
     let mut r = vec![Vector3::zeros(); n + 1];
     for k in [3, n] {
-        model.position_jacobian(&q, k, &mut d);
+        model.position_jacobian(&q, k, &softspine::disc::Interior::none(), &mut d);
         for j in 1..=n {
             for c in 0..3 {
                 let mut dq = Vector3::zeros();
@@ -102,9 +102,9 @@ fn position_jacobian_matches_central_differences() {
                 let (mut qp, mut qm) = (q.clone(), q.clone());
                 qp[j] = q[j].perturbed(dq);
                 qm[j] = q[j].perturbed(-dq);
-                model.positions(&qp, &mut r);
+                model.positions(&qp, &mut model.new_interior(), &mut r);
                 let rp = r[k];
-                model.positions(&qm, &mut r);
+                model.positions(&qm, &mut model.new_interior(), &mut r);
                 let fd = (rp - r[k]) / 2e-6;
                 assert!(
                     (fd - d[j - 1].column(c)).norm() < 1e-8,
@@ -157,7 +157,11 @@ fn lm_settings() -> Settings {
 fn a_guide_where_a_point_load_put_the_rod_carries_that_load() {
     let mut loaded_point = loaded();
     let q = Vector3::new(0.3, 0.5, -0.8);
-    loaded_point.point_loads = vec![softspine::PointLoad { s: 0.54, force: q }];
+    loaded_point.point_loads = vec![softspine::PointLoad {
+        s: 0.54,
+        force: q,
+        ..Default::default()
+    }];
     let sol = solve(&loaded_point, settings(20), None).unwrap();
     assert!(sol.converged());
     // Whole-rod balance: base force = tip force + distributed load + point load.
@@ -177,7 +181,11 @@ fn a_guide_where_a_point_load_put_the_rod_carries_that_load() {
     );
     // A point load at the tip node is a tip force.
     let mut at_tip = loaded();
-    at_tip.point_loads = vec![softspine::PointLoad { s: 0.9, force: q }];
+    at_tip.point_loads = vec![softspine::PointLoad {
+        s: 0.9,
+        force: q,
+        ..Default::default()
+    }];
     let mut as_tip_force = loaded();
     as_tip_force.tip_force += q;
     let (a, b) = (

@@ -16,7 +16,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import softspine
-from softspine import IkEnding, Status, _core
+from softspine import IkEnding, Scheme, Status, _core
 
 UNIT = {"kx": 1.0, "ky": 1.0, "kz": 1.0}
 
@@ -119,6 +119,7 @@ def test_status_is_the_exported_enum_that_equals_its_name():
 def test_the_enums_mirror_the_core():
     assert [s.value for s in Status] == list(_core._STATUS_NAMES)
     assert [e.value for e in IkEnding] == list(_core._IK_ENDING_NAMES)
+    assert [s.value for s in Scheme] == list(_core._SCHEME_NAMES)
 
 
 def test_reprs_use_python_booleans():

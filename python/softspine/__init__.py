@@ -40,7 +40,7 @@ from ._core import solve as _solve
 from .batch import BatchResult, IkBatchResult
 from .scenes import load_scene
 from .sensitivity import Calibration, Sensitivity
-from .status import IkEnding, Status
+from .status import IkEnding, Scheme, Status
 
 __all__ = [
     "Accuracy",
@@ -54,6 +54,7 @@ __all__ = [
     "PaperSettings",
     "Robot",
     "Scene",
+    "Scheme",
     "Sensitivity",
     "Settings",
     "Solution",

@@ -13,7 +13,7 @@ import numpy.typing as npt
 
 from .batch import BatchResult, IkBatchResult
 from .sensitivity import Calibration, Sensitivity
-from .status import IkEnding, Status
+from .status import IkEnding, Scheme, Status
 
 __version__: str
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "Solver",
     "SolverError",
     "_IK_ENDING_NAMES",
+    "_SCHEME_NAMES",
     "_STATUS_NAMES",
     "__version__",
     "calibrate",
@@ -40,6 +41,7 @@ __all__ = [
 ]
 _STATUS_NAMES: list[str]
 _IK_ENDING_NAMES: list[str]
+_SCHEME_NAMES: list[str]
 
 _Array: TypeAlias = npt.NDArray[np.float64]
 
@@ -79,7 +81,7 @@ class Solution:
     @property
     def n_elements(self) -> int: ...
     @property
-    def scheme(self) -> str: ...
+    def scheme(self) -> Scheme: ...
     @property
     def length(self) -> float: ...
     @property

@@ -1,6 +1,7 @@
-"""How a solve ended: ``Solution.status`` and ``IkResult.ending``.
+"""How a solve ended and what computed it: ``Solution.status``,
+``IkResult.ending`` and ``Solution.scheme``.
 
-Both are string enums: a member equals its name (``sol.status == "converged"``
+All are string enums: a member equals its name (``sol.status == "converged"``
 holds), prints as it, and the core (Rust) sets it. The members mirror the
 core's ``Status`` and ``IkEnding``; a test checks that they agree.
 """
@@ -42,6 +43,17 @@ class Status(_Name):
     """The state or the residual is not finite (an overflow)."""
     INDETERMINATE = "indeterminate"
     """Not attempted: a held point at full reach has no well-defined reaction."""
+
+
+class Scheme(_Name):
+    """How a solution's nodes were computed: its discretisation."""
+
+    FD2 = "fd2"
+    """The seed's finite differences, second order."""
+    FE4 = "fe4"
+    """Quadratic elements with condensed internal nodes, fourth order."""
+    RK4 = "rk4"
+    """Shooting's integrator (``method="shooting"``), fourth order."""
 
 
 class IkEnding(_Name):

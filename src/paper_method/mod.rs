@@ -211,10 +211,10 @@ impl PaperSystem {
             ));
         }
         let model = RodModel::new(scene, n);
-        let kmax = model.stiffness.max();
-        let l = model.length;
+        let kmax = model.stiffness().max();
+        let l = model.length();
         Ok(PaperSystem {
-            clamped: model.clamped_tip,
+            clamped: model.clamped_tip(),
             literal,
             distributed: scene.distributed_force(),
             tip_force: scene.tip_force,
@@ -226,7 +226,7 @@ impl PaperSystem {
     }
 
     fn n(&self) -> usize {
-        self.model.n
+        self.model.n()
     }
 
     fn unknowns(&self) -> usize {
@@ -239,7 +239,7 @@ impl PaperSystem {
 
     fn unpack(&self, x: &[f64]) -> (Vec<Quat>, Vec<Vector3<f64>>) {
         let n = self.n();
-        let mut q = vec![self.model.base; n + 1];
+        let mut q = vec![self.model.base(); n + 1];
         for (qj, c) in q[1..].iter_mut().zip(x[..4 * n].chunks(4)) {
             *qj = Quat::new(c[0], c[1], c[2], c[3]);
         }
@@ -268,7 +268,7 @@ impl PaperSystem {
         let n = self.n();
         let (q, f) = self.unpack(x);
         let m = &self.model;
-        let ds = m.ds;
+        let ds = m.ds();
         // Gradient of the discrete potential with respect to each raw quaternion.
         let mut grad = vec![Quat::new(0.0, 0.0, 0.0, 0.0); n + 1];
         let add = |g: &mut Quat, d: Quat| {
@@ -277,8 +277,8 @@ impl PaperSystem {
         };
         for i in 1..=n {
             let (a, b) = (q[i - 1], q[i]);
-            let e = (2.0 / ds) * (a.conj() * b).v - m.rest_curvature[i - 1];
-            let w = m.stiffness.component_mul(&e);
+            let e = (2.0 / ds) * (a.conj() * b).v - m.rod().loading.rest_curvature[i - 1];
+            let w = m.stiffness().component_mul(&e);
             let ga = a * Quat::pure(w); // G(a)^T w
             let gb = b * Quat::pure(w); // G(b)^T w
             add(&mut grad[i], scale(ga, 2.0));
@@ -301,13 +301,13 @@ impl PaperSystem {
         for j in 1..=last_torque_node {
             let mut t = 0.5 * (q[j].conj() * grad[j]).v;
             if j == n {
-                t -= q[n].normalized().inverse_rotate(m.tip_moment);
+                t -= q[n].normalized().inverse_rotate(m.tip_moment());
             }
             push(out, (t * self.torque_scale).as_slice());
         }
         // h2: force balance of every element, world frame.
         for i in 1..=n {
-            let r = ((f[i] - f[i - 1]) / ds + self.distributed) * (self.force_scale * m.length);
+            let r = ((f[i] - f[i - 1]) / ds + self.distributed) * (self.force_scale * m.length());
             push(out, r.as_slice());
         }
         // h3: the tip condition.
@@ -317,8 +317,8 @@ impl PaperSystem {
             }
             TipCondition::Pinned { position } | TipCondition::Clamped { position, .. } => {
                 let mut r = vec![Vector3::zeros(); n + 1];
-                m.positions(&q, &mut r);
-                push(out, ((r[n] - position) / m.length).as_slice());
+                m.positions(&q, &mut m.new_interior(), &mut r);
+                push(out, ((r[n] - position) / m.length()).as_slice());
             }
         }
         if let Some(target) = self.clamped {
@@ -361,16 +361,16 @@ impl PaperSystem {
     /// The straight rod with the statics of its forces: one particle of the swarm.
     fn straight_guess(&self) -> Vec<f64> {
         let m = &self.model;
-        let q = vec![m.base; m.n + 1];
-        let f: Vec<Vector3<f64>> = m.node_force.clone();
+        let q = vec![m.base(); m.n() + 1];
+        let f: Vec<Vector3<f64>> = m.rod().loading.node_force.clone();
         self.pack(&q, &f)
     }
 
     fn bounds(&self) -> (Vec<f64>, Vec<f64>) {
         let m = &self.model;
-        let load = self.tip_force.norm() + self.distributed.norm() * m.length;
-        let bound = 2.0 * load + 10.0 * m.stiffness.max() / (m.length * m.length);
-        let n = m.n;
+        let load = self.tip_force.norm() + self.distributed.norm() * m.length();
+        let bound = 2.0 * load + 10.0 * m.stiffness().max() / (m.length() * m.length());
+        let n = m.n();
         let mut lower = vec![-1.0; 4 * n];
         let mut upper = vec![1.0; 4 * n];
         lower.extend(std::iter::repeat_n(-bound, 3 * (n + 1)));
@@ -466,7 +466,9 @@ pub fn solve_paper(
     let residual_norm = max_abs(&scratch);
     let (q, forces) = system.unpack(&x);
     let mut positions = vec![Vector3::zeros(); n + 1];
-    system.model.positions(&q, &mut positions);
+    system
+        .model
+        .positions(&q, &mut system.model.new_interior(), &mut positions);
     let max_norm_deviation = q[1..]
         .iter()
         .map(|qj| (qj.norm() - 1.0).abs())

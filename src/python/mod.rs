@@ -65,6 +65,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         crate::Status::ALL.map(|s| s.name()).to_vec(),
     )?;
     m.add(
+        "_SCHEME_NAMES",
+        crate::disc::Scheme::ALL.map(|s| s.name()).to_vec(),
+    )?;
+    m.add(
         "_IK_ENDING_NAMES",
         crate::IkEnding::ALL.map(|e| e.name()).to_vec(),
     )?;

@@ -26,11 +26,11 @@ impl PySolution {
     fn n_elements(&self) -> usize {
         self.inner.n_elements
     }
-    /// How the nodes were computed: ``"fd2"`` or ``"fe4"`` (the scheme), or
-    /// ``"rk4"`` (shooting's integrator).
+    /// How the nodes were computed, a ``softspine.Scheme`` (a string enum:
+    /// ``"fd2"`` or ``"fe4"``, or ``"rk4"`` for shooting's integrator).
     #[getter]
-    fn scheme(&self) -> &'static str {
-        self.inner.scheme
+    fn scheme<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        status_member(py, "Scheme", self.inner.scheme.name())
     }
     /// Length of the rod, m.
     #[getter]
@@ -222,7 +222,7 @@ impl PySolution {
         let s = &self.inner;
         let d = PyDict::new(py);
         d.set_item("n_elements", s.n_elements)?;
-        d.set_item("scheme", s.scheme)?;
+        d.set_item("scheme", s.scheme.name())?;
         d.set_item("length", s.length)?;
         d.set_item("section_lengths", s.section_lengths.clone())?;
         d.set_item("positions", rows3(py, &s.positions))?;
@@ -259,15 +259,15 @@ impl PySolution {
             n_elements: int_arg("solution.n_elements", &d.get("n_elements")?)?,
             scheme: {
                 let name = str_arg("solution.scheme", &d.get("scheme")?)?;
-                Solution::SCHEMES
+                crate::disc::Scheme::ALL
                     .into_iter()
-                    .find(|s| *s == name)
+                    .find(|s| s.name() == name)
                     .ok_or_else(|| {
                         crate::error::Error::argument(
                             "solution.scheme",
                             format!(
                                 "unknown scheme '{name}' (expected one of {:?})",
-                                Solution::SCHEMES
+                                crate::disc::Scheme::ALL.map(|s| s.name())
                             ),
                         )
                     })?

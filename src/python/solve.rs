@@ -191,9 +191,9 @@ pub(super) fn residual<'py>(
     quaternions: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (model, mut q) = model_and_state(scene, quaternions)?;
-    q[0] = model.base;
-    let mut g = vec![Vector3::zeros(); model.n];
-    model.residual(&q, 1.0, &mut g);
+    q[0] = model.base();
+    let mut g = vec![Vector3::zeros(); model.n()];
+    model.residual(&q, 1.0, &mut model.new_interior(), &mut g);
     Ok(rows3(py, &g))
 }
 
@@ -206,11 +206,11 @@ pub(super) fn jacobian<'py>(
     quaternions: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (model, mut q) = model_and_state(scene, quaternions)?;
-    q[0] = model.base;
-    let n = model.n;
+    q[0] = model.base();
+    let n = model.n();
     let mut g = vec![Vector3::zeros(); n];
     let mut jac = BlockTridiagonal::zeros(n);
-    model.residual_jacobian(&q, 1.0, &mut g, &mut jac);
+    model.residual_jacobian(&q, 1.0, &mut model.new_interior(), &mut g, &mut jac);
     let mut dense = Array2::<f64>::zeros((3 * n, 3 * n));
     jac.for_each_entry(|r, c, v| dense[(r, c)] = v);
     Ok(dense.into_pyarray(py))

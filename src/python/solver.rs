@@ -279,7 +279,7 @@ impl PySolver {
     /// Elements of the discretisation.
     #[getter]
     fn n_elements(&self) -> PyResult<usize> {
-        Ok(self.held()?.solver.model().n)
+        Ok(self.held()?.solver.model().n())
     }
 
     /// The dead force at the tip, world frame, N.
@@ -293,7 +293,7 @@ impl PySolver {
         let held = self.held()?;
         Ok(format!(
             "Solver(n_elements={}, warm={})",
-            held.solver.model().n,
+            held.solver.model().n(),
             python_bool(held.last.is_some())
         ))
     }

@@ -3,9 +3,10 @@
 //! (or the tool's point) at the target, and optionally along a direction.
 //!
 //! Each iteration solves the forward statics (warm) and takes the tip's
-//! sensitivity to the actuation from the factored equilibrium Jacobian: in
-//! closed form for tensions with `fd2` ([`Solver::tension_sensitivity`], one
-//! back-substitution a tendon), else by [`Solver::sensitivity_with`]. Then:
+//! sensitivity to the actuation from the factored equilibrium Jacobian: for
+//! the tensions of a free tip from the tendons' analytic derivatives
+//! ([`Solver::tension_sensitivity`], one back-substitution a tendon), else by
+//! [`Solver::sensitivity_with`]. Then:
 //!
 //! * Far from the target (more than `POLISH_RADIUS` L): Levenberg-Marquardt
 //!   steps on the tip error inside the drives' limits (`0 <= t <= max_tension`,
@@ -266,36 +267,35 @@ impl ActuatedInverseSolver {
     /// Rows of the goal's error differentiated in the actuation, at the
     /// solver's (accepted) state; `None` at a bifurcation.
     fn jacobian(&mut self, goal: &Goal, sol: &Solution) -> Option<DMatrix<f64>> {
-        let (position, rotation) = if self.space == ActuationSpace::Tensions
-            && self.solver.model().scheme == crate::model::Scheme::Fd2
-        {
-            // Tensions enter the equations linearly: their columns in closed
-            // form, one back-substitution each.
-            let sens = self.solver.tension_sensitivity().ok()?;
-            (sens.position, sens.rotation)
-        } else {
-            let names = (0..self.x.len())
-                .map(|j| format!("actuation[{j}]"))
-                .collect();
-            let scene = self.solver.scene().clone();
-            let space = self.space;
-            let values: Vec<f64> = match space {
-                ActuationSpace::Tensions => scene.tendons.iter().map(|t| t.tension).collect(),
-                _ => scene.magnetic_field.iter().copied().collect(),
+        let (position, rotation) =
+            if self.space == ActuationSpace::Tensions && !self.solver.model().is_constrained() {
+                // Tensions enter the equations linearly: their columns in closed
+                // form, one back-substitution each.
+                let sens = self.solver.tension_sensitivity().ok()?;
+                (sens.position, sens.rotation)
+            } else {
+                let names = (0..self.x.len())
+                    .map(|j| format!("actuation[{j}]"))
+                    .collect();
+                let scene = self.solver.scene().clone();
+                let space = self.space;
+                let values: Vec<f64> = match space {
+                    ActuationSpace::Tensions => scene.tendons.iter().map(|t| t.tension).collect(),
+                    _ => scene.magnetic_field.iter().copied().collect(),
+                };
+                let sens = self
+                    .solver
+                    .sensitivity_with(names, &values, |j, delta| {
+                        let mut moved = scene.clone();
+                        match space {
+                            ActuationSpace::Tensions => moved.tendons[j].tension += delta,
+                            _ => moved.magnetic_field[j] += delta,
+                        }
+                        Ok(moved)
+                    })
+                    .ok()?;
+                (sens.tip_position, sens.tip_rotation)
             };
-            let sens = self
-                .solver
-                .sensitivity_with(names, &values, |j, delta| {
-                    let mut moved = scene.clone();
-                    match space {
-                        ActuationSpace::Tensions => moved.tendons[j].tension += delta,
-                        _ => moved.magnetic_field[j] += delta,
-                    }
-                    Ok(moved)
-                })
-                .ok()?;
-            (sens.tip_position, sens.tip_rotation)
-        };
         Some(goal.jacobian(sol, &position, &rotation))
     }
 

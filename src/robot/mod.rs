@@ -465,12 +465,14 @@ impl Robot {
                 length: p.length,
                 stiffness: p.stiffness.clone(),
                 linear_density: p.linear_density,
+                distributed_moment: None,
             })
             .collect();
         s.point_loads = (1..=self.sections)
             .map(|k| PointLoad {
                 s: self.section_end(k),
                 force: self.disk_mass_of(k) * self.gravity,
+                moment: Vector3::zeros(),
             })
             .filter(|p| p.force.norm() > 0.0)
             .collect();

@@ -10,10 +10,11 @@
 
 use super::{check_tolerance, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
-use crate::model::{element_turn, section_of, slerp};
+use crate::model::{element_turn, slerp};
 use crate::quat::Quat;
 use crate::read::{as_argument, count, finite, Table};
 use crate::scene::Scene;
+use crate::terms::section_of;
 use crate::value::Value;
 
 /// What accuracy to reach and how.

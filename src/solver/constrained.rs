@@ -50,7 +50,7 @@ pub(crate) struct KktWorkspace {
 
 impl KktWorkspace {
     pub fn new(model: &RodModel) -> Self {
-        let (n, m) = (model.n, model.constraints.len());
+        let (n, m) = (model.n(), model.constraints().len());
         let positions = if model.is_constrained() { n + 1 } else { 0 };
         KktWorkspace {
             reactions: vec![Vector3::zeros(); m],
@@ -73,7 +73,7 @@ impl KktWorkspace {
 /// torque rows count over their own scales (see `RodModel::residual_norm`), so
 /// `tol` bounds `|h| / L` alike.
 pub(crate) fn position_weight(model: &RodModel) -> f64 {
-    1.0 / model.length
+    1.0 / model.length()
 }
 
 /// Residual (and Jacobian) at `w.q` with the reactions `w.kkt.reactions`;
@@ -84,15 +84,28 @@ pub(crate) fn evaluate(
     lambda: f64,
     with_jacobian: bool,
 ) -> f64 {
-    let n = model.n;
+    let n = model.n();
     let jac = if with_jacobian {
         Some(&mut w.jac)
     } else {
         None
     };
-    model.residual_with_reactions(&w.q, lambda, &w.kkt.reactions, &mut w.g, jac);
-    model.constraint_residual(&w.q, lambda, &mut w.kkt.positions, &mut w.kkt.h);
-    if model.clamped_tip.is_some() {
+    model.residual_with_reactions(
+        &w.q,
+        lambda,
+        &w.kkt.reactions,
+        &mut w.interior,
+        &mut w.g,
+        jac,
+    );
+    model.constraint_residual(
+        &w.q,
+        lambda,
+        &mut w.interior,
+        &mut w.kkt.positions,
+        &mut w.kkt.h,
+    );
+    if model.clamped_tip().is_some() {
         w.kkt.tip_torque = w.g[n - 1];
         w.g[n - 1] = Vector3::zeros();
         if with_jacobian {
@@ -127,11 +140,11 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
 
 /// Fill `D_c` at `w.q` (zero on a clamped tip node, which does not move).
 pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
-    w.kkt.compliance = model.held_point_compliance(&w.q);
-    for (c, d) in model.constraints.iter().zip(w.kkt.d.iter_mut()) {
-        model.position_jacobian(&w.q, c.node, d);
-        if model.clamped_tip.is_some() {
-            d[model.n - 1] = Matrix3::zeros();
+    w.kkt.compliance = model.held_point_compliance(&w.q, &w.interior);
+    for (c, d) in model.constraints().iter().zip(w.kkt.d.iter_mut()) {
+        model.position_jacobian(&w.q, c.node, &w.interior, d);
+        if model.clamped_tip().is_some() {
+            d[model.n() - 1] = Matrix3::zeros();
         }
     }
 }
@@ -223,19 +236,19 @@ fn solve_small_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
 /// is large and points along the buckling mode, which is what the predictor
 /// needs there. A clamped tip's orientation is left to the corrector.
 pub(crate) fn tangent(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool {
-    let n = model.n;
-    let m = model.constraints.len();
+    let n = model.n();
+    let m = model.constraints().len();
     evaluate(model, w, lambda, true);
     load_constraint_jacobian(model, w);
-    if model.loads_held_fixed {
+    if model.loads_held_fixed() {
         w.g.iter_mut().for_each(|x| *x = Vector3::zeros());
     } else {
-        model.residual_lambda_derivative(&w.q, &mut w.g, &mut w.scratch);
+        model.residual_lambda_derivative(&w.q, &mut w.interior, &mut w.g, &mut w.scratch);
     }
-    if model.clamped_tip.is_some() {
+    if model.clamped_tip().is_some() {
         w.g[n - 1] = Vector3::zeros();
     }
-    for (h, c) in w.kkt.h[..m].iter_mut().zip(&model.constraints) {
+    for (h, c) in w.kkt.h[..m].iter_mut().zip(model.constraints()) {
         *h = c.rest - c.target;
     }
     if !super::newton::damped_solve(model, w, kkt_step) {
@@ -255,7 +268,7 @@ pub(crate) fn newton(
     lambda: f64,
     (max_iter, tol): (usize, f64),
 ) -> (bool, usize) {
-    let n = model.n;
+    let n = model.n();
     if let Some(tip) = model.clamped_tip_at(lambda) {
         w.q[n] = tip;
     }
@@ -327,7 +340,7 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let negative = lu.factor_symmetric_part(&w.jac);
     let s = negative.map(|_| {
-        let m = model.constraints.len();
+        let m = model.constraints().len();
         let mut s = DMatrix::zeros(3 * m, 3 * m);
         let col = &mut w.scratch;
         for c2 in 0..m {
@@ -349,7 +362,7 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     let (Some(negative), Some(s)) = (negative, s) else {
         return false;
     };
-    let m = model.constraints.len();
+    let m = model.constraints().len();
     let s = match &w.kkt.compliance {
         Some(e) => s + e,
         None => s,

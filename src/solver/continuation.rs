@@ -41,7 +41,7 @@ pub(crate) fn load_path(
         steps += first_steps;
         if first.converged && !interrupt::requested() {
             // Second leg: the held points from where the loaded rod puts them.
-            let holding = model.holding_from(&w.q);
+            let holding = model.holding_from(&w.q, &mut w.interior);
             w.saved.copy_from_slice(&w.q);
             zero(&mut w.kkt.reactions_saved);
             let (second, second_steps) = continuation(
@@ -117,7 +117,7 @@ fn continuation(
     budget: usize,
     min_step: f64,
 ) -> (LocalOutcome, usize) {
-    let n = model.n;
+    let n = model.n();
     let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
     let mut prediction = w.saved.clone();
     let (mut iterations, mut steps) = (0usize, 0usize);
@@ -133,8 +133,13 @@ fn continuation(
             w.q.copy_from_slice(&w.saved);
             super::constrained::tangent(model, w, lambda)
         } else {
-            model.residual_jacobian(&w.saved, lambda, &mut w.g, &mut w.jac);
-            model.residual_lambda_derivative(&w.saved, &mut w.step, &mut w.scratch);
+            model.residual_jacobian(&w.saved, lambda, &mut w.interior, &mut w.g, &mut w.jac);
+            model.residual_lambda_derivative(
+                &w.saved,
+                &mut w.interior,
+                &mut w.step,
+                &mut w.scratch,
+            );
             let factored = w.lu.factor(&w.jac, 0.0).is_ok();
             if factored {
                 w.lu.solve_in_place(&mut w.step);
@@ -167,7 +172,7 @@ fn continuation(
                 w.q[j] = w.saved[j].perturbed(d);
             }
             if predicted {
-                let m = model.constraints.len();
+                let m = model.constraints().len();
                 for (r, d) in w.kkt.reactions[..m].iter_mut().zip(&w.kkt.reaction_step) {
                     *r -= scale * d;
                 }
@@ -297,7 +302,7 @@ fn better_branch(
         (
             out.converged,
             out.converged && is_stable(model, w),
-            -model.energy_at(&w.q, lambda),
+            -model.energy_at(&w.q, lambda, &mut w.interior),
         )
     };
     let first_rank = rank(&first, w);

@@ -35,7 +35,7 @@ const GAIN_GROW: f64 = 0.45;
 
 impl LevenbergMarquardt {
     pub(crate) fn new(model: &RodModel) -> Self {
-        let dim = 3 * (model.n + model.constraints.len());
+        let dim = 3 * (model.n() + model.constraints().len());
         LevenbergMarquardt {
             jac: Mat::zeros(dim, dim),
             normal: Mat::zeros(dim, dim),
@@ -54,17 +54,17 @@ impl LevenbergMarquardt {
     /// Residual and Jacobian at the workspace state into the dense buffers,
     /// then `J^T J`. Returns the merit `|r|^2`.
     fn load(&mut self, model: &RodModel, w: &mut Workspace, lambda: f64) -> f64 {
-        let n = model.n;
+        let n = model.n();
         let merit = evaluate(model, w, lambda, true);
         self.jac.fill(0.0);
         // Torque rows over their own scales, as in the residual norm and merit.
-        let row_scale = model.residual_scale;
+        let row_scale = model.residual_scale();
         w.jac
             .for_each_entry(|r, c, v| self.jac[(r, c)] = v / row_scale[r % 3]);
         if model.is_constrained() {
             load_constraint_jacobian(model, w);
             let wt = position_weight(model);
-            for (ci, d) in w.kkt.d[..model.constraints.len()].iter().enumerate() {
+            for (ci, d) in w.kkt.d[..model.constraints().len()].iter().enumerate() {
                 for (j, block) in d.iter().enumerate() {
                     for a in 0..3 {
                         for b in 0..3 {
@@ -89,15 +89,15 @@ impl LevenbergMarquardt {
     }
 
     fn load_residual(&mut self, model: &RodModel, w: &Workspace) {
-        let n = model.n;
+        let n = model.n();
         let wt = position_weight(model);
         for (j, g) in w.g.iter().enumerate() {
             for r in 0..3 {
-                self.residual[(3 * j + r, 0)] = g[r] / model.residual_scale[r];
+                self.residual[(3 * j + r, 0)] = g[r] / model.residual_scale()[r];
             }
         }
         // The workspace is sized for the scene; a released leg holds nothing.
-        for (c, h) in w.kkt.h[..model.constraints.len()].iter().enumerate() {
+        for (c, h) in w.kkt.h[..model.constraints().len()].iter().enumerate() {
             for r in 0..3 {
                 self.residual[(3 * (n + c) + r, 0)] = wt * h[r];
             }
@@ -111,9 +111,9 @@ fn evaluate(model: &RodModel, w: &mut Workspace, lambda: f64, with_jacobian: boo
         constrained::evaluate(model, w, lambda, with_jacobian)
     } else {
         if with_jacobian {
-            model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+            model.residual_jacobian(&w.q, lambda, &mut w.interior, &mut w.g, &mut w.jac);
         } else {
-            model.residual(&w.q, lambda, &mut w.g);
+            model.residual(&w.q, lambda, &mut w.interior, &mut w.g);
         }
         model.merit(&w.g)
     }
@@ -149,8 +149,8 @@ impl LocalSolver for LevenbergMarquardt {
         max_iter: usize,
         tol: f64,
     ) -> LocalOutcome {
-        let n = model.n;
-        let m = model.constraints.len();
+        let n = model.n();
+        let m = model.constraints().len();
         let dim = 3 * (n + m);
         if let Some(tip) = model.clamped_tip_at(lambda) {
             w.q[n] = tip;
@@ -231,7 +231,7 @@ impl LocalSolver for LevenbergMarquardt {
             for j in 1..=n {
                 w.q[j] = w.trial[j].perturbed(w.step[j - 1]);
             }
-            for (c, r) in w.kkt.reactions[..model.constraints.len()]
+            for (c, r) in w.kkt.reactions[..model.constraints().len()]
                 .iter_mut()
                 .enumerate()
             {

@@ -157,7 +157,12 @@ impl Solver {
         let mut scene = self.scene.clone();
         scene.tip_force = force;
         scene.tip_moment = moment;
-        self.rebuild(scene)
+        scene.check_derived()?;
+        // In place: nothing else of the discretisation depends on them.
+        self.scene = scene;
+        self.model.set_tip_load(force, moment);
+        self.work.interior.forget();
+        Ok(())
     }
 
     /// Change the tendons' tensions [N] (one each, in the scene's order,
@@ -170,6 +175,8 @@ impl Solver {
             t.tension = *tension;
         }
         self.model.set_tensions(tensions);
+        // The interior belonged to the old drives: a fresh start, as a new solver's.
+        self.work.interior.forget();
         Ok(())
     }
 
@@ -178,10 +185,8 @@ impl Solver {
         check_field(field)?;
         self.scene.check_field_load(field)?;
         self.scene.magnetic_field = field;
-        let magnetized = !self.scene.magnetization.is_empty();
-        if !self.model.set_magnetic_field(field, magnetized) {
-            self.rebuild(self.scene.clone())?;
-        }
+        self.model.set_magnetic_field(field);
+        self.work.interior.forget();
         Ok(())
     }
 
@@ -205,7 +210,7 @@ impl Solver {
         }
         scene.magnetic_field = field;
         scene.rest_curvature = rest_curvature.to_vec();
-        scene.check_elements(self.model.n)?;
+        scene.check_elements(self.model.n())?;
         self.rebuild(scene)
     }
 
@@ -233,7 +238,8 @@ impl Solver {
     /// discretised loads are rebuilt (O(n)), the workspace kept.
     fn rebuild(&mut self, scene: Scene) -> Result<()> {
         scene.check_derived()?;
-        self.model = RodModel::new(&scene, self.model.n).with_scheme(self.model.scheme);
+        self.model = RodModel::new(&scene, self.model.n()).with_scheme(self.model.scheme());
+        self.work.interior.forget();
         self.scene = scene;
         Ok(())
     }
@@ -269,7 +275,7 @@ impl Solver {
     }
 
     fn solve_uninterrupted(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
-        let n = self.model.n;
+        let n = self.model.n();
         if let Some(q) = initial {
             if q.len() != n + 1 {
                 return Err(Error::argument(
@@ -323,7 +329,7 @@ impl Solver {
         let mut spent = 0;
         if initial.is_none() {
             if let Some(n0) =
-                nested::coarse_elements(&self.scene, &self.settings, self.model.load_parameter)
+                nested::coarse_elements(&self.scene, &self.settings, self.model.load_parameter())
             {
                 let nested = self.start_from_coarse(n0, budget, tol)?;
                 if nested.converged {
@@ -340,7 +346,7 @@ impl Solver {
         let (model, w) = (&self.model, &mut self.work);
         match initial {
             Some(q) => {
-                w.q[0] = model.base;
+                w.q[0] = model.base();
                 for (dst, src) in w.q.iter_mut().zip(q).skip(1) {
                     *dst = src.normalized();
                 }
@@ -387,7 +393,7 @@ impl Solver {
         // a fallback, and only for moderate n. It shares the iteration budget.
         if self.settings.method == Method::Newton
             && direct_state.is_none()
-            && 3 * (model.n + model.constraints.len()) <= LM_FALLBACK_UNKNOWNS
+            && 3 * (model.n() + model.constraints().len()) <= LM_FALLBACK_UNKNOWNS
         {
             let mut lm = lm::LevenbergMarquardt::new(model);
             w.q.copy_from_slice(&model.initial_guess());
@@ -423,7 +429,8 @@ impl Solver {
             "no convergence: the direct solve and load continuation (stopped after {steps} steps \
              at load scale {:.3} of 1) both failed; the loads bend the rod to a curvature scale \
              kappa L = {:.2e}",
-            w.reached_load, model.load_parameter
+            w.reached_load,
+            model.load_parameter()
         );
         let reach = model.tightest_reach();
         if reach > 0.98 {
@@ -434,14 +441,14 @@ impl Solver {
         }
         // Just inside what the n elements reach, the rod is strained to its
         // limit: a finer rod reaches further and has slack to spare.
-        let slack = self.scene.reach_slack(model.n);
+        let slack = self.scene.reach_slack(model.n());
         if slack < DISCRETE_REACH_NOTE {
-            let finer = 4 * model.n;
+            let finer = 4 * model.n();
             msg.push_str(&format!(
                 "; it is only {slack:.1e} of its span inside the farthest that {} elements reach \
                  (the clamped end cannot straighten within an element): {finer} elements leave \
                  {:.1e}",
-                model.n,
+                model.n(),
                 self.scene.reach_slack(finer)
             ));
         }
@@ -452,8 +459,8 @@ impl Solver {
     fn finish(&mut self, ending: Ending, iterations: usize, continuation_steps: usize) -> Solution {
         let (model, w) = (&self.model, &mut self.work);
         let residual_norm = residual_norm(model, w);
-        let mut positions = vec![Vector3::zeros(); model.n + 1];
-        model.positions(&w.q, &mut positions);
+        let mut positions = vec![Vector3::zeros(); model.n() + 1];
+        model.positions(&w.q, &mut w.interior, &mut positions);
         let solved = match &ending {
             Ending::Refused(status, _) => Err(*status),
             Ending::Failed(_) if iterations >= self.settings.max_iterations => {
@@ -485,25 +492,28 @@ impl Solver {
             message = note;
         }
         let reactions = &w.kkt.reactions;
-        let tip_held = model.constraints.last().is_some_and(|c| c.node == model.n);
-        let guides = model.constraints.len() - usize::from(tip_held);
-        let tip_q = w.q[model.n];
-        let tip_reaction_moment = model.clamped_tip.map(|_| tip_q.rotate(w.kkt.tip_torque));
+        let tip_held = model
+            .constraints()
+            .last()
+            .is_some_and(|c| c.node == model.n());
+        let guides = model.constraints().len() - usize::from(tip_held);
+        let tip_q = w.q[model.n()];
+        let tip_reaction_moment = model.clamped_tip().map(|_| tip_q.rotate(w.kkt.tip_torque));
         Solution {
-            n_elements: model.n,
-            scheme: model.scheme.name(),
-            length: model.length,
+            n_elements: model.n(),
+            scheme: model.scheme(),
+            length: model.length(),
             section_lengths: self.scene.section_lengths(),
             quaternions: w.q.clone(),
             positions,
-            internal_quaternions: model.internal_nodes(&w.q),
+            internal_quaternions: model.internal_nodes(&w.q, &mut w.interior),
             forces: model.node_forces(reactions),
-            stiffness: model.stiffness,
+            stiffness: model.stiffness(),
             rest_curvature: self.scene.rest_curvature.clone(),
             section_stiffness: (0..self.scene.sections.len())
                 .map(|k| self.scene.section_stiffness(k))
                 .collect(),
-            tip_moment: model.tip_moment,
+            tip_moment: model.tip_moment(),
             tip_reaction_force: tip_held.then(|| reactions[guides]),
             tip_reaction_moment,
             guide_reactions: reactions[..guides].to_vec(),
@@ -511,7 +521,7 @@ impl Solver {
             iterations,
             continuation_steps,
             residual_norm,
-            energy: model.energy(&w.q),
+            energy: model.energy(&w.q, &mut w.interior),
             stable,
             message,
             error_estimate: None,

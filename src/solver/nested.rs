@@ -163,7 +163,7 @@ impl Solver {
         // A clamped tip's quaternion is taken on the side of each rod's own
         // rest tip, which moves with n: near a half turn from it the two rods
         // may pose problems a full turn apart.
-        let same_tip = match (coarse.model.clamped_tip, self.model.clamped_tip) {
+        let same_tip = match (coarse.model.clamped_tip(), self.model.clamped_tip()) {
             (Some(a), Some(b)) => a.dot(b) > 0.0,
             _ => true,
         };
@@ -172,7 +172,7 @@ impl Solver {
         }
         let (model, w) = (&self.model, &mut self.work);
         interpolate(&solution.quaternions, &mut w.q);
-        w.q[0] = model.base;
+        w.q[0] = model.base();
         w.kkt.reactions.copy_from_slice(&coarse.work.kkt.reactions);
         let max_iter = FINE_ITERATIONS.min(budget - solution.iterations);
         let out = self.local.run(model, w, 1.0, max_iter, tol);

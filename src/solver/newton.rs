@@ -102,7 +102,7 @@ fn iterate(
             iterations,
         };
     }
-    model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+    model.residual_jacobian(&w.q, lambda, &mut w.interior, &mut w.g, &mut w.jac);
     let mut merit = model.merit(&w.g);
     let mut progress = Progress::new();
     // One pass more than the budget: the last one only certifies.
@@ -140,9 +140,15 @@ fn iterate(
                 jacobian_at_trial = first;
                 retract_along_chain(&w.q, &w.step, alpha, &mut w.trial);
                 if first {
-                    model.residual_jacobian(&w.trial, lambda, &mut w.g_trial, &mut w.jac);
+                    model.residual_jacobian(
+                        &w.trial,
+                        lambda,
+                        &mut w.interior,
+                        &mut w.g_trial,
+                        &mut w.jac,
+                    );
                 } else {
-                    model.residual(&w.trial, lambda, &mut w.g_trial);
+                    model.residual(&w.trial, lambda, &mut w.interior, &mut w.g_trial);
                 }
                 model.merit(&w.g_trial)
             },
@@ -150,7 +156,7 @@ fn iterate(
         );
         let Some(accepted_merit) = accepted else {
             // The contract: `w.g` and `w.jac` at `w.q`.
-            model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+            model.residual_jacobian(&w.q, lambda, &mut w.interior, &mut w.g, &mut w.jac);
             return LocalOutcome {
                 converged: false,
                 iterations: it + 1,
@@ -160,7 +166,7 @@ fn iterate(
         std::mem::swap(&mut w.q, &mut w.trial);
         std::mem::swap(&mut w.g, &mut w.g_trial);
         if !jacobian_at_trial {
-            model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+            model.residual_jacobian(&w.q, lambda, &mut w.interior, &mut w.g, &mut w.jac);
         }
     }
     unreachable!("the loop returns at its last pass")
@@ -226,7 +232,7 @@ pub(crate) fn damped_solve(
     let scale = w
         .jac
         .max_diagonal()
-        .max(model.residual_scale.max() * model.ds);
+        .max(model.residual_scale().max() * model.ds());
     if !scale.is_finite() {
         // No shift is of this scale: counting up to an infinite one never
         // ended (kz = 1e308 N m^2 ran for minutes).

@@ -18,13 +18,13 @@ impl Solver {
         {
             return Err(Error::argument("tip", reason.clone()));
         }
-        let out = solve_paper(&self.scene, self.model.n, &self.settings.paper, literal)?;
+        let out = solve_paper(&self.scene, self.model.n(), &self.settings.paper, literal)?;
         let (model, w) = (&self.model, &mut self.work);
         for (dst, src) in w.q.iter_mut().zip(&out.quaternions) {
             *dst = src.normalized();
         }
-        w.q[0] = model.base;
-        let n = model.n;
+        w.q[0] = model.base();
+        let n = model.n();
         if let Some(r) = w.kkt.reactions.last_mut() {
             *r = out.forces[n] - self.scene.tip_force;
         }
@@ -60,21 +60,21 @@ impl Solver {
         );
         let message = note.unwrap_or(message);
         let stable = status == Status::Converged && is_stable(model, w);
-        let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
-        let tip_reaction_moment = model.clamped_tip.map(|_| w.q[n].rotate(w.kkt.tip_torque));
+        let tip_held = model.constraints().last().is_some_and(|c| c.node == n);
+        let tip_reaction_moment = model.clamped_tip().map(|_| w.q[n].rotate(w.kkt.tip_torque));
         Ok(Solution {
             n_elements: n,
-            scheme: "fd2",
-            length: model.length,
+            scheme: crate::disc::Scheme::Fd2,
+            length: model.length(),
             section_lengths: Vec::new(),
             quaternions: out.quaternions.clone(),
             positions: out.positions,
             internal_quaternions: Vec::new(),
             forces: out.forces.clone(),
-            stiffness: model.stiffness,
+            stiffness: model.stiffness(),
             section_stiffness: Vec::new(),
             rest_curvature: self.scene.rest_curvature.clone(),
-            tip_moment: model.tip_moment,
+            tip_moment: model.tip_moment(),
             tip_reaction_force: tip_held.then(|| out.forces[n] - self.scene.tip_force),
             tip_reaction_moment,
             guide_reactions: Vec::new(),
@@ -82,7 +82,7 @@ impl Solver {
             iterations: out.pso_iterations + out.lm_iterations,
             continuation_steps: 0,
             residual_norm: out.residual_norm,
-            energy: model.energy(&out.quaternions),
+            energy: model.energy(&out.quaternions, &mut model.new_interior()),
             stable,
             message,
             error_estimate: None,

@@ -2,6 +2,7 @@
 //! factored Jacobian: O(n) a column.
 
 use super::{Solver, Status};
+use crate::disc::{Interior, Loading};
 use crate::error::{Error, Result};
 use crate::model::RodModel;
 use crate::scene::Scene;
@@ -24,7 +25,7 @@ impl Solver {
     /// `2s + 1` are `d/d kappa_x` and `d/d kappa_y` of section `s`. Costs two
     /// O(n) back-substitutions a column with the Jacobian already factored.
     pub fn tip_sensitivity(&mut self, sections: usize) -> Result<TipSensitivity> {
-        let n = self.model.n;
+        let n = self.model.n();
         if sections == 0 || n % sections != 0 {
             return Err(Error::argument(
                 "sections",
@@ -32,41 +33,47 @@ impl Solver {
             ));
         }
         let per = n / sections;
-        self.tip_sensitivity_with(2 * sections, |model, q, column, out| {
+        self.tip_sensitivity_with(2 * sections, |_, column| {
+            // The rest curvature's component of one section's elements.
             let (s, c) = (column / 2, column % 2);
-            model.rest_curvature_gradient(q, s * per + 1, (s + 1) * per, c, out);
+            let mut rest = vec![Vector3::zeros(); n];
+            for k in &mut rest[s * per..(s + 1) * per] {
+                k[c] = 1.0;
+            }
+            Ok(Loading {
+                rest_curvature: rest,
+                ..Loading::empty()
+            })
         })
     }
 
-    /// Sensitivity of the tip of the last (converged, free-tip, `fd2`)
+    /// Sensitivity of the tip of the last (converged, free-tip)
     /// equilibrium to the tendons' tensions, one column a tendon of the scene.
     pub fn tension_sensitivity(&mut self) -> Result<TipSensitivity> {
-        let tendons = self.scene.tendons.clone();
-        self.tip_sensitivity_with(tendons.len(), |model, q, column, out| {
-            model.tension_gradient(q, &tendons[column], out);
+        let tendons = self.scene.tendons.len();
+        self.tip_sensitivity_with(tendons, |model, column| {
+            let name = format!("tendons[{column}].tension");
+            model
+                .terms()
+                .derivative(&name, model.mesh())?
+                .ok_or_else(|| Error::argument(name, "no such tendon"))
         })
     }
 
-    /// The tip's sensitivity to `columns` parameters of which `gradient`
-    /// writes `d g / d p` at the equilibrium, by the implicit function theorem
-    /// on the factored Jacobian (free tip, `fd2`).
+    /// The tip's sensitivity to `columns` parameters of which `tangent`
+    /// gives the loading's derivative, by the implicit function theorem on
+    /// the factored Jacobian (free tip).
     fn tip_sensitivity_with(
         &mut self,
         columns: usize,
-        mut gradient: impl FnMut(&RodModel, &[crate::quat::Quat], usize, &mut [Vector3<f64>]),
+        tangent: impl Fn(&RodModel, usize) -> Result<Loading>,
     ) -> Result<TipSensitivity> {
-        let n = self.model.n;
+        let n = self.model.n();
         if self.model.is_constrained() {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
         }
-        if self.model.scheme != crate::model::Scheme::Fd2 {
-            return Err(Error::argument(
-                "tip_sensitivity",
-                "available for scheme 'fd2' only, for now",
-            ));
-        }
         let (model, w) = (&self.model, &mut self.work);
-        model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+        model.residual_jacobian(&w.q, 1.0, &mut w.interior, &mut w.g, &mut w.jac);
         if w.lu.factor(&w.jac, 0.0).is_err() {
             return Err(Error::NotConverged {
                 status: Status::NotConverged,
@@ -76,7 +83,7 @@ impl Solver {
             });
         }
         let mut d_tip = vec![nalgebra::Matrix3::zeros(); n];
-        model.position_jacobian(&w.q, n, &mut d_tip);
+        model.position_jacobian(&w.q, n, &w.interior, &mut d_tip);
         let tip = w.q[n];
         // d T_n / d theta_n = -R [e3]x
         let d_tangent = -(tip.rotation() * crate::quat::skew(&Vector3::z()));
@@ -86,13 +93,18 @@ impl Solver {
             rotation: nalgebra::Matrix3xX::zeros(columns),
         };
         let turn = tip.rotation();
+        let mut shift = Vec::new();
+        let mut moved = vec![Vector3::zeros(); n + 1];
         for column in 0..columns {
-            gradient(model, &w.q, column, &mut w.step);
+            let t = tangent(model, column)?;
+            model.residual_derivative(&w.q, &[], &t, &mut w.interior, &mut w.step, &mut shift);
+            model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
             w.lu.solve_in_place(&mut w.step);
-            // d theta / dp = -A^{-1} dg/dp
+            // d theta / dp = -A^{-1} dg/dp; the tip also moves with the
+            // interior at fixed nodes (fe4).
             let dr: Vector3<f64> = d_tip.iter().zip(&w.step).map(|(b, x)| -(b * x)).sum();
             let dt = -(d_tangent * w.step[n - 1]);
-            out.position.set_column(column, &dr);
+            out.position.set_column(column, &(dr + moved[n]));
             out.tangent.set_column(column, &dt);
             // The tip turns by R d theta_n (body to world).
             out.rotation.set_column(column, &-(turn * w.step[n - 1]));
@@ -148,19 +160,17 @@ struct TipReport {
 
 /// The residual of `model` at `q` with `reactions`, its Jacobian in
 /// `scratch`: with the fourth-order scheme the evaluation with the Jacobian
-/// leaves the internal nodes (loaded by the reactions) in the model's cache,
-/// where the positions and the held points' rows then find them.
-/// (`fd2` has no internal nodes: its residual alone, without the Jacobian's
-/// assembly.)
+/// leaves the internal nodes (loaded by the reactions) in `interior`, where
+/// the positions and the held points' rows then find them.
 fn evaluate_at(
     model: &RodModel,
     q: &[crate::quat::Quat],
     reactions: &[Vector3<f64>],
+    interior: &mut Interior,
     g: &mut [Vector3<f64>],
     scratch: &mut crate::blocktri::BlockTridiagonal,
 ) {
-    let fourth_order = model.scheme == crate::model::Scheme::Fe4;
-    model.residual_with_reactions(q, 1.0, reactions, g, fourth_order.then_some(scratch));
+    model.residual_with_reactions(q, 1.0, reactions, interior, g, Some(scratch));
 }
 
 fn tip_report(
@@ -169,18 +179,19 @@ fn tip_report(
     reactions: &[Vector3<f64>],
     scratch: &mut crate::blocktri::BlockTridiagonal,
 ) -> TipReport {
-    let n = model.n;
+    let n = model.n();
     // The residual serves a clamped tip's reaction moment and, with `fe4`,
     // the internal nodes the positions are drawn through.
+    let mut interior = model.new_interior();
     let mut g = Vec::new();
-    if model.clamped_tip.is_some() || model.scheme == crate::model::Scheme::Fe4 {
+    if model.clamped_tip().is_some() || !interior.is_none() {
         g = vec![Vector3::zeros(); n];
-        evaluate_at(model, q, reactions, &mut g, scratch);
+        evaluate_at(model, q, reactions, &mut interior, &mut g, scratch);
     }
     let mut positions = vec![Vector3::zeros(); n + 1];
-    model.positions(q, &mut positions);
-    let tip_held = model.constraints.last().is_some_and(|c| c.node == n);
-    let reaction_moment = model.clamped_tip.map(|_| q[n].rotate(g[n - 1]));
+    model.positions(q, &mut interior, &mut positions);
+    let tip_held = model.constraints().last().is_some_and(|c| c.node == n);
+    let reaction_moment = model.clamped_tip().map(|_| q[n].rotate(g[n - 1]));
     TipReport {
         position: positions[n],
         orientation: q[n],
@@ -247,6 +258,157 @@ fn differentiable(name: &str, scene: &Scene) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// The first step of a parameter's differences, in its own units (then
+/// rescaled by the response it gives).
+fn first_step(value: f64) -> f64 {
+    if value == 0.0 {
+        1e-6
+    } else {
+        1e-6 * value.abs()
+    }
+}
+
+/// The discrete equations' derivative in parameter `j` (now `value`) at the
+/// fixed state `(q, reactions)` by central differences, with the step that
+/// moves them by [`PARAMETER_RESPONSE`] of their own scale whatever the
+/// parameter's units: `dg` and (held points) `dh` times the step, and the
+/// models at both ends with the step.
+fn differenced(
+    model: &RodModel,
+    model_at: &impl Fn(usize, f64) -> Result<RodModel>,
+    j: usize,
+    value: f64,
+    (q, reactions): (&[crate::quat::Quat], &[Vector3<f64>]),
+    dg: &mut [Vector3<f64>],
+    dh: &mut [Vector3<f64>],
+) -> Result<(RodModel, RodModel, f64)> {
+    let n = model.n();
+    let held = model.is_constrained();
+    let m = reactions.len();
+    let (mut g_plus, mut g_minus) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+    let (mut h_plus, mut h_minus) = (vec![Vector3::zeros(); m], vec![Vector3::zeros(); m]);
+    let mut positions = vec![Vector3::zeros(); n + 1];
+    let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
+    let mut step = first_step(value);
+    let mut models = None;
+    let mut refusal = None;
+    for _ in 0..STEP_TRIES {
+        let (plus, minus) = match (model_at(j, step), model_at(j, -step)) {
+            (Ok(plus), Ok(minus)) => (plus, minus),
+            // A grown step the scene refuses: the last one serves.
+            (Err(_), _) | (_, Err(_)) if models.is_some() => break,
+            // A first guess it refuses (a parameter at zero that
+            // may not be negative, a load beyond any rod's): smaller.
+            (Err(e), _) | (_, Err(e)) => {
+                refusal = Some(e);
+                step *= 1e-6;
+                continue;
+            }
+        };
+        // Each model's interior (fe4) loaded by the reactions, for its
+        // held points' positions.
+        let (mut inner_plus, mut inner_minus) = (plus.new_interior(), minus.new_interior());
+        evaluate_at(
+            &plus,
+            q,
+            reactions,
+            &mut inner_plus,
+            &mut g_plus,
+            &mut scratch,
+        );
+        evaluate_at(
+            &minus,
+            q,
+            reactions,
+            &mut inner_minus,
+            &mut g_minus,
+            &mut scratch,
+        );
+        for (g, (a, b)) in dg.iter_mut().zip(g_plus.iter().zip(&g_minus)) {
+            *g = 0.5 * (a - b);
+        }
+        let mut response = model.residual_norm(dg);
+        if held {
+            plus.constraint_residual(q, 1.0, &mut inner_plus, &mut positions, &mut h_plus);
+            minus.constraint_residual(q, 1.0, &mut inner_minus, &mut positions, &mut h_minus);
+            for (h, (a, b)) in dh.iter_mut().zip(h_plus.iter().zip(&h_minus)) {
+                *h = 0.5 * (a - b);
+            }
+            let moved = dh.iter().map(|h| h.amax()).fold(0.0, f64::max);
+            response = response.max(moved / model.length());
+        }
+        models = Some((plus, minus, step));
+        let factor = if !response.is_finite() {
+            1e-3
+        } else if response > 0.0 {
+            (PARAMETER_RESPONSE / response).min(MAX_STEP_GROWTH)
+        } else {
+            MAX_STEP_GROWTH
+        };
+        if (0.25..=4.0).contains(&factor) {
+            break;
+        }
+        step *= factor;
+    }
+    models.ok_or_else(|| refusal.expect("an attempt without models was refused"))
+}
+
+/// Relative step of a parameter in the map to the scene's values: the
+/// values it moves, and by how much, by central differences (exact where
+/// the map is linear, as every scene parameter's is; a robot's parameters
+/// map to the scene's through its own models).
+const VALUE_STEP: f64 = 1e-4;
+
+/// The loading's derivative in parameter `j` (now `value`) and each held
+/// point's target's, when every scene value it moves belongs to a term or
+/// is a held point's target (else `None`: the mesh, the base, a tendon's
+/// routing, whose equations are differenced as a whole). Each value's rate
+/// goes through its term's analytic derivative.
+fn loading_tangent(
+    model: &RodModel,
+    scene_at: &impl Fn(usize, f64) -> Result<Scene>,
+    j: usize,
+    value: f64,
+) -> Option<(Loading, Vec<Vector3<f64>>)> {
+    let delta = match value {
+        0.0 => 1e-6,
+        v => VALUE_STEP * v.abs(),
+    };
+    let plus = scene_at(j, delta).ok()?.to_value().numbers();
+    let minus = scene_at(j, -delta).ok()?.to_value().numbers();
+    if plus.len() != minus.len() {
+        return None;
+    }
+    let constraints = model.constraints();
+    let tip_held = constraints.last().is_some_and(|c| c.node == model.n());
+    let mut moves = vec![Vector3::zeros(); constraints.len()];
+    let mut tangent = Loading::empty();
+    for ((path, a), (other, b)) in plus.iter().zip(&minus) {
+        if path != other {
+            return None;
+        }
+        if a == b {
+            continue;
+        }
+        let rate = (a - b) / (2.0 * delta);
+        // A held point's target: its row moves, no term does.
+        let target = match crate::terms::split_index(path, "guides") {
+            Some((g, rest)) => crate::terms::component(rest, ".position").map(|c| (g, c)),
+            None if tip_held => {
+                crate::terms::component(path, "tip.position").map(|c| (constraints.len() - 1, c))
+            }
+            None => None,
+        };
+        if let Some((c, axis)) = target {
+            moves.get_mut(c)?[axis] += rate;
+            continue;
+        }
+        let part = model.terms().derivative(path, model.mesh()).ok()??;
+        tangent.add_scaled(&part, rate);
+    }
+    Some((tangent, moves))
 }
 
 impl Solver {
@@ -333,13 +495,13 @@ impl Solver {
             ));
         }
         let (model, w) = (&self.model, &mut self.work);
-        let (n, scheme) = (model.n, model.scheme);
+        let (n, scheme) = (model.n(), model.scheme());
         let held = model.is_constrained();
         if held {
             constrained::evaluate(model, w, 1.0, true);
             constrained::load_constraint_jacobian(model, w);
         } else {
-            model.residual_jacobian(&w.q, 1.0, &mut w.g, &mut w.jac);
+            model.residual_jacobian(&w.q, 1.0, &mut w.interior, &mut w.g, &mut w.jac);
         }
         let residual = super::residual_norm(model, w);
         let tol = model.effective_tol(self.settings.residual_tol);
@@ -360,23 +522,19 @@ impl Solver {
         }
         let q0 = w.q.clone();
         let r0 = w.kkt.reactions.clone();
-        let clamped = model.clamped_tip.is_some();
+        let clamped = model.clamped_tip().is_some();
         let k = parameters.len();
         let mut out = Sensitivity {
             parameters,
             tip_position: nalgebra::Matrix3xX::zeros(k),
             tip_rotation: nalgebra::Matrix3xX::zeros(k),
             tip_reaction_force: (held
-                && !model.constraints.is_empty()
-                && model.constraints.last().is_some_and(|c| c.node == n))
+                && !model.constraints().is_empty()
+                && model.constraints().last().is_some_and(|c| c.node == n))
             .then(|| nalgebra::Matrix3xX::zeros(k)),
             tip_reaction_moment: clamped.then(|| nalgebra::Matrix3xX::zeros(k)),
         };
-        let mut g_plus = vec![Vector3::zeros(); n];
-        let mut g_minus = vec![Vector3::zeros(); n];
         let m = r0.len();
-        let mut h_plus = vec![Vector3::zeros(); m];
-        let mut h_minus = vec![Vector3::zeros(); m];
         let mut positions = vec![Vector3::zeros(); n + 1];
         let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
         let model_at = |j: usize, delta: f64| -> Result<RodModel> {
@@ -384,62 +542,56 @@ impl Solver {
             scene.check_derived()?;
             Ok(RodModel::new(&scene, n).with_scheme(scheme))
         };
+        let mut shift = Vec::new();
         for (j, &value) in values.iter().enumerate() {
-            // dF/dp at the fixed state (rotations and reactions), by central
-            // differences with the step that moves the equations by
-            // PARAMETER_RESPONSE of their own scale: the same in any units.
-            // A first guess in the parameter's units, then rescaled (once
-            // for the equations linear in the parameter, most of them).
-            let mut step = if value == 0.0 {
-                1e-6
-            } else {
-                1e-6 * value.abs()
-            };
+            // dF/dp at the fixed state (rotations and reactions): from the
+            // terms' analytic derivatives where every scene value the
+            // parameter moves belongs to a term or a held point's target,
+            // else by central differences of the discrete equations.
+            let analytic = loading_tangent(model, &scene_at, j, value);
             let mut models = None;
-            let mut refusal = None;
-            for _ in 0..STEP_TRIES {
-                let (plus, minus) = match (model_at(j, step), model_at(j, -step)) {
-                    (Ok(plus), Ok(minus)) => (plus, minus),
-                    // A grown step the scene refuses: the last one serves.
-                    (Err(_), _) | (_, Err(_)) if models.is_some() => break,
-                    // A first guess it refuses (a parameter at zero that
-                    // may not be negative, a load beyond any rod's): smaller.
-                    (Err(e), _) | (_, Err(e)) => {
-                        refusal = Some(e);
-                        step *= 1e-6;
-                        continue;
-                    }
-                };
-                evaluate_at(&plus, &q0, &r0, &mut g_plus, &mut scratch);
-                evaluate_at(&minus, &q0, &r0, &mut g_minus, &mut scratch);
-                for (g, (a, b)) in w.g.iter_mut().zip(g_plus.iter().zip(&g_minus)) {
-                    *g = 0.5 * (a - b);
-                }
-                let mut response = model.residual_norm(&w.g);
+            if let Some((tangent, target_moves)) = &analytic {
+                model.residual_derivative(&q0, &r0, tangent, &mut w.interior, &mut w.g, &mut shift);
                 if held {
-                    plus.constraint_residual(&q0, 1.0, &mut positions, &mut h_plus);
-                    minus.constraint_residual(&q0, 1.0, &mut positions, &mut h_minus);
-                    for (h, (a, b)) in w.kkt.h.iter_mut().zip(h_plus.iter().zip(&h_minus)) {
-                        *h = 0.5 * (a - b);
+                    model.position_derivative(&q0, &mut w.interior, &shift, &mut positions);
+                    for ((h, c), moved) in w
+                        .kkt
+                        .h
+                        .iter_mut()
+                        .zip(model.constraints())
+                        .zip(target_moves)
+                    {
+                        *h = positions[c.node] - moved;
                     }
-                    let moved = w.kkt.h.iter().map(|h| h.amax()).fold(0.0, f64::max);
-                    response = response.max(moved / model.length);
                 }
-                models = Some((plus, minus, step));
-                let factor = if !response.is_finite() {
-                    1e-3
-                } else if response > 0.0 {
-                    (PARAMETER_RESPONSE / response).min(MAX_STEP_GROWTH)
-                } else {
-                    MAX_STEP_GROWTH
-                };
-                if (0.25..=4.0).contains(&factor) {
-                    break;
-                }
-                step *= factor;
+            } else {
+                models = Some(differenced(
+                    model,
+                    &model_at,
+                    j,
+                    value,
+                    (&q0, &r0),
+                    &mut w.g,
+                    &mut w.kkt.h,
+                )?);
             }
-            let Some((plus, minus, step)) = models else {
-                return Err(refusal.expect("an attempt without models was refused"));
+            // The step that moves the equations by PARAMETER_RESPONSE of
+            // their scale: the differences' own, or an analytic column's
+            // (which bounds the outputs' step below, whatever the units).
+            let (step, response_step) = match &models {
+                Some((_, _, step)) => (*step, *step),
+                None => {
+                    let mut response = model.residual_norm(&w.g);
+                    if held {
+                        let moved = w.kkt.h.iter().map(|h| h.amax()).fold(0.0, f64::max);
+                        response = response.max(moved / model.length());
+                    }
+                    let bound = match response > 0.0 && response.is_finite() {
+                        true => PARAMETER_RESPONSE / response,
+                        false => first_step(value),
+                    };
+                    (1.0, bound)
+                }
             };
             w.g.iter_mut().for_each(|g| *g /= step);
             if held {
@@ -458,17 +610,15 @@ impl Solver {
             // The state's tangent: d theta / dp = w.step (node i at index i - 1),
             // d R / dp = w.kkt.rhs. The outputs by central differences along it.
             let turn = w.step.iter().map(|x| x.amax()).fold(0.0, f64::max);
-            let eps = if turn > 0.0 {
-                (OUTPUT_TURN / turn).min(step)
-            } else {
-                step
+            let eps = match turn > 0.0 {
+                true => (OUTPUT_TURN / turn).min(response_step),
+                false => response_step,
             };
             // The models of the residual's differences serve when the step
             // keeps the state's move small enough (the common case).
-            let (plus, minus) = if eps == step {
-                (plus, minus)
-            } else {
-                (model_at(j, eps)?, model_at(j, -eps)?)
+            let (plus, minus) = match models {
+                Some((plus, minus, step)) if eps == step => (plus, minus),
+                _ => (model_at(j, eps)?, model_at(j, -eps)?),
             };
             let moved = |sign: f64| -> (Vec<crate::quat::Quat>, Vec<Vector3<f64>>) {
                 let mut q = q0.clone();

@@ -68,18 +68,18 @@ struct TipState {
 
 impl<'a> Rod<'a> {
     fn new(model: &'a RodModel, scene: &Scene, lambda: f64) -> Self {
-        let mut point = vec![Vector3::zeros(); model.n + 1];
+        let mut point = vec![Vector3::zeros(); model.n() + 1];
         for p in &scene.point_loads {
-            let node = ((p.s / model.ds).round() as usize).min(model.n);
+            let node = ((p.s / model.ds()).round() as usize).min(model.n());
             point[node] += lambda * p.force;
         }
         let distributed = lambda * scene.distributed_force();
         Rod {
             model,
-            inverse_stiffness: model.stiffness.map(|k| 1.0 / k),
+            inverse_stiffness: model.stiffness().map(|k| 1.0 / k),
             distributed,
             free_base_force: lambda * scene.tip_force
-                + distributed * model.length
+                + distributed * model.length()
                 + point.iter().sum::<Vector3<f64>>(),
             point,
             tip_force: lambda * scene.tip_force,
@@ -112,8 +112,8 @@ impl<'a> Rod<'a> {
         mut points: Option<&mut [Vector3<f64>]>,
     ) -> TipState {
         let model = self.model;
-        let h = model.ds;
-        let (mut q, mut r, mut m) = (model.base, model.base_position, m0);
+        let h = model.ds();
+        let (mut q, mut r, mut m) = (model.base(), model.base_position(), m0);
         let mut force = n0;
         if let Some(qs) = quats.as_mut() {
             qs[0] = q;
@@ -121,13 +121,13 @@ impl<'a> Rod<'a> {
         if let Some(rs) = points.as_mut() {
             rs[0] = r;
         }
-        for i in 0..model.n {
+        for i in 0..model.n() {
             // A huge n takes long here: an interrupt leaves the shot
             // unfinished, and the Newton loops stop on the same flag.
             if i % POLL_STRIDE == 0 && interrupt::requested() {
                 break;
             }
-            let u0 = model.rest_curvature[i];
+            let u0 = model.rod().loading.rest_curvature[i];
             let f_mid = force - 0.5 * h * self.distributed;
             let f_end = force - h * self.distributed;
             let (dq1, dr1, dm1) = self.derivative(q, m, force, u0);
@@ -146,7 +146,7 @@ impl<'a> Rod<'a> {
             r += sixth * (dr1 + 2.0 * (dr2 + dr3) + dr4);
             m += sixth * (dm1 + 2.0 * (dm2 + dm3) + dm4);
             force = f_end;
-            if i + 1 < model.n {
+            if i + 1 < model.n() {
                 // Past a node, its point load no longer acts on the distal part.
                 force -= self.point[i + 1];
             }
@@ -181,13 +181,13 @@ impl<'a> Rod<'a> {
                 let moment = tip
                     .quaternion
                     .inverse_rotate(tip.moment - self.tip_moment)
-                    .component_div(&model.residual_scale);
+                    .component_div(&model.residual_scale());
                 out.fixed_rows_mut::<3>(0).copy_from(&moment);
             }
         }
         if let Some(p) = target.position {
             out.fixed_rows_mut::<3>(3)
-                .copy_from(&((tip.position - p) / model.length));
+                .copy_from(&((tip.position - p) / model.length()));
         }
         out
     }
@@ -379,20 +379,20 @@ impl Solver {
         let settings: &Settings = &self.settings;
         let tol = model.effective_tol(settings.residual_tol);
         let budget = settings.max_iterations;
-        let held = !model.constraints.is_empty();
-        let moment_scale = model.stiffness.max() / model.length;
+        let held = !model.constraints().is_empty();
+        let moment_scale = model.stiffness().max() / model.length();
         let mut scale = Vector6::repeat(moment_scale);
         scale
             .fixed_rows_mut::<3>(3)
-            .fill(moment_scale / model.length);
+            .fill(moment_scale / model.length());
         let full = Rod::new(model, &self.scene, 1.0);
         let free_target = TipTarget {
             position: None,
             orientation: None,
         };
         let held_target = TipTarget {
-            position: model.constraints.last().map(|c| c.target),
-            orientation: model.clamped_tip,
+            position: model.constraints().last().map(|c| c.target),
+            orientation: model.clamped_tip(),
         };
         let mut x = Vector6::zeros();
         x.fixed_rows_mut::<3>(0)
@@ -438,7 +438,7 @@ impl Solver {
                     let rod = Rod::new(model, &self.scene, lambda);
                     free_rod_is_stable(model, &rod, work, x, lambda)
                 },
-                model.n + 1,
+                model.n() + 1,
                 &mut free,
                 budget - iterations.min(budget),
                 settings.min_continuation_step,
@@ -496,7 +496,7 @@ impl Solver {
                     // The held leg moves the tip along an arbitrary route:
                     // its stability is judged at the end, as the FE driver's.
                     |_, _| true,
-                    model.n + 1,
+                    model.n() + 1,
                     &mut x,
                     budget - iterations.min(budget),
                     settings.min_continuation_step,
@@ -529,14 +529,14 @@ impl Solver {
     fn finish_shooting(&mut self, shot: Shot) -> Solution {
         let (model, w) = (&self.model, &mut self.work);
         let full = Rod::new(model, &self.scene, 1.0);
-        let held = !model.constraints.is_empty();
+        let held = !model.constraints().is_empty();
         let m0 = shot.x.fixed_rows::<3>(0).into_owned();
         let n0 = if held {
             shot.x.fixed_rows::<3>(3).into_owned()
         } else {
             full.free_base_force
         };
-        let mut positions = vec![Vector3::zeros(); model.n + 1];
+        let mut positions = vec![Vector3::zeros(); model.n() + 1];
         let tip = full.integrate(m0, n0, Some(&mut w.q), Some(&mut positions));
         // The held tip's reactions: what the tip's support adds to the loads.
         w.kkt
@@ -544,7 +544,7 @@ impl Solver {
             .iter_mut()
             .for_each(|r| *r = Vector3::zeros());
         if held {
-            let tip_load = full.point[model.n] + full.tip_force;
+            let tip_load = full.point[model.n()] + full.tip_force;
             if let Some(r) = w.kkt.reactions.last_mut() {
                 *r = tip.force - tip_load;
             }
@@ -566,7 +566,7 @@ impl Solver {
         let message = note.unwrap_or_else(|| match status {
             Status::Converged => format!(
                 "converged by shooting (RK4, {} steps{})",
-                model.n,
+                model.n(),
                 if shot.steps > 0 {
                     format!(", {} continuation steps", shot.steps)
                 } else {
@@ -582,26 +582,26 @@ impl Solver {
         });
         let reactions = w.kkt.reactions.clone();
         Solution {
-            n_elements: model.n,
-            scheme: "rk4",
-            length: model.length,
+            n_elements: model.n(),
+            scheme: crate::disc::Scheme::Rk4,
+            length: model.length(),
             section_lengths: Vec::new(),
             quaternions: w.q.clone(),
             positions,
             internal_quaternions: Vec::new(),
             forces: model.node_forces(&reactions),
-            stiffness: model.stiffness,
+            stiffness: model.stiffness(),
             section_stiffness: Vec::new(),
             rest_curvature: self.scene.rest_curvature.clone(),
-            tip_moment: model.tip_moment,
+            tip_moment: model.tip_moment(),
             tip_reaction_force: held.then(|| reactions[reactions.len() - 1]),
-            tip_reaction_moment: model.clamped_tip.map(|_| tip.moment - full.tip_moment),
+            tip_reaction_moment: model.clamped_tip().map(|_| tip.moment - full.tip_moment),
             guide_reactions: Vec::new(),
             status,
             iterations: shot.iterations,
             continuation_steps: shot.steps,
             residual_norm: shot.residual,
-            energy: model.energy(&w.q),
+            energy: model.energy(&w.q, &mut w.interior),
             stable,
             message,
             error_estimate: None,
@@ -635,7 +635,7 @@ fn shot_is_stable(
         .iter_mut()
         .for_each(|r| *r = Vector3::zeros());
     if let Some(r) = w.kkt.reactions.last_mut() {
-        *r = tip.force - (rod.point[model.n] + rod.tip_force);
+        *r = tip.force - (rod.point[model.n()] + rod.tip_force);
     }
     w.kkt.tip_torque = tip.quaternion.inverse_rotate(tip.moment - rod.tip_moment);
     evaluate(model, w, 1.0);
@@ -666,26 +666,26 @@ fn free_rod_is_stable(
 /// the loads' moment about the base on the rest shape (exact for a rigid rod).
 fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector3<f64> {
     if let Some(q) = initial {
-        let (a, b) = (model.base, q[1].normalized());
+        let (a, b) = (model.base(), q[1].normalized());
         let b = if a.dot(b) < 0.0 { -b } else { b };
-        let u = (2.0 / model.ds) * (a.conj() * b).v;
+        let u = (2.0 / model.ds()) * (a.conj() * b).v;
         return a.rotate(
             model
-                .stiffness
-                .component_mul(&(u - model.rest_curvature[0])),
+                .stiffness()
+                .component_mul(&(u - model.rod().loading.rest_curvature[0])),
         );
     }
     let rest = model.rest_shape();
-    let mut r = vec![Vector3::zeros(); model.n + 1];
-    model.positions(&rest, &mut r);
+    let mut r = vec![Vector3::zeros(); model.n() + 1];
+    model.positions(&rest, &mut model.new_interior(), &mut r);
     let base = r[0];
     let mut moment = rod.tip_moment;
-    for i in 0..model.n {
+    for i in 0..model.n() {
         let mid = 0.5 * (r[i] + r[i + 1]) - base;
-        moment += mid.cross(&(rod.distributed * model.ds));
+        moment += mid.cross(&(rod.distributed * model.ds()));
     }
     for (node, p) in rod.point.iter().enumerate() {
         moment += (r[node] - base).cross(p);
     }
-    moment + (r[model.n] - base).cross(&rod.tip_force)
+    moment + (r[model.n()] - base).cross(&rod.tip_force)
 }

@@ -1,10 +1,12 @@
 //! What a solve returns: the [`Solution`] and its [`Status`], and the one
 //! judgement of every method's end state.
 
+use crate::disc::Scheme;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::model::{section_of, RodModel};
+use crate::model::RodModel;
 use crate::quat::{tangent_bilinear, Quat};
+use crate::terms::section_of;
 use nalgebra::{Matrix3, Vector3};
 
 pub use crate::status::Status;
@@ -29,9 +31,9 @@ pub const MAX_RESOLVED_TURN: f64 = 1.0;
 #[derive(Debug, Clone)]
 pub struct Solution {
     pub n_elements: usize,
-    /// How the nodes were computed: `"fd2"` or `"fe4"` (the [`Scheme`]
-    /// names), or `"rk4"` (shooting's integrator).
-    pub scheme: &'static str,
+    /// How the nodes were computed: `Fd2` or `Fe4`, or `Rk4` (shooting's
+    /// integrator).
+    pub scheme: Scheme,
     /// Length of the rod [m]: node `i` sits at arc length `i L / n`
     /// (sections of their own lengths: see `section_lengths`).
     pub length: f64,
@@ -123,7 +125,7 @@ impl Solution {
                 format!("must lie in [0, L] = [0, {}], got {x}", self.length),
             ));
         }
-        if self.scheme == "fe4" && self.internal_quaternions.len() != self.n_elements {
+        if self.scheme.has_internal_nodes() && self.internal_quaternions.len() != self.n_elements {
             return Err(Error::argument(
                 "s",
                 "a fourth-order solution without its internal_quaternions has no shape \
@@ -294,9 +296,6 @@ impl Solution {
     pub fn rotation_matrices(&self) -> Vec<Matrix3<f64>> {
         self.quaternions.iter().map(|q| q.rotation()).collect()
     }
-
-    /// The names [`Solution::scheme`] takes.
-    pub const SCHEMES: [&'static str; 3] = ["fd2", "fe4", "rk4"];
 
     /// Refuse a Solution whose arrays do not fit its `n_elements` (one
     /// rebuilt from stored fields), naming the field.
@@ -487,7 +486,7 @@ pub(super) fn judge(
     }
     let turn = model.max_element_turn(q).max(model.max_rest_turn());
     if turn > MAX_RESOLVED_TURN {
-        let needed = (model.n as f64 * turn / MAX_RESOLVED_TURN).ceil();
+        let needed = (model.n() as f64 * turn / MAX_RESOLVED_TURN).ceil();
         return (
             Status::Underresolved,
             Some(format!(

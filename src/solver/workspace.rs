@@ -3,6 +3,7 @@
 
 use super::constrained;
 use crate::blocktri::{symmetric_part_is_positive_definite, BlockLu, BlockTridiagonal};
+use crate::disc::Interior;
 use crate::error::Result;
 use crate::interrupt;
 use crate::model::RodModel;
@@ -21,6 +22,9 @@ pub(crate) struct Workspace {
     pub scratch: Vec<Vector3<f64>>,
     pub jac: BlockTridiagonal,
     pub lu: BlockLu,
+    /// The scheme's interior unknowns of the last evaluation (fe4's
+    /// internal nodes; empty for fd2): a cache of this solve.
+    pub interior: Interior,
     /// Constrained scenes only (empty otherwise): see `constrained.rs`.
     pub kkt: constrained::KktWorkspace,
     /// The largest load scale a continuation of this solve reached (1 when
@@ -31,8 +35,8 @@ pub(crate) struct Workspace {
 impl Workspace {
     /// Allocated fallibly and between interrupt polls (about 0.5 KB a node).
     pub(super) fn new(model: &RodModel) -> Result<Self> {
-        let n = model.n;
-        let nodes = || interrupt::filled(n + 1, model.base, "workspace");
+        let n = model.n();
+        let nodes = || interrupt::filled(n + 1, model.base(), "workspace");
         let vectors = || interrupt::filled(n, Vector3::zeros(), "workspace");
         Ok(Workspace {
             q: nodes()?,
@@ -44,6 +48,7 @@ impl Workspace {
             scratch: vectors()?,
             jac: BlockTridiagonal::try_zeros(n)?,
             lu: BlockLu::try_new(n)?,
+            interior: model.new_interior(),
             kkt: constrained::KktWorkspace::new(model),
             reached_load: 0.0,
         })
@@ -92,7 +97,7 @@ pub(crate) fn evaluate(model: &RodModel, w: &mut Workspace, lambda: f64) {
     if model.is_constrained() {
         constrained::evaluate(model, w, lambda, true);
     } else {
-        model.residual_jacobian(&w.q, lambda, &mut w.g, &mut w.jac);
+        model.residual_jacobian(&w.q, lambda, &mut w.interior, &mut w.g, &mut w.jac);
     }
 }
 
@@ -107,7 +112,7 @@ pub(super) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
 pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     // Condensed internal nodes (fe4): the full Hessian is positive definite
     // iff every internal block and the Schur complement are.
-    if !model.internal_nodes_at_minima() {
+    if !model.interior_at_minima(&w.interior) {
         return false;
     }
     if model.is_constrained() {

@@ -26,9 +26,10 @@
 //! gradient of the reduced potential (the envelope theorem) and its Jacobian
 //! the Schur complement: block-tridiagonal, as for the second-order scheme.
 
+use super::{Discretisation, Interior, Loading, NodeForces, Rod, Scheme};
 use crate::blocktri::BlockTridiagonal;
 use crate::quat::{skew, Quat};
-use nalgebra::{Matrix3, Matrix3x4, Matrix4, SMatrix, Vector3, Vector4};
+use nalgebra::{DMatrix, Matrix3, Matrix3x4, Matrix4, SMatrix, Vector3, Vector4};
 
 type Matrix4x3 = SMatrix<f64, 4, 3>;
 
@@ -48,29 +49,33 @@ const REST_STEP_TOL: f64 = 1e-13;
 /// Newton (its error after a step is about this factor times the step).
 const CHORD_CONTRACTION: f64 = 0.01;
 
-/// What one element needs besides its nodes.
+/// What one element needs besides its nodes, at a load scale.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Element<'a> {
     /// Length [m].
     pub h: f64,
     /// Diagonal stiffness [N m^2].
     pub stiffness: Vector3<f64>,
-    /// Rest curvature, material frame [1/m].
+    /// Rest curvature at the Gauss points, material frame [1/m].
     pub rest: Vector3<f64>,
+    /// Added to the elastic moment `K (omega - rest)`: zero, or along a
+    /// tangent of the loading `-K domega0` (see `Discretisation::residual_derivative`).
+    pub shift: Vector3<f64>,
     /// Internal force at the element's start, middle and end (`tau = 0,
     /// 1/2, 1`, just inside the element), world frame [N].
     pub force: [Vector3<f64>; 3],
-    /// The tendons that run through the element (`crate::tendon`).
-    pub tendons: &'a [crate::scene::Tendon],
-    /// Arc length of the element's start [m] (where the tendons' routing is).
+    /// Dead moment per length, world frame [N m / m].
+    pub moment: Vector3<f64>,
+    /// The loading whose curvature densities and body-vector potentials act
+    /// on the element, its index (from 1) and their scale (the load scale).
+    pub loading: &'a Loading,
+    pub index: usize,
+    pub scale: f64,
+    /// Whether a curvature density acts on it.
+    pub density: bool,
+    /// Arc length of the element's start [m] (where the densities are evaluated).
     pub start: f64,
-    /// The tendons' tensions are scaled by this (the load scale).
-    pub tension_scale: f64,
-    /// The external field (at the load scale) and the element's
-    /// magnetisation: the potential `-B . R m` per length.
-    pub magnet: Option<(Vector3<f64>, Vector3<f64>)>,
 }
-
 /// Gradient and Jacobian of an element in the body-frame rotations of its
 /// nodes `(a, m, b)` (see `model.rs` for the update and the residual).
 #[derive(Debug, Clone, Copy)]
@@ -167,12 +172,12 @@ fn point_terms(
     let mut mu = el.stiffness.component_mul(&delta);
     let mut k = Matrix3::from_diagonal(&el.stiffness);
     let mut value = 0.5 * delta.dot(&mu);
-    if !el.tendons.is_empty() {
-        // The tendons' density adds to the elastic one: its gradient to the
-        // moment, its Hessian to the stiffness.
+    mu += el.shift;
+    if el.density {
+        // The curvature densities add to the elastic one: their gradient to
+        // the moment, their Hessian to the stiffness.
         let s = el.start + tau * el.h;
-        let (v, moment, stiffness) =
-            crate::tendon::density(el.tendons, el.tension_scale, s, &omega);
+        let (v, moment, stiffness) = el.loading.density(el.index, s, &omega, el.scale);
         value += v;
         mu += moment;
         k += stiffness;
@@ -214,16 +219,22 @@ fn point_terms(
 const SIMPSON: [f64; 3] = [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0];
 
 /// The node terms of node `k` of an element (value, gradient, block): the
-/// dead loads' `-h w_k F_k . T(x_k)` and the field's `-h w_k B . R(x_k) m`
-/// (`quat::body_vector_terms`, the second-order scheme's node rule).
+/// internal force's `-h w_k F_k . T(x_k)`, the body-vector potentials' `-h
+/// w_k c . R(x_k) b` (`quat::body_vector_terms`, the second-order scheme's
+/// node rule) and the dead moment's virtual work `h w_k m . R(x_k) dtheta`.
 #[inline(always)]
 fn node_terms(x: Quat, el: &Element, k: usize) -> (f64, Vector3<f64>, Matrix3<f64>) {
     let (mut value, mut grad, mut block) =
         crate::quat::body_vector_terms(x, &load_weight(el, k), &Vector3::z());
-    if let Some((field, m)) = &el.magnet {
-        let c = (-el.h * SIMPSON[k]) * field;
-        let (v, g, b) = crate::quat::body_vector_terms(x, &c, m);
+    for body in &el.loading.body_loads {
+        let c = (-el.h * SIMPSON[k] * el.scale) * body.world;
+        let (v, g, b) = crate::quat::body_vector_terms(x, &c, &body.body[el.index - 1]);
         value += v;
+        grad += g;
+        block += b;
+    }
+    if el.moment != Vector3::zeros() {
+        let (g, b) = super::dead_moment(x, &((el.h * SIMPSON[k]) * el.moment));
         grad += g;
         block += b;
     }
@@ -252,6 +263,39 @@ pub(crate) fn gauss_rest_curvature(kappa0: Vector3<f64>, h: f64) -> Vector3<f64>
     let numerator = (8.0 / 3.0) * beta.sin() - (1.0 / 3.0) * (2.0 * beta).sin();
     let denominator = 2.0 / 3.0 + (4.0 / 9.0) * beta.cos() - (1.0 / 9.0) * (2.0 * beta).cos();
     (2.0 / (h * size)) * (numerator / denominator) * kappa0
+}
+
+/// The derivative of [`gauss_rest_curvature`] along `dkappa0`: `phi(beta)
+/// kappa0` with `phi = N / (2 beta D)` (its closed form's numerator and
+/// denominator), so `d = phi dkappa0 + phi'(beta) (h/4) (kappa0 . dkappa0 /
+/// |kappa0|) kappa0`.
+pub(crate) fn gauss_rest_derivative(
+    kappa0: Vector3<f64>,
+    h: f64,
+    dkappa0: Vector3<f64>,
+) -> Vector3<f64> {
+    let size = kappa0.norm();
+    let beta = 0.25 * h * size;
+    if size == 0.0 {
+        return dkappa0;
+    }
+    let (phi, dphi) = if beta < 1e-4 {
+        (1.0 + beta.powi(4) / 45.0, 4.0 * beta.powi(3) / 45.0)
+    } else {
+        let (s1, c1) = beta.sin_cos();
+        let (s2, c2) = (2.0 * beta).sin_cos();
+        let n = (8.0 / 3.0) * s1 - (1.0 / 3.0) * s2;
+        let dn = (8.0 / 3.0) * c1 - (2.0 / 3.0) * c2;
+        let d = 2.0 / 3.0 + (4.0 / 9.0) * c1 - (1.0 / 9.0) * c2;
+        let dd = -(4.0 / 9.0) * s1 + (2.0 / 9.0) * s2;
+        let phi = n / (2.0 * beta * d);
+        (
+            phi,
+            dn / (2.0 * beta * d) - n * (d + beta * dd) / (2.0 * beta * beta * d * d),
+        )
+    };
+    let dbeta = 0.25 * h * kappa0.dot(&dkappa0) / size;
+    phi * dkappa0 + dphi * dbeta * kappa0
 }
 
 /// The element's nodes on one side of the quaternion sphere: the quadratic
@@ -628,35 +672,6 @@ fn rotation_from(from: Quat, to: Quat) -> Vector3<f64> {
     }
 }
 
-/// Each element's [`MidState`] of the last evaluation (a cache: the optimum
-/// it predicts does not depend on it).
-#[derive(Debug, Default)]
-pub(crate) struct MidCache(std::sync::Mutex<Vec<Option<MidState>>>);
-
-impl Clone for MidCache {
-    fn clone(&self) -> Self {
-        MidCache(std::sync::Mutex::new(self.lock().clone()))
-    }
-}
-
-impl MidCache {
-    /// A cache of `n` elements, empty.
-    pub(crate) fn new(n: usize) -> Self {
-        MidCache(std::sync::Mutex::new(vec![None; n]))
-    }
-
-    /// Whether every internal node of the last evaluation with the
-    /// Jacobian sits at a minimum of its element (see [`MidState::minimum`]).
-    pub(crate) fn all_minima(&self) -> bool {
-        self.lock().iter().all(|s| s.is_some_and(|s| s.minimum))
-    }
-
-    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Option<MidState>>> {
-        // A panic while holding the lock leaves only a start behind.
-        self.0.lock().unwrap_or_else(|e| e.into_inner())
-    }
-}
-
 /// The internal node of element `i` (from 1) for the ends `a`, `b`: the last
 /// evaluation's if it was at these ends (it then includes the reactions of
 /// held points), else the optimum for `el`, from the cache's prediction.
@@ -761,24 +776,308 @@ fn rest_element(a: Quat, el: &Element) -> Quat {
     b
 }
 
+/// The fourth-order scheme: the rest curvature it gives each element at its
+/// Gauss points ([`gauss_rest_curvature`]).
+#[derive(Debug, Clone, Default)]
+pub struct Fe4 {
+    gauss_rest: Vec<Vector3<f64>>,
+}
+
+impl Fe4 {
+    /// Element `i`'s data at load scale `load`; the forces `held` act on it
+    /// as point forces beyond it.
+    #[inline(always)]
+    fn element<'a>(&self, rod: &'a Rod, i: usize, load: f64, held: NodeForces) -> Element<'a> {
+        let loading = &rod.loading;
+        let mut mean = load * loading.mean_force_of(i);
+        if !held.is_empty() {
+            mean += held.from_node(i);
+        }
+        // The internal force changes by the distributed force along the element.
+        let half = (0.5 * load) * loading.force_drop_of(i);
+        Element {
+            h: rod.h(i),
+            stiffness: loading.stiffness_of(i),
+            rest: self.gauss_rest[i - 1],
+            shift: Vector3::zeros(),
+            force: [mean + half, mean, mean - half],
+            moment: load * loading.distributed_moment_of(i),
+            loading,
+            index: i,
+            scale: load,
+            density: loading.has_density(i),
+            start: rod.arc(i - 1),
+        }
+    }
+
+    /// Element `i` along the tangent `tangent` of the rod's loading: the
+    /// entries' derivatives, the elastic law's `dK (omega - omega0) - K domega0`.
+    fn tangent_element<'a>(&self, rod: &Rod, tangent: &'a Loading, i: usize) -> Element<'a> {
+        let h = rod.h(i);
+        let half = 0.5 * tangent.force_drop_of(i);
+        let mean = tangent.mean_force_of(i);
+        let domega0 = gauss_rest_derivative(rod.loading.rest_of(i), h, tangent.rest_of(i));
+        Element {
+            h,
+            stiffness: tangent.stiffness_of(i),
+            rest: self.gauss_rest[i - 1],
+            shift: -rod.loading.stiffness_of(i).component_mul(&domega0),
+            force: [mean + half, mean, mean - half],
+            moment: tangent.distributed_moment_of(i),
+            loading: tangent,
+            index: i,
+            scale: 1.0,
+            density: tangent.has_density(i),
+            start: rod.arc(i - 1),
+        }
+    }
+
+    /// The interior sized for the rod (a caller's fresh cache).
+    fn sized(interior: &mut Interior, n: usize) {
+        if interior.mids.len() != n {
+            *interior = Interior::new(n);
+        }
+    }
+}
+
+impl Discretisation for Fe4 {
+    fn scheme(&self) -> Scheme {
+        Scheme::Fe4
+    }
+
+    fn boxed(&self) -> Box<dyn Discretisation> {
+        Box::new(self.clone())
+    }
+
+    fn prepare(&mut self, rod: &Rod) {
+        self.gauss_rest = (1..=rod.n())
+            .map(|i| gauss_rest_curvature(rod.loading.rest_of(i), rod.h(i)))
+            .collect();
+    }
+
+    fn interior(&self, n: usize) -> Interior {
+        Interior::new(n)
+    }
+
+    fn evaluate(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        load: f64,
+        held: NodeForces,
+        interior: &mut Interior,
+        g: &mut [Vector3<f64>],
+        mut jac: Option<&mut BlockTridiagonal>,
+    ) {
+        Fe4::sized(interior, rod.n());
+        assemble(
+            q,
+            |i| self.element(rod, i, load, held),
+            &mut interior.mids,
+            g,
+            jac.as_deref_mut(),
+        );
+        rod.loading.add_node_terms(q, load, g, jac);
+    }
+
+    fn residual_derivative(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        held: NodeForces,
+        tangent: &Loading,
+        interior: &mut Interior,
+        dg: &mut [Vector3<f64>],
+        interior_shift: &mut Vec<Vector3<f64>>,
+    ) {
+        let n = rod.n();
+        Fe4::sized(interior, n);
+        dg.iter_mut().for_each(|x| *x = Vector3::zeros());
+        interior_shift.clear();
+        interior_shift.resize(n, Vector3::zeros());
+        for i in 1..=n {
+            let el = self.element(rod, i, 1.0, held);
+            let m = mid_for(&mut interior.mids, i, q[i - 1], q[i], &el);
+            let nodes = [q[i - 1], m, q[i]];
+            // The element's Jacobian at its interior, and the tangent's
+            // gradient at fixed nodes: the interior follows the change.
+            let j = derivatives(nodes, &el, true, false).jac;
+            let d = derivatives(nodes, &self.tangent_element(rod, tangent, i), false, false);
+            let inverse = j[1][1].try_inverse().unwrap_or_else(Matrix3::zeros);
+            let shift = -(inverse * d.grad[1]);
+            interior_shift[i - 1] = shift;
+            if i >= 2 {
+                dg[i - 2] += d.grad[0] + j[0][1] * shift;
+            }
+            dg[i - 1] += d.grad[2] + j[2][1] * shift;
+        }
+        tangent.add_node_terms(q, 1.0, dg, None);
+    }
+
+    fn position_derivative(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        interior: &mut Interior,
+        interior_shift: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) {
+        out[0] = Vector3::zeros();
+        for i in 1..=rod.n() {
+            let el = self.element(rod, i, 1.0, NodeForces::NONE);
+            let m = mid_for(&mut interior.mids, i, q[i - 1], q[i], &el);
+            let shift = interior_shift
+                .get(i - 1)
+                .copied()
+                .unwrap_or_else(Vector3::zeros);
+            out[i] = out[i - 1] + chord_jacobian([q[i - 1], m, q[i]], el.h)[1] * shift;
+        }
+    }
+
+    fn positions(&self, rod: &Rod, q: &[Quat], interior: &mut Interior, out: &mut [Vector3<f64>]) {
+        Fe4::sized(interior, rod.n());
+        out[0] = rod.base_position;
+        for i in 1..=rod.n() {
+            let el = self.element(rod, i, 1.0, NodeForces::NONE);
+            let m = mid_for(&mut interior.mids, i, q[i - 1], q[i], &el);
+            out[i] = out[i - 1] + chord([q[i - 1], m, q[i]], el.h);
+        }
+    }
+
+    fn unloaded_positions(&self, rod: &Rod, q: &[Quat], out: &mut [Vector3<f64>]) {
+        out[0] = rod.base_position;
+        for i in 1..=rod.n() {
+            let el = self.element(rod, i, 0.0, NodeForces::NONE);
+            let m = solve_mid(q[i - 1], q[i], &el, None, None);
+            out[i] = out[i - 1] + chord([q[i - 1], m, q[i]], el.h);
+        }
+    }
+
+    fn internal_nodes(&self, rod: &Rod, q: &[Quat], interior: &mut Interior) -> Vec<Quat> {
+        Fe4::sized(interior, rod.n());
+        (1..=rod.n())
+            .map(|i| {
+                let el = self.element(rod, i, 1.0, NodeForces::NONE);
+                mid_for(&mut interior.mids, i, q[i - 1], q[i], &el)
+            })
+            .collect()
+    }
+
+    fn interior_at_minima(&self, interior: &Interior) -> bool {
+        interior.mids.iter().all(|s| s.is_some_and(|s| s.minimum))
+    }
+
+    fn energy(&self, rod: &Rod, q: &[Quat], load: f64, interior: &mut Interior) -> f64 {
+        Fe4::sized(interior, rod.n());
+        let elements: f64 = (1..=rod.n())
+            .map(|i| {
+                let el = self.element(rod, i, load, NodeForces::NONE);
+                let m = mid_for(&mut interior.mids, i, q[i - 1], q[i], &el);
+                energy([q[i - 1], m, q[i]], &el)
+            })
+            .sum();
+        rod.loading.node_energy(q, load) + elements
+    }
+
+    fn rest_shape(&self, rod: &Rod) -> Vec<Quat> {
+        rest_chain(
+            rod.base,
+            (1..=rod.n()).map(|i| self.element(rod, i, 0.0, NodeForces::NONE)),
+        )
+    }
+
+    fn position_jacobian(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        k: usize,
+        interior: &Interior,
+        out: &mut [Matrix3<f64>],
+    ) {
+        out.iter_mut().for_each(|b| *b = Matrix3::zeros());
+        for e in 1..=k {
+            let Some(state) = interior.mids.get(e - 1).copied().flatten() else {
+                continue;
+            };
+            let c = chord_jacobian([q[e - 1], state.node(), q[e]], rod.h(e));
+            let (ma, mb, _) = state.response();
+            if e >= 2 {
+                out[e - 2] += c[0] - c[1] * ma;
+            }
+            out[e - 1] += c[2] - c[1] * mb;
+        }
+    }
+
+    fn held_point_compliance(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        nodes: &[usize],
+        interior: &Interior,
+    ) -> Option<DMatrix<f64>> {
+        let m = nodes.len();
+        let last = nodes.iter().copied().max().unwrap_or(0);
+        // Running sum over the elements, read off at each held node:
+        // `sum over the elements before both of C_m J_mm^-1 C_m^T`.
+        let mut running = Matrix3::zeros();
+        let mut at_node = vec![Matrix3::zeros(); last + 1];
+        for e in 1..=last {
+            if let Some(state) = interior.mids.get(e - 1).copied().flatten() {
+                let c = chord_jacobian([q[e - 1], state.node(), q[e]], rod.h(e));
+                let (_, _, inverse) = state.response();
+                running += c[1] * inverse * c[1].transpose();
+            }
+            at_node[e] = running;
+        }
+        let mut out = DMatrix::zeros(3 * m, 3 * m);
+        for (i, a) in nodes.iter().enumerate() {
+            for (j, b) in nodes.iter().enumerate() {
+                let block = at_node[(*a).min(*b)];
+                out.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&block);
+            }
+        }
+        Some(out)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// A loaded element with a magnetisation in a field (index 1 of its loading).
     fn element() -> Element<'static> {
+        let loading: &'static Loading = Box::leak(Box::new(Loading {
+            body_loads: vec![super::super::BodyLoad {
+                world: Vector3::new(0.3, -0.2, 0.5),
+                body: vec![Vector3::new(0.4, 0.1, -0.7)],
+            }],
+            ..Loading::empty()
+        }));
         Element {
             h: 0.13,
             stiffness: Vector3::new(0.9, 1.3, 0.7),
             rest: Vector3::new(1.2, -0.8, 0.0),
+            shift: Vector3::zeros(),
             force: [
                 Vector3::new(0.4, -1.1, 2.0),
                 Vector3::new(0.35, -1.05, 1.85),
                 Vector3::new(0.3, -1.0, 1.7),
             ],
-            tendons: &[],
+            moment: Vector3::zeros(),
+            loading,
+            index: 1,
+            scale: 1.0,
+            density: false,
             start: 0.0,
-            tension_scale: 1.0,
-            magnet: Some((Vector3::new(0.3, -0.2, 0.5), Vector3::new(0.4, 0.1, -0.7))),
+        }
+    }
+
+    /// The same without the magnetisation (an unloaded element at rest).
+    fn bare_element() -> Element<'static> {
+        let empty: &'static Loading = Box::leak(Box::new(Loading::empty()));
+        Element {
+            loading: empty,
+            ..element()
         }
     }
 
@@ -813,7 +1112,12 @@ mod tests {
 
     #[test]
     fn jacobian_matches_central_differences_of_the_gradient() {
-        let (el, x) = (element(), nodes());
+        // A dead moment too: its block is not symmetric.
+        let el = Element {
+            moment: Vector3::new(0.7, -0.4, 1.1),
+            ..element()
+        };
+        let x = nodes();
         let d = derivatives(x, &el, true, false);
         let h = 1e-6;
         for l in 0..3 {
@@ -885,9 +1189,8 @@ mod tests {
 
     #[test]
     fn a_rest_chain_is_the_exact_arc() {
-        let mut el = element();
+        let mut el = bare_element();
         el.force = [Vector3::zeros(); 3];
-        el.magnet = None;
         let kappa0 = Vector3::new(2.0, -1.0, 0.0);
         el.rest = gauss_rest_curvature(kappa0, el.h);
         let chain = rest_chain(Quat::IDENTITY, std::iter::repeat_n(el, 4));

@@ -1,0 +1,546 @@
+//! The seed's finite differences (`Scheme::Fd2`, docs/model.md "The discrete
+//! model"): one rotation a node, second order.
+//!
+//! Element `i` joins `a = q_{i-1}` and `b = q_i`; its curvature is `omega_i =
+//! (2/h_i) vec(conj(a) b)` and its tangent the exact mean `T_i = (T(a) + T(a,
+//! b) + T(b)) / 3` of the tangent of the linearly interpolated quaternion,
+//! so `r_i = r_{i-1} + h_i T_i`. The potential of an element is
+//! `h_i [W(omega_i) - Fbar_i . T_i - c . (R(a) + R(a, b) + R(b)) b_i / 3]`
+//! (the elastic law and the curvature densities at the element's middle, the
+//! internal force and the body-vector potentials by the tangent's rule); a
+//! dead moment per length is lumped to the nodes by the trapezoid rule.
+//!
+//! The quadratic parts of the rule (`T(q_j)`, `R(q_j)`) are node terms; the
+//! bilinear parts and the curvature are element terms: every element adds
+//! to the rows of its two nodes and their coupling block.
+
+use super::{Discretisation, Interior, Loading, NodeForces, Rod, Scheme};
+use crate::blocktri::BlockTridiagonal;
+use crate::quat::{rotation_form_apply, skew, tangent_bilinear, tangent_form_apply, Quat};
+use nalgebra::{Matrix3, Vector3};
+
+/// The second-order scheme (it keeps nothing of the rod).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Fd2;
+
+/// Elements per chunk of the parallel assembly (about 10 ms of work with the
+/// Jacobian); a rod of one chunk, every ordinary one, is assembled in place.
+const ASSEMBLY_CHUNK: usize = 1 << 16;
+
+/// The terms of one element (see [`Source::element_terms`]).
+struct ElementTerms {
+    ga: Vector3<f64>,
+    gb: Vector3<f64>,
+    jaa: Matrix3<f64>,
+    jbb: Matrix3<f64>,
+    jab: Matrix3<f64>,
+}
+
+/// A chunk's diagonal, upper and lower blocks of the Jacobian.
+type JacobianRows<'a> = (
+    &'a mut [Matrix3<f64>],
+    &'a mut [Matrix3<f64>],
+    &'a mut [Matrix3<f64>],
+);
+
+fn jacobian_rows(j: &mut BlockTridiagonal) -> JacobianRows<'_> {
+    (&mut j.diag[..], &mut j.upper[..], &mut j.lower[..])
+}
+
+/// One chunk of the parallel assembly: its elements `first..end`, its rows
+/// of `g` and blocks of the Jacobian, and its first element's terms on the
+/// row before the chunk.
+struct Slab<'a> {
+    first: usize,
+    end: usize,
+    g: &'a mut [Vector3<f64>],
+    blocks: Option<JacobianRows<'a>>,
+    boundary: (Vector3<f64>, Matrix3<f64>),
+}
+
+/// What the kernel integrates: a loading at a load scale with the held
+/// points' forces, or a tangent of the rod's loading (`rod_loading`: the
+/// elastic law it differentiates).
+#[derive(Clone, Copy)]
+struct Source<'a> {
+    rod: &'a Rod,
+    loading: &'a Loading,
+    load: f64,
+    held: NodeForces<'a>,
+    rod_loading: Option<&'a Loading>,
+}
+
+impl Source<'_> {
+    /// The elastic moment of element `i` is `k (omega - rest) + shift`:
+    /// the elastic law, or along a tangent `dK (omega - omega0) - K domega0`.
+    #[inline(always)]
+    fn elastic(&self, i: usize) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+        match self.rod_loading {
+            None => (
+                self.loading.stiffness_of(i),
+                self.loading.rest_of(i),
+                Vector3::zeros(),
+            ),
+            Some(base) => (
+                self.loading.stiffness_of(i),
+                base.rest_of(i),
+                -base.stiffness_of(i).component_mul(&self.loading.rest_of(i)),
+            ),
+        }
+    }
+
+    /// The internal force at the middle of element `i` (held points included).
+    #[inline(always)]
+    fn mean_force(&self, i: usize) -> Vector3<f64> {
+        let mut f = self.load * self.loading.mean_force_of(i);
+        if !self.held.is_empty() {
+            f += self.held.from_node(i);
+        }
+        f
+    }
+
+    /// The terms of element `i` on node `i - 1` (`gb`, `jbb`) and node `i -
+    /// 2` (`ga`, `jaa`), and the coupling block `jab`.
+    #[inline(always)]
+    fn element_terms(&self, i: usize, q: &[Quat], with_jacobian: bool) -> ElementTerms {
+        let ds = self.rod.h(i);
+        let (k, rest, shift) = self.elastic(i);
+        let (a, b) = (q[i - 1], q[i]);
+        let c = a.conj() * b;
+        let (c0, cv) = (c.w, c.v);
+        let e = (2.0 / ds) * cv - rest;
+        // Bending/twisting moment, body frame, and its derivative in the
+        // curvature: the elastic law, plus the curvature densities (at the
+        // element's middle).
+        let mut w = k.component_mul(&e) + shift;
+        let mut density_stiffness = None;
+        if self.loading.has_density(i) {
+            let omega = (2.0 / ds) * cv;
+            let middle = 0.5 * (self.rod.arc(i - 1) + self.rod.arc(i));
+            let (_, moment, stiffness) = self.loading.density(i, middle, &omega, self.load);
+            w += moment;
+            density_stiffness = Some(stiffness);
+        }
+        let amat = Matrix3::identity() * c0 + skew(&cv);
+        let ga = -(amat * w);
+        let gb = amat.transpose() * w;
+        // Load potential kappa * a^T S b with kappa = -ds/3 (F . T(a,b) term).
+        let kappa = -ds / 3.0;
+        let fbar = self.mean_force(i);
+        let sb = tangent_form_apply(&fbar, b);
+        let sa = tangent_form_apply(&fbar, a);
+        let gax = 0.5 * kappa * (a.conj() * sb).v;
+        let gbx = 0.5 * kappa * (b.conj() * sa).v;
+        let mut terms = ElementTerms {
+            ga: ga + gax,
+            gb: gb + gbx,
+            jaa: Matrix3::zeros(),
+            jbb: Matrix3::zeros(),
+            jab: Matrix3::zeros(),
+        };
+        if !with_jacobian {
+            return terms;
+        }
+        let mut kmat = Matrix3::from_diagonal(&k);
+        if let Some(stiffness) = density_stiffness {
+            kmat += stiffness;
+        }
+        let cw = cv.dot(&w);
+        let psi = kappa * a.dot(sb);
+        let radial = (-0.5 * cw - 0.25 * psi) * Matrix3::identity();
+        terms.jbb = amat.transpose() * kmat * amat / ds + radial + 0.5 * skew(&terms.gb);
+        if i >= 2 {
+            terms.jaa = amat * kmat * amat.transpose() / ds + radial + 0.5 * skew(&terms.ga);
+            let mut jab = -(amat * kmat * amat) / ds
+                - 0.5
+                    * (Matrix3::identity() * cw
+                        - c0 * skew(&w)
+                        - cv * w.transpose()
+                        - w * cv.transpose());
+            // 1/4 kappa G(a) S G(b)^T, column by column: G(b)^T e_k = b * (0, e_k).
+            for col in 0..3 {
+                let bek = b * Quat::pure(Vector3::ith(col, 1.0));
+                let v = (a.conj() * tangent_form_apply(&fbar, bek)).v;
+                jab.set_column(col, &(jab.column(col) + 0.25 * kappa * v));
+            }
+            terms.jab = jab;
+        }
+        terms
+    }
+
+    /// A body-vector potential's terms of element `i` (world vector `field`
+    /// at the load scale, body vector `m`): the bilinear part `kappa a^T S b`
+    /// of `-c . R b` by the tangent's rule (the nodes' parts are node
+    /// terms), entering as the dead loads' part does in `element_terms`.
+    /// Apart from it so that the common element stays lean.
+    #[inline(never)]
+    fn body_terms(
+        &self,
+        i: usize,
+        q: &[Quat],
+        field: &Vector3<f64>,
+        m: &Vector3<f64>,
+        t: &mut ElementTerms,
+        with_jacobian: bool,
+    ) {
+        let (a, b) = (q[i - 1], q[i]);
+        let kappa = -self.rod.h(i) / 3.0;
+        let (sa, sb) = (
+            rotation_form_apply(field, m, a),
+            rotation_form_apply(field, m, b),
+        );
+        let ga = 0.5 * kappa * (a.conj() * sb).v;
+        let gb = 0.5 * kappa * (b.conj() * sa).v;
+        t.ga += ga;
+        t.gb += gb;
+        if !with_jacobian {
+            return;
+        }
+        let radial = (-0.25 * kappa * a.dot(sb)) * Matrix3::identity();
+        t.jbb += radial + 0.5 * skew(&gb);
+        if i >= 2 {
+            t.jaa += radial + 0.5 * skew(&ga);
+            for col in 0..3 {
+                let bek = b * Quat::pure(Vector3::ith(col, 1.0));
+                let v = (a.conj() * rotation_form_apply(field, m, bek)).v;
+                t.jab
+                    .set_column(col, &(t.jab.column(col) + 0.25 * kappa * v));
+            }
+        }
+    }
+
+    /// The terms of the elements of one chunk into its rows.
+    fn fill_slab(&self, slab: &mut Slab, q: &[Quat]) {
+        let with_jacobian = slab.blocks.is_some();
+        for i in slab.first..slab.end {
+            // A huge n takes long here: an interrupt leaves the residual
+            // unfinished, and the solver's loops stop on the same flag.
+            if i % crate::interrupt::POLL_STRIDE == 0 && crate::interrupt::requested() {
+                return;
+            }
+            let mut t = self.element_terms(i, q, with_jacobian);
+            for body in &self.loading.body_loads {
+                let field = self.load * body.world;
+                self.body_terms(i, q, &field, &body.body[i - 1], &mut t, with_jacobian);
+            }
+            let row = i - slab.first;
+            if i >= 2 {
+                if i == slab.first {
+                    slab.boundary.0 = t.ga;
+                } else {
+                    slab.g[row - 1] += t.ga;
+                }
+            }
+            // Row `i - 1`'s first term (its second comes from element i + 1).
+            slab.g[row] = t.gb;
+            if let Some((diag, upper, lower)) = slab.blocks.as_mut() {
+                diag[row] = t.jbb;
+                if i >= 2 {
+                    if i == slab.first {
+                        slab.boundary.1 = t.jaa;
+                    } else {
+                        diag[row - 1] += t.jaa;
+                    }
+                    let coupling = i - slab.first.max(2);
+                    upper[coupling] = t.jab;
+                    lower[coupling] = t.jab.transpose();
+                }
+            }
+        }
+    }
+
+    /// Set `g` and `jac` to the sum of every element's terms (each row's
+    /// first term is written, the second added: no clearing pass). A rod of
+    /// one chunk, every ordinary one, is assembled in place without
+    /// allocating. A longer rod is cut into chunks assembled on all cores: a
+    /// chunk owns the rows of its elements' distal nodes, and the one term of
+    /// its first element on the node before it is added after the join, in
+    /// the order of the one-thread loop, so that the sum is the same to the
+    /// last bit whatever the number of threads.
+    fn assemble_elements(
+        &self,
+        q: &[Quat],
+        g: &mut [Vector3<f64>],
+        mut jac: Option<&mut BlockTridiagonal>,
+        chunk: usize,
+    ) {
+        let n = self.rod.n();
+        if n <= chunk {
+            let mut slab = Slab {
+                first: 1,
+                end: n + 1,
+                g,
+                blocks: jac.map(jacobian_rows),
+                boundary: (Vector3::zeros(), Matrix3::zeros()),
+            };
+            self.fill_slab(&mut slab, q);
+            return;
+        }
+        let boundaries: Vec<(usize, Vector3<f64>, Matrix3<f64>)> = {
+            // Chunk c: elements [first, end), rows g[first - 1 .. end - 1],
+            // coupling blocks [max(first, 2) - 2 .. end - 2].
+            let mut slabs = Vec::with_capacity(n.div_ceil(chunk));
+            let mut g_rest = &mut g[..];
+            let mut jac_rest = jac.as_deref_mut().map(jacobian_rows);
+            let mut first = 1;
+            while first <= n {
+                let end = (first + chunk).min(n + 1);
+                let rows = end - first;
+                let couplings = end.saturating_sub(first.max(2));
+                let (g_own, g_next) = std::mem::take(&mut g_rest).split_at_mut(rows);
+                g_rest = g_next;
+                let blocks = jac_rest.take().map(|(diag, upper, lower)| {
+                    let (d, d_next) = diag.split_at_mut(rows);
+                    let (u, u_next) = upper.split_at_mut(couplings);
+                    let (l, l_next) = lower.split_at_mut(couplings);
+                    jac_rest = Some((d_next, u_next, l_next));
+                    (d, u, l)
+                });
+                slabs.push(Slab {
+                    first,
+                    end,
+                    g: g_own,
+                    blocks,
+                    boundary: (Vector3::zeros(), Matrix3::zeros()),
+                });
+                first = end;
+            }
+            use rayon::prelude::*;
+            slabs
+                .par_iter_mut()
+                .for_each(|slab| self.fill_slab(slab, q));
+            slabs
+                .iter()
+                .skip(1)
+                .map(|s| (s.first, s.boundary.0, s.boundary.1))
+                .collect()
+        };
+        // The first element of a chunk on the last row of the chunk before,
+        // added after that row's own term as in the one-thread loop.
+        for (first, ga, jaa) in boundaries {
+            g[first - 2] += ga;
+            if let Some(j) = jac.as_deref_mut() {
+                j.diag[first - 2] += jaa;
+            }
+        }
+    }
+
+    /// The whole residual: elements, then the nodes' quadratic parts of
+    /// the tangent's rule and the lumped moments, then the node terms.
+    fn assemble(
+        &self,
+        q: &[Quat],
+        g: &mut [Vector3<f64>],
+        mut jac: Option<&mut BlockTridiagonal>,
+        chunk: usize,
+    ) {
+        let (rod, loading, load) = (self.rod, self.loading, self.load);
+        let n = rod.n();
+        debug_assert_eq!(q.len(), n + 1);
+        debug_assert_eq!(g.len(), n);
+        // They write every entry of `g` and `jac`: no clearing pass.
+        self.assemble_elements(q, g, jac.as_deref_mut(), chunk);
+        let moments = !loading.distributed_moment.is_empty();
+        for j in 1..=n {
+            // The internal force's node weight, h . T(q_j).
+            let mut weight = rod.h(j) * self.mean_force(j);
+            if j < n {
+                weight += rod.h(j + 1) * self.mean_force(j + 1);
+            }
+            let h = (-1.0 / 3.0) * weight;
+            let f = q[j].inverse_rotate(h);
+            g[j - 1] += Vector3::new(-f.y, f.x, 0.0);
+            if let Some(jac) = jac.as_deref_mut() {
+                jac.diag[j - 1] += f * Vector3::z().transpose() - f.z * Matrix3::identity();
+            }
+            // The body-vector potentials of the elements that meet here.
+            for body in &loading.body_loads {
+                for e in (j..=j + 1).filter(|e| *e <= n) {
+                    let c = (-rod.h(e) / 3.0) * load * body.world;
+                    let (_, grad, block) =
+                        crate::quat::body_vector_terms(q[j], &c, &body.body[e - 1]);
+                    g[j - 1] += grad;
+                    if let Some(jac) = jac.as_deref_mut() {
+                        jac.diag[j - 1] += block;
+                    }
+                }
+            }
+            // A distributed dead moment, by the trapezoid rule.
+            if moments {
+                let mut moment = 0.5 * rod.h(j) * loading.distributed_moment_of(j);
+                if j < n {
+                    moment += 0.5 * rod.h(j + 1) * loading.distributed_moment_of(j + 1);
+                }
+                let (grad, block) = super::dead_moment(q[j], &(load * moment));
+                g[j - 1] += grad;
+                if let Some(jac) = jac.as_deref_mut() {
+                    jac.diag[j - 1] += block;
+                }
+            }
+        }
+        loading.add_node_terms(q, load, g, jac);
+    }
+}
+
+impl Discretisation for Fd2 {
+    fn scheme(&self) -> Scheme {
+        Scheme::Fd2
+    }
+
+    fn boxed(&self) -> Box<dyn Discretisation> {
+        Box::new(*self)
+    }
+
+    fn prepare(&mut self, _rod: &Rod) {}
+
+    fn evaluate(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        load: f64,
+        held: NodeForces,
+        _interior: &mut Interior,
+        g: &mut [Vector3<f64>],
+        jac: Option<&mut BlockTridiagonal>,
+    ) {
+        let source = Source {
+            rod,
+            loading: &rod.loading,
+            load,
+            held,
+            rod_loading: None,
+        };
+        source.assemble(q, g, jac, ASSEMBLY_CHUNK);
+    }
+
+    fn residual_derivative(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        _held: NodeForces,
+        tangent: &Loading,
+        _interior: &mut Interior,
+        dg: &mut [Vector3<f64>],
+        interior_shift: &mut Vec<Vector3<f64>>,
+    ) {
+        interior_shift.clear();
+        let source = Source {
+            rod,
+            loading: tangent,
+            load: 1.0,
+            held: NodeForces::NONE,
+            rod_loading: Some(&rod.loading),
+        };
+        source.assemble(q, dg, None, ASSEMBLY_CHUNK);
+    }
+
+    fn positions(&self, rod: &Rod, q: &[Quat], _interior: &mut Interior, out: &mut [Vector3<f64>]) {
+        out[0] = rod.base_position;
+        for i in 1..=rod.n() {
+            out[i] = out[i - 1] + rod.h(i) * mean_tangent(q[i - 1], q[i]);
+        }
+    }
+
+    fn unloaded_positions(&self, rod: &Rod, q: &[Quat], out: &mut [Vector3<f64>]) {
+        self.positions(rod, q, &mut Interior::none(), out);
+    }
+
+    fn energy(&self, rod: &Rod, q: &[Quat], load: f64, _interior: &mut Interior) -> f64 {
+        let loading = &rod.loading;
+        let mut total = loading.node_energy(q, load);
+        for i in 1..=rod.n() {
+            let (a, b) = (q[i - 1], q[i]);
+            let (cv, h) = ((a.conj() * b).v, rod.h(i));
+            let e = (2.0 / h) * cv - loading.rest_of(i);
+            let mut elastic = 0.5 * e.dot(&loading.stiffness_of(i).component_mul(&e));
+            if loading.has_density(i) {
+                let omega = (2.0 / h) * cv;
+                let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
+                elastic += loading.density(i, middle, &omega, load).0;
+            }
+            let mut work = load * loading.mean_force_of(i).dot(&mean_tangent(a, b));
+            for body in &loading.body_loads {
+                // c . (R(a) m + R(a, b) m + R(b) m) / 3, the tangent's rule.
+                let field = load * body.world;
+                let form = |x: Quat| rotation_form_apply(&field, &body.body[i - 1], x);
+                work += (a.dot(form(a)) + a.dot(form(b)) + b.dot(form(b))) / 3.0;
+            }
+            total += h * (elastic - work);
+        }
+        total
+    }
+
+    fn rest_shape(&self, rod: &Rod) -> Vec<Quat> {
+        let n = rod.n();
+        let mut q = Vec::with_capacity(n + 1);
+        q.push(rod.base);
+        for i in 1..=n {
+            let v = 0.5 * rod.h(i) * rod.loading.rest_of(i);
+            // Beyond ds |kappa0| = 2 no element reaches its rest curvature (the
+            // solve reports it underresolved); the nearest is a half turn.
+            let w = (1.0 - v.norm_squared()).max(0.0).sqrt();
+            q.push((q[i - 1] * Quat::new(w, v.x, v.y, v.z)).normalized());
+        }
+        q
+    }
+
+    fn position_jacobian(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        k: usize,
+        _interior: &Interior,
+        out: &mut [Matrix3<f64>],
+    ) {
+        for j in 1..=rod.n() {
+            if j > k {
+                out[j - 1] = Matrix3::zeros();
+                continue;
+            }
+            // Row c: gradient of e_c . r_k. T(q_j) counts once per element of node
+            // j inside [1, k] (element `i` weighted by `h_i / 3`); the bilinear
+            // terms pair it with its neighbours.
+            let before = rod.h(j) / 3.0;
+            let after = if j < k { rod.h(j + 1) / 3.0 } else { 0.0 };
+            let mut block = Matrix3::zeros();
+            for c in 0..3 {
+                let e = Vector3::ith(c, 1.0);
+                let f = q[j].inverse_rotate(e);
+                let mut row = (before + after) * Vector3::new(-f.y, f.x, 0.0);
+                row += (0.5 * before) * (q[j].conj() * tangent_form_apply(&e, q[j - 1])).v;
+                if j < k {
+                    row += (0.5 * after) * (q[j].conj() * tangent_form_apply(&e, q[j + 1])).v;
+                }
+                block.set_row(c, &row.transpose());
+            }
+            out[j - 1] = block;
+        }
+    }
+}
+
+/// Mean tangent of an element: the exact mean of `T` under linear interpolation of `q`.
+pub fn mean_tangent(a: Quat, b: Quat) -> Vector3<f64> {
+    (a.tangent() + tangent_bilinear(a, b) + b.tangent()) / 3.0
+}
+
+/// [`Fd2`]'s residual and Jacobian assembled in chunks of `chunk` elements
+/// (the parallel assembly's unit), for the test that it is the one-thread sum.
+#[cfg(test)]
+pub(crate) fn evaluate_in_chunks(
+    rod: &Rod,
+    q: &[Quat],
+    load: f64,
+    held: NodeForces,
+    g: &mut [Vector3<f64>],
+    jac: Option<&mut BlockTridiagonal>,
+    chunk: usize,
+) {
+    let source = Source {
+        rod,
+        loading: &rod.loading,
+        load,
+        held,
+        rod_loading: None,
+    };
+    source.assemble(q, g, jac, chunk);
+}

@@ -1,0 +1,155 @@
+//! The physical effects on a rod, one file each: what each puts on the rod
+//! in the kinds a scheme integrates ([`Loading`], `crate::disc`), and its
+//! derivative in each of its own parameters (a tangent of the loading, from
+//! which the sensitivities are exact in any units).
+//!
+//! ```text
+//! elastic.rs    the elastic energy with rest curvature (stiffness, rest curvature)
+//! forces.rs     dead forces along the rod: distributed (gravity, per section) and at points
+//! tip_force.rs  the tip force, at the tip or at an offset from it (a tool)
+//! moments.rs    dead moments: at the tip, at points, per length
+//! tendons.rs    frictionless tendons (a curvature density)
+//! magnets.rs    a magnetised rod and tip magnet in a uniform field
+//! ```
+//!
+//! A term never reaches into a scheme: it fills in the loading, and the
+//! schemes integrate the loading. A new effect is a new file here, its
+//! entry in [`Terms`], and no change to any scheme or solver.
+
+mod elastic;
+mod forces;
+mod magnets;
+mod moments;
+mod tendons;
+mod tip_force;
+
+pub use elastic::Elastic;
+pub use forces::DeadForces;
+pub use magnets::Magnets;
+pub use moments::Moments;
+pub use tendons::{density as tendon_density, Tendons};
+pub use tip_force::TipForce;
+
+use crate::disc::Loading;
+use crate::error::Result;
+use crate::mesh::Mesh;
+use crate::scene::Scene;
+
+/// One physical effect on the rod.
+pub trait Term: std::fmt::Debug + Send + Sync {
+    /// Add what it puts on the rod (at load scale 1) to `loading`.
+    fn apply(&self, mesh: &Mesh, loading: &mut Loading);
+
+    /// The largest moment it can exert on the rod [N m]: its share of the
+    /// load parameter (the curvature scale that sets the round-off floor).
+    fn moment_scale(&self, length: f64) -> f64;
+
+    /// Whether it puts nothing on the rod (the rest shape is then its equilibrium).
+    fn vanishes(&self) -> bool;
+
+    /// Add its derivative in `parameter` (a scene path, `"tip_force[0]"`) to
+    /// `tangent`: true when the parameter is its own, false otherwise.
+    fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool>;
+}
+
+/// Every term of a scene.
+#[derive(Debug, Clone)]
+pub struct Terms {
+    pub elastic: Elastic,
+    pub forces: DeadForces,
+    pub tip_force: TipForce,
+    pub moments: Moments,
+    pub tendons: Tendons,
+    pub magnets: Magnets,
+}
+
+impl Terms {
+    /// The terms of `scene` on the mesh `mesh`.
+    pub fn new(scene: &Scene, mesh: &Mesh) -> Self {
+        Terms {
+            elastic: Elastic::new(scene, mesh),
+            forces: DeadForces::new(scene, mesh),
+            tip_force: TipForce::new(scene, mesh),
+            moments: Moments::new(scene, mesh),
+            tendons: Tendons::new(scene, mesh),
+            magnets: Magnets::new(scene, mesh),
+        }
+    }
+
+    /// Every term, for what is done to each alike.
+    pub fn all(&self) -> [&dyn Term; 6] {
+        [
+            &self.elastic,
+            &self.forces,
+            &self.tip_force,
+            &self.moments,
+            &self.tendons,
+            &self.magnets,
+        ]
+    }
+
+    /// What they put on the rod.
+    pub fn loading(&self, mesh: &Mesh) -> Loading {
+        let mut loading = Loading::zeros(mesh.n());
+        for term in self.all() {
+            term.apply(mesh, &mut loading);
+        }
+        loading
+    }
+
+    /// The largest moment the loads can exert [N m] (the elastic law's own
+    /// turning is counted apart, as the rest turn).
+    pub fn moment_scale(&self, length: f64) -> f64 {
+        self.all().iter().map(|t| t.moment_scale(length)).sum()
+    }
+
+    /// Whether nothing but the elastic law acts.
+    pub fn vanish(&self) -> bool {
+        self.all().iter().all(|t| t.vanishes())
+    }
+
+    /// The loading's derivative in `parameter` (a scene path), or `None`
+    /// when no term owns it (the equations then depend on it otherwise:
+    /// the mesh, the base, the held points).
+    pub fn derivative(&self, parameter: &str, mesh: &Mesh) -> Result<Option<Loading>> {
+        let mut tangent = Loading::empty();
+        let mut owned = false;
+        for term in self.all() {
+            owned |= term.derivative(parameter, mesh, &mut tangent)?;
+        }
+        Ok(owned.then_some(tangent))
+    }
+}
+
+/// The section of element `i` (from 0) of a rod of `n` elements in
+/// `sections` sections (each cut into the same number of elements).
+pub(crate) fn section_of(i: usize, sections: usize, n: usize) -> usize {
+    i * sections / n
+}
+
+/// `"prefix[i]suffix"` read as `i`, for parameter paths.
+pub(crate) fn indexed(name: &str, prefix: &str, suffix: &str) -> Option<usize> {
+    name.strip_prefix(prefix)?
+        .strip_prefix('[')?
+        .strip_suffix(suffix)?
+        .strip_suffix(']')?
+        .parse()
+        .ok()
+}
+
+/// The component `c` of a vector parameter `"{key}[c]"` (0..3).
+pub(crate) fn component(name: &str, key: &str) -> Option<usize> {
+    indexed(name, key, "").filter(|c| *c < 3)
+}
+
+/// `"{prefix}[i]{rest}"`: the index and what follows the bracket.
+pub(crate) fn split_index<'a>(name: &'a str, prefix: &str) -> Option<(usize, &'a str)> {
+    let rest = name.strip_prefix(prefix)?.strip_prefix('[')?;
+    let close = rest.find(']')?;
+    Some((rest[..close].parse().ok()?, &rest[close + 1..]))
+}
+
+/// A unit vector along axis `c`.
+pub(crate) fn unit(c: usize) -> nalgebra::Vector3<f64> {
+    nalgebra::Vector3::ith(c, 1.0)
+}

@@ -379,10 +379,10 @@ impl Scene {
     }
 
     /// What of the scene only the discrete potential models (shooting and
-    /// the paper's system do not), if anything.
-    pub fn only_the_potential_models(&self) -> Option<&'static str> {
+    /// the paper's system do not), if anything: everything of it, named.
+    pub fn only_the_potential_models(&self) -> Option<String> {
         let magnetic = !self.magnetization.is_empty() || self.tip_magnet != Vector3::zeros();
-        [
+        let present = [
             (
                 !self.tendons.is_empty() || magnetic,
                 "tendons or magnetic actuation",
@@ -405,7 +405,9 @@ impl Scene {
             ),
         ]
         .into_iter()
-        .find_map(|(present, what)| present.then_some(what))
+        .filter_map(|(present, what)| present.then_some(what))
+        .collect::<Vec<_>>();
+        (!present.is_empty()).then(|| present.join(", nor "))
     }
 
     /// The sections' own lengths [m]; empty when the sections are equal.

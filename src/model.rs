@@ -76,6 +76,15 @@ pub struct RodModel {
     /// smallest stiffness (dimensionless): the curvature scale `kappa L` of
     /// the loaded rod, which sets the round-off floor of the residual.
     load_parameter: f64,
+    /// What the solves read often, kept: the residual's scale (see
+    /// [`RodModel::residual_scale`]), the round-off floor's factors of the
+    /// mesh and the stiffness (see [`RodModel::roundoff_floor`]), the largest
+    /// rest turn of an element and the nodes where the shape is not smooth.
+    residual_scale: Vector3<f64>,
+    per_length: f64,
+    stiffness_spread: f64,
+    max_rest_turn: f64,
+    breaks: Vec<usize>,
 }
 
 impl RodModel {
@@ -128,8 +137,29 @@ impl RodModel {
             rest_tip: rod.base,
             loads_held_fixed: false,
             load_parameter: 0.0,
+            residual_scale: Vector3::zeros(),
+            per_length: 0.0,
+            stiffness_spread: 1.0,
+            max_rest_turn: 0.0,
+            breaks: Vec::new(),
             rod,
         };
+        model.residual_scale = model.stiffness / model.length();
+        // `L / h` of the shortest element: `n` when the elements are equal.
+        let ds = model.ds();
+        let shortest = model
+            .mesh()
+            .element_lengths()
+            .iter()
+            .fold(ds, |a, b| a.min(*b));
+        model.per_length = n as f64 * ds / shortest;
+        model.stiffness_spread = model
+            .rod
+            .loading
+            .stiffness
+            .iter()
+            .map(|k| k.component_div(&model.stiffness).max())
+            .fold(1.0, f64::max);
         model.refresh_load_parameter();
         model.refresh_rest();
         model
@@ -203,7 +233,7 @@ impl RodModel {
     /// a stiffness ratio of 1e10 neither hides a soft row's imbalance nor
     /// demands round-off from a stiff one.
     pub fn residual_scale(&self) -> Vector3<f64> {
-        self.stiffness / self.length()
+        self.residual_scale
     }
 
     /// The loads' curvature scale `kappa L` (see the field).
@@ -211,9 +241,17 @@ impl RodModel {
         self.load_parameter
     }
 
-    /// The dead moment at the tip, world frame [N m].
+    /// The dead moment at the tip node, world frame [N m]: the tip moment
+    /// and point loads' moments there.
     pub fn tip_moment(&self) -> Vector3<f64> {
+        let n = self.n();
+        let points = &self.terms.moments.points;
         self.terms.moments.tip
+            + points
+                .iter()
+                .filter(|(node, _)| *node == n)
+                .map(|(_, m)| *m)
+                .sum::<Vector3<f64>>()
     }
 
     /// Held nodes, by increasing node.
@@ -265,6 +303,7 @@ impl RodModel {
     fn reload(&mut self) {
         self.rod.loading = self.terms.loading(&self.rod.mesh);
         self.refresh_load_parameter();
+        self.refresh_breaks();
     }
 
     /// How much stiffer than the residual's scale ([`RodModel::residual_scale`],
@@ -273,12 +312,7 @@ impl RodModel {
     /// there, so a section 100 times stiffer than the scale rounds 100 times
     /// larger relative to it.
     fn stiffness_spread(&self) -> f64 {
-        self.rod
-            .loading
-            .stiffness
-            .iter()
-            .map(|k| k.component_div(&self.stiffness).max())
-            .fold(1.0, f64::max)
+        self.stiffness_spread
     }
 
     /// Set the tendons' tensions in place, in the scene's order (checked by
@@ -344,12 +378,38 @@ impl RodModel {
             }
         }
         self.rest_tip = rest[self.n()];
+        self.max_rest_turn = self
+            .rod
+            .loading
+            .rest_curvature
+            .iter()
+            .enumerate()
+            .map(|(i, k)| self.h(i + 1) * k.norm())
+            .fold(0.0, f64::max);
+        self.refresh_breaks();
         if let Some(q) = self.clamped_tip.as_mut() {
             if q.dot(self.rest_tip) < 0.0 {
                 *q = -*q;
             }
         }
         self.rest_nodes = rest;
+    }
+
+    /// The interior nodes where the shape is not smooth (see
+    /// `Term::breaks`; also where the element length changes and at held
+    /// points, whose reactions are point forces).
+    pub fn breaks(&self) -> &[usize] {
+        &self.breaks
+    }
+
+    fn refresh_breaks(&mut self) {
+        let n = self.n();
+        let mut out = self.terms.breaks(self.mesh());
+        out.extend(crate::terms::jumps(self.mesh().element_lengths()));
+        out.extend(self.held_nodes.iter().copied().filter(|j| *j < n));
+        out.sort_unstable();
+        out.dedup();
+        self.breaks = out;
     }
 
     /// True when nothing loads the rod: the rest shape is the exact equilibrium.
@@ -632,16 +692,8 @@ impl RodModel {
     /// the softest left residuals that a `residual_tol` of 1e-13 could never
     /// meet.
     pub fn roundoff_floor(&self) -> f64 {
-        // `L / h` of the shortest element: `n` when the elements are equal.
-        let ds = self.ds();
-        let shortest = self
-            .mesh()
-            .element_lengths()
-            .iter()
-            .fold(ds, |a, b| a.min(*b));
-        let per_length = self.n() as f64 * ds / shortest;
-        let curvature = self.load_parameter + self.max_rest_turn() * per_length;
-        8.0 * f64::EPSILON * (per_length + curvature) * self.stiffness_spread()
+        let curvature = self.load_parameter + self.max_rest_turn * self.per_length;
+        8.0 * f64::EPSILON * (self.per_length + curvature) * self.stiffness_spread()
     }
 
     /// The line-search merit: the sum of squares of the scaled torque rows.
@@ -663,13 +715,7 @@ impl RodModel {
 
     /// Largest turning of one element at rest, `h_i |kappa0_i|` [rad].
     pub fn max_rest_turn(&self) -> f64 {
-        self.rod
-            .loading
-            .rest_curvature
-            .iter()
-            .enumerate()
-            .map(|(i, k)| self.h(i + 1) * k.norm())
-            .fold(0.0, f64::max)
+        self.max_rest_turn
     }
 
     /// Node positions `r_0` (the base position), `r_i = r_{i-1} + h_i T_i`

@@ -8,9 +8,11 @@
 //! length            m
 //! stiffness         {kx, ky, kz} N m^2  |  {E, G, diameter} of a round rod
 //! rest_curvature    [[kappa_x, kappa_y], ...] 1/m, one per equal section
-//! sections          [{length, stiffness, linear_density}, ...] per section (each optional;
+//! sections          [{length, stiffness, linear_density, distributed_moment}, ...] per section (each optional;
 //!                   lengths for all sections or none: equal sections)
 //! distributed_force [fx, fy, fz] N/m, world frame
+//! distributed_moment [mx, my, mz] N m/m, world frame (a section's own replaces it)
+//! point_loads       [{s, force, moment}, ...] m, N, N m: on nodes, world frame
 //! gravity           {linear_density kg/m, vector [gx, gy, gz] m/s^2}
 //! tip_force         [Px, Py, Pz] N, world frame
 //! tip_moment        [Mx, My, Mz] N m, world frame

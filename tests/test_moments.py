@@ -9,9 +9,9 @@ import copy
 
 import numpy as np
 import pytest
+from wrench_reference import WrenchRod
 
 import softspine
-from wrench_reference import WrenchRod
 
 SCENE = {
     "length": 1.0,
@@ -47,6 +47,21 @@ def test_wrenches_converge_at_the_schemes_order(reference, scheme, counts, order
     observed = np.log2(np.array(errors[:-1]) / errors[1:])
     assert observed[-1] == pytest.approx(order, abs=0.1), errors
     assert errors[-1] < {"fd2": 5e-4, "fe4": 1e-7}[scheme]
+
+
+def test_rotations_between_nodes_converge_at_the_schemes_order_across_breaks(reference):
+    # Sections of their own moment and rest curvature and a point wrench at
+    # 0.5 L: the shape between the nodes is not interpolated across them.
+    from test_shape_between_nodes import turn
+
+    _, quaternions = reference
+    for scheme, counts, order in [("fd2", [16, 32, 64], 2.0), ("fe4", [8, 16, 32], 4.0)]:
+        errors = []
+        for n in counts:
+            sol = softspine.solve(SCENE, n_elements=n, scheme=scheme, residual_tol=1e-14)
+            errors.append(turn(sol.rotations_at(STATIONS), quaternions).max())
+        observed = np.log2(np.array(errors[:-1]) / errors[1:])
+        assert observed[-1] == pytest.approx(order, abs=0.2), (scheme, errors)
 
 
 def test_every_moment_matters(reference):
@@ -93,7 +108,8 @@ def test_moment_sensitivities_are_those_of_whole_solves(scheme):
     for j, name in enumerate(names):
         h = 1e-3
         # A five-point difference: truncation about h^4.
-        fd = (-tip(name, 2 * h) + 8 * tip(name, h) - 8 * tip(name, -h) + tip(name, -2 * h)) / (12 * h)
+        fd = (-tip(name, 2 * h) + 8 * tip(name, h) - 8 * tip(name, -h)
+              + tip(name, -2 * h)) / (12 * h)
         np.testing.assert_allclose(sens[:, j], fd, rtol=1e-7, atol=1e-9 * np.abs(fd).max(),
                                    err_msg=name)
 
@@ -113,7 +129,8 @@ def test_a_dead_moment_is_judged_stable_on_its_symmetric_part():
     "change, key",
     [
         ({"point_loads": [{"s": 0.5}]}, r"point_loads\[0\]: give a force"),
-        ({"point_loads": [{"s": 0.5, "moment": [0, float("nan"), 0]}]}, r"point_loads\[0\]\.moment"),
+        ({"point_loads": [{"s": 0.5, "moment": [0, float("nan"), 0]}]},
+         r"point_loads\[0\]\.moment"),
         ({"distributed_moment": [1, 2]}, "distributed_moment"),
         ({"sections": [{}, {"distributed_moment": "x"}]}, r"sections\[1\]\.distributed_moment"),
         ({"distributed_moment": [1e300, 0, 0]}, "distributed_moment"),

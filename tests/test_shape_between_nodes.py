@@ -31,9 +31,12 @@ def reference():
 
 
 def turn(q, r):
-    """Angle between rotations given as rows of unit quaternions."""
-    dots = np.clip(np.abs(np.sum(q * r, axis=-1)), 0.0, 1.0)
-    return 2.0 * np.arccos(dots)
+    """Angle between rotations given as rows of unit quaternions (the angle
+    of conj(q) r, accurate down to round-off, unlike an arccos)."""
+    q, r = np.asarray(q), np.asarray(r)
+    w = np.abs(np.sum(q * r, axis=-1))
+    v = q[..., :1] * r[..., 1:] - r[..., :1] * q[..., 1:] - np.cross(q[..., 1:], r[..., 1:])
+    return 2.0 * np.arctan2(np.linalg.norm(v, axis=-1), w)
 
 
 @pytest.mark.parametrize(
@@ -50,10 +53,11 @@ def test_positions_between_nodes_converge_at_the_schemes_order(reference, scheme
         rotation_errors.append(turn(sol.rotations_at(s), reference["quaternions"][STATIONS]).max())
     observed = np.log2(np.array(position_errors[:-1]) / position_errors[1:])
     assert observed[-1] == pytest.approx(order, abs=0.15), position_errors
-    # Rotations: the scheme's interpolant, at least second order (fe4's
-    # quadratic through its internal node measures 2.6).
+    # Rotations: the scheme's interpolant at its order too (fe4: through the
+    # element's nodes, its internal node and its neighbours'; the element's
+    # own quadratic alone measured 2.6).
     turns = np.log2(np.array(rotation_errors[:-1]) / rotation_errors[1:])
-    assert turns[-1] > 1.9, rotation_errors
+    assert turns[-1] == pytest.approx(order, abs=0.2), rotation_errors
 
 
 @pytest.mark.parametrize("scheme", ["fd2", "fe4"])
@@ -85,3 +89,25 @@ def test_a_stored_fourth_order_solution_without_internal_nodes_says_so():
     old = softspine.Solution.from_dict(data)
     with pytest.raises(ValueError, match="internal_quaternions"):
         old.positions_at([0.5])
+
+
+def test_the_breaks_travel_with_the_solution_and_older_dicts_interpolate_each_element():
+    two_sections = {**SCENE, "rest_curvature": [[0.7, -0.4], [-0.5, 0.2]],
+                    "point_loads": [{"s": 0.25, "force": [0.1, 0.0, 0.0]}]}
+    sol = softspine.solve(two_sections, n_elements=8, scheme="fe4")
+    data = sol.to_dict()
+    # The point load's node and the sections' joint.
+    assert data["breaks"] == [2, 4]
+    s = np.linspace(0.0, 1.0, 23)
+    again = softspine.Solution.from_dict(data)
+    np.testing.assert_array_equal(again.rotations_at(s), sol.rotations_at(s))
+    # A dict of an earlier version: every node a break, each element's own
+    # quadratic (third order), the nodes still met.
+    del data["breaks"]
+    older = softspine.Solution.from_dict(data)
+    assert turn(older.rotations_at(sol.arc_length), sol.quaternions).max() < 1e-12
+    assert 0.0 < turn(older.rotations_at(s), sol.rotations_at(s)).max() < 1e-3
+    for bad, reason in (([0], "interior"), ([8], "interior"), ([1.5], "node indices")):
+        data["breaks"] = bad
+        with pytest.raises(ValueError, match=r"solution\.breaks.*" + reason):
+            softspine.Solution.from_dict(data)

@@ -56,7 +56,7 @@ class WrenchRod:
         self.M = np.asarray(scene.get("tip_moment", [0.0, 0.0, 0.0]), dtype=float)
         self.Q0 = np.asarray(scene.get("base_quaternion", [1.0, 0.0, 0.0, 0.0]), dtype=float)
 
-    def _rhs(self, s, y, u0, f, l):
+    def _rhs(self, s, y, u0, f, torque):
         q, m, n = y[3:7], y[7:10], y[10:13]
         R = _rotation(q)
         u = u0 + (R.T @ m) / self.K
@@ -68,7 +68,7 @@ class WrenchRod:
             w * u[2] + x * u[1] - yy * u[0],
         ])
         t = R[:, 2]
-        return np.concatenate([t, dq, -np.cross(t, n) - l, -f])
+        return np.concatenate([t, dq, -np.cross(t, n) - torque, -f])
 
     def shoot(self, lam, m0, samples=None, rtol=1e-12):
         """Integrate base to tip at load scale `lam` from the base moment `m0`:
@@ -78,7 +78,7 @@ class WrenchRod:
         n0 = lam * (self.P + self.L * self.f + sum(F for _, F, _ in self.points))
         y = np.concatenate([np.zeros(3), self.Q0, m0, n0])
         out = {}
-        for a, b in zip(stops[:-1], stops[1:]):
+        for a, b in zip(stops[:-1], stops[1:], strict=True):
             sec = min(np.searchsorted(self.bounds, 0.5 * (a + b)) - 1, len(self.u0) - 1)
             sol = solve_ivp(self._rhs, (a, b), y, method="DOP853", rtol=rtol, atol=rtol * 1e-2,
                             dense_output=samples is not None,

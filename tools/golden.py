@@ -213,7 +213,18 @@ def record() -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--check", action="store_true", help="compare instead of recording")
+    parser.add_argument("--robots", type=int, nargs="+", metavar="K",
+                        help="re-record only these IK targets' answers (a change that a commit "
+                             "explains), keeping every other recorded answer")
     args = parser.parse_args()
+    if args.robots:
+        golden = json.loads(gzip.decompress(OUT.read_bytes()))
+        for k in args.robots:
+            case = golden["robots"][k]
+            case["answer"] = ik_record(solve_robot(case))
+            print(f"IK target {k} ({case['robot']}, {case['target']}): re-recorded")
+        OUT.write_bytes(gzip.compress(json.dumps(golden).encode(), mtime=0))
+        return
     if args.check:
         golden = json.loads(gzip.decompress(OUT.read_bytes()))
         worst = 0.0

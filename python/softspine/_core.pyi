@@ -95,7 +95,7 @@ class Solution:
         ``s.shape + (3,)``: between the nodes at the scheme's order."""
     def rotations_at(self, s: npt.ArrayLike) -> _Array:
         """Unit quaternions at the arc lengths ``s``, shape ``s.shape + (4,)``:
-        the scheme's interpolant between the nodes, normalised."""
+        between the nodes at the scheme's order, normalised."""
     @property
     def rotation_matrices(self) -> _Array: ...
     @property

@@ -32,6 +32,11 @@ class Sensitivity:
     """(3, k): d(tip reaction force)/dp of a pinned or clamped tip, N per unit."""
     tip_reaction_moment: npt.NDArray[np.float64] | None = None
     """(3, k): d(tip reaction moment)/dp of a clamped tip, N m per unit."""
+    exact: list[bool] | None = None
+    """Per column, whether it comes from the terms' analytic derivatives
+    (exact, in any units); ``False``: the parameter moves the mesh, the base
+    or a tendon's routing, and the equations' derivative is a central
+    difference at the fixed state (about 1e-10 relative)."""
     solution: Solution | None = None
     """The equilibrium (``Robot.sensitivity``)."""
 

@@ -72,7 +72,8 @@ pub trait CurvatureDensity: std::fmt::Debug + Send + Sync {
 /// where nothing of that kind acts.
 #[derive(Debug, Clone, Default)]
 pub struct Loading {
-    /// Diagonal stiffness `(kx, ky, kz)` of each element [N m^2].
+    /// Diagonal stiffness `(kx, ky, kz)` of each element [N m^2], or one
+    /// entry for a rod of one stiffness (the kernels then read no array).
     pub stiffness: Vec<Vector3<f64>>,
     /// Rest curvature of each element, material frame [1/m].
     pub rest_curvature: Vec<Vector3<f64>>,
@@ -119,10 +120,11 @@ impl Loading {
     /// Stiffness of element `i` (zero where none is given: a tangent).
     #[inline(always)]
     pub fn stiffness_of(&self, i: usize) -> Vector3<f64> {
-        self.stiffness
-            .get(i - 1)
-            .copied()
-            .unwrap_or_else(Vector3::zeros)
+        match self.stiffness.len() {
+            0 => Vector3::zeros(),
+            1 => self.stiffness[0],
+            _ => self.stiffness[i - 1],
+        }
     }
 
     /// Rest curvature of element `i`.

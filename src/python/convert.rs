@@ -506,6 +506,14 @@ impl<'py> Fields<'py> {
         }
     }
 
+    /// A key that the dicts of earlier versions lack: None when absent or None.
+    pub(super) fn floats_if_given(&self, key: &str) -> PyResult<Option<Vec<f64>>> {
+        match self.dict.get_item(key)? {
+            Some(v) if !v.is_none() => floats_arg(&self.name(key), &v).map(Some),
+            _ => Ok(None),
+        }
+    }
+
     /// Rows of a key that the dicts of earlier versions lack: empty when
     /// absent or None.
     pub(super) fn rows_or_empty<const N: usize>(&self, key: &str) -> PyResult<Vec<[f64; N]>> {

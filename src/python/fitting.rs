@@ -65,6 +65,7 @@ pub(super) fn sensitivity_result<'py>(
         "tip_reaction_moment",
         s.tip_reaction_moment.as_ref().map(|m| matrix(py, m)),
     )?;
+    d.set_item("exact", s.exact.clone())?;
     d.set_item("solution", solution.map(|inner| PySolution { inner }))?;
     py.import("softspine.sensitivity")?
         .getattr("Sensitivity")?

@@ -71,9 +71,10 @@ impl PySolution {
         )
     }
     /// Rotations at the arc lengths ``s`` as unit quaternions ``[w, x, y,
-    /// z]``, shape ``s.shape + (4,)``: the scheme's interpolant between the
-    /// nodes (linear for ``fd2``, quadratic through the internal node for
-    /// ``fe4``), normalised.
+    /// z]``, shape ``s.shape + (4,)``: between the nodes at the scheme's
+    /// order (linear for ``fd2``; for ``fe4`` the polynomial through the
+    /// element's nodes, its internal node and its neighbours' where the
+    /// shape is smooth across the node between), normalised.
     fn rotations_at<'py>(
         &self,
         py: Python<'py>,
@@ -228,6 +229,7 @@ impl PySolution {
         d.set_item("positions", rows3(py, &s.positions))?;
         d.set_item("quaternions", rows4(py, &s.quaternions))?;
         d.set_item("internal_quaternions", rows4(py, &s.internal_quaternions))?;
+        d.set_item("breaks", s.breaks.clone())?;
         d.set_item("forces", rows3(py, &s.forces))?;
         d.set_item("stiffness", vec3_array(py, &s.stiffness))?;
         d.set_item("section_stiffness", rows3(py, &s.section_stiffness))?;
@@ -288,6 +290,22 @@ impl PySolution {
                 .into_iter()
                 .map(Quat::from_array)
                 .collect(),
+            // Absent from the dicts of earlier versions: unknown (the shape
+            // between the nodes is then each element's own).
+            breaks: match d.floats_if_given("breaks")? {
+                None => None,
+                Some(b) => Some(
+                    b.into_iter()
+                        .map(|j| match j.fract() == 0.0 && (0.0..1e15).contains(&j) {
+                            true => Ok(j as usize),
+                            false => Err(crate::error::Error::argument(
+                                "solution.breaks",
+                                format!("expected node indices, got {j}"),
+                            )),
+                        })
+                        .collect::<crate::error::Result<Vec<usize>>>()?,
+                ),
+            },
             forces: d.vectors("forces")?,
             stiffness: d.vector("stiffness")?,
             section_stiffness: d.vectors("section_stiffness")?,
@@ -343,7 +361,7 @@ impl PySolution {
 }
 
 /// The keys of `Solution.to_dict()`.
-const SOLUTION_KEYS: [&str; 25] = [
+const SOLUTION_KEYS: [&str; 26] = [
     "n_elements",
     "scheme",
     "length",
@@ -351,6 +369,7 @@ const SOLUTION_KEYS: [&str; 25] = [
     "positions",
     "quaternions",
     "internal_quaternions",
+    "breaks",
     "forces",
     "stiffness",
     "section_stiffness",

@@ -507,6 +507,7 @@ impl Solver {
             quaternions: w.q.clone(),
             positions,
             internal_quaternions: model.internal_nodes(&w.q, &mut w.interior),
+            breaks: Some(model.breaks().to_vec()),
             forces: model.node_forces(reactions),
             stiffness: model.stiffness(),
             rest_curvature: self.scene.rest_curvature.clone(),

@@ -70,6 +70,7 @@ impl Solver {
             quaternions: out.quaternions.clone(),
             positions: out.positions,
             internal_quaternions: Vec::new(),
+            breaks: Some(model.breaks().to_vec()),
             forces: out.forces.clone(),
             stiffness: model.stiffness(),
             section_stiffness: Vec::new(),

@@ -128,6 +128,11 @@ pub struct Sensitivity {
     pub tip_reaction_force: Option<nalgebra::Matrix3xX<f64>>,
     /// `d (tip reaction moment) / d p` of a clamped tip [N m per unit].
     pub tip_reaction_moment: Option<nalgebra::Matrix3xX<f64>>,
+    /// Per column, whether the equations' derivative is the terms' analytic
+    /// one (false: a central difference of the discrete equations, for a
+    /// parameter that moves the mesh, the base or a tendon's routing;
+    /// accurate to about 1e-10 relative).
+    pub exact: Vec<bool>,
 }
 
 /// Largest node turn [rad] of the state's move along a sensitivity column in
@@ -533,6 +538,7 @@ impl Solver {
                 && model.constraints().last().is_some_and(|c| c.node == n))
             .then(|| nalgebra::Matrix3xX::zeros(k)),
             tip_reaction_moment: clamped.then(|| nalgebra::Matrix3xX::zeros(k)),
+            exact: vec![false; k],
         };
         let m = r0.len();
         let mut positions = vec![Vector3::zeros(); n + 1];
@@ -549,6 +555,7 @@ impl Solver {
             // parameter moves belongs to a term or a held point's target,
             // else by central differences of the discrete equations.
             let analytic = loading_tangent(model, &scene_at, j, value);
+            out.exact[j] = analytic.is_some();
             let mut models = None;
             if let Some((tangent, target_moves)) = &analytic {
                 model.residual_derivative(&q0, &r0, tangent, &mut w.interior, &mut w.g, &mut shift);

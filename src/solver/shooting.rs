@@ -589,6 +589,7 @@ impl Solver {
             quaternions: w.q.clone(),
             positions,
             internal_quaternions: Vec::new(),
+            breaks: Some(model.breaks().to_vec()),
             forces: model.node_forces(&reactions),
             stiffness: model.stiffness(),
             section_stiffness: Vec::new(),

@@ -48,6 +48,12 @@ pub struct Solution {
     /// middle (empty for the other schemes): with the nodes, the shape
     /// between them ([`Solution::positions_at`]).
     pub internal_quaternions: Vec<Quat>,
+    /// The interior nodes where the shape is not smooth (a section's end,
+    /// a point load, a tendon's anchor, a held point: see
+    /// `RodModel::breaks`), which the shape between the nodes does not
+    /// interpolate across; `None`: unknown (a stored solution of an earlier
+    /// version), every node taken as one.
+    pub breaks: Option<Vec<usize>>,
     /// Internal force at the nodes, world frame [N] (force the distal part exerts on the proximal one).
     pub forces: Vec<Vector3<f64>>,
     /// Stiffness `(kx, ky, kz)` [N m^2] and rest curvature `[kappa_x, kappa_y]`
@@ -135,23 +141,58 @@ impl Solution {
         Ok(())
     }
 
+    /// Whether the shape is smooth through interior node `j` (see
+    /// [`Solution::breaks`]; the elements on both sides of equal length).
+    fn smooth_at(&self, j: usize, mesh: &Mesh) -> bool {
+        let h = mesh.element_lengths();
+        (1..self.n_elements).contains(&j)
+            && h[j - 1] == h[j]
+            && self.breaks.as_ref().is_some_and(|b| !b.contains(&j))
+    }
+
     /// The rotation at fraction `tau` of element `i`: the scheme's own
-    /// interpolant of the quaternions, normalised (linear between the nodes;
-    /// quadratic through the internal node of the fourth-order scheme).
-    fn rotation_in(&self, i: usize, tau: f64) -> Quat {
+    /// interpolant of the quaternions, normalised. Linear between the nodes
+    /// (second order); with the fourth-order scheme's internal nodes, the
+    /// polynomial through the element's nodes, its internal node and the
+    /// internal nodes of its neighbours where the shape is smooth through
+    /// the node between (fourth order: the nodes and internal nodes are;
+    /// the element's own quadratic alone would be third order).
+    fn rotation_in(&self, i: usize, tau: f64, mesh: &Mesh) -> Quat {
         let (a, b) = (self.quaternions[i - 1], self.quaternions[i]);
-        let q = match self.internal_quaternions.get(i - 1) {
-            Some(&m) => {
-                let (wa, wm, wb) = (
-                    2.0 * (tau - 0.5) * (tau - 1.0),
-                    -4.0 * tau * (tau - 1.0),
-                    2.0 * tau * (tau - 0.5),
-                );
-                blend(&[(wa, a), (wm, m), (wb, b)])
-            }
-            None => blend(&[(1.0 - tau, a), (tau, b)]),
+        let Some(&m) = self.internal_quaternions.get(i - 1) else {
+            return blend(&[(1.0 - tau, a), (tau, b)]).normalized();
         };
-        q.normalized()
+        // On the side of the sphere of `a`.
+        let near = |q: Quat| if a.dot(q) < 0.0 { -q } else { q };
+        let mut points = [(0.0, a); 5];
+        let mut count = 0;
+        let mut add = |t: f64, q: Quat| {
+            points[count] = (t, near(q));
+            count += 1;
+        };
+        if i >= 2 && self.smooth_at(i - 1, mesh) {
+            add(-0.5, self.internal_quaternions[i - 2]);
+        }
+        add(0.0, a);
+        add(0.5, m);
+        add(1.0, b);
+        if i < self.n_elements && self.smooth_at(i, mesh) {
+            add(1.5, self.internal_quaternions[i]);
+        }
+        let points = &points[..count];
+        // Lagrange's weights on the points' fractions.
+        let terms: Vec<(f64, Quat)> = points
+            .iter()
+            .map(|&(tk, q)| {
+                let w = points
+                    .iter()
+                    .filter(|(tl, _)| *tl != tk)
+                    .map(|(tl, _)| (tau - tl) / (tk - tl))
+                    .product::<f64>();
+                (w, q)
+            })
+            .collect();
+        blend(&terms).normalized()
     }
 
     /// Positions at the arc lengths `s` [m] (each in `[0, L]`), at the
@@ -205,7 +246,7 @@ impl Solution {
         Ok(s.iter()
             .map(|&x| {
                 let (i, tau) = element_at(arcs, x);
-                self.rotation_in(i, tau)
+                self.rotation_in(i, tau, &mesh)
             })
             .collect())
     }
@@ -327,6 +368,15 @@ impl Solution {
             return Err(Error::argument(
                 "solution.internal_quaternions",
                 format!("has {internal} rows, n_elements = {n} needs {n} (or none)"),
+            ));
+        }
+        if let Some(j) = self.breaks.iter().flatten().find(|j| !(1..n).contains(*j)) {
+            return Err(Error::argument(
+                "solution.breaks",
+                format!(
+                    "node {j} is no interior node of {n} elements (1 to {})",
+                    n - 1
+                ),
             ));
         }
         let lengths = self.section_lengths.len();

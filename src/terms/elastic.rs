@@ -112,7 +112,10 @@ impl Elastic {
 
 impl Term for Elastic {
     fn apply(&self, _mesh: &Mesh, loading: &mut Loading) {
-        loading.stiffness.clone_from(&self.stiffness);
+        match self.stiffness.windows(2).all(|w| w[0] == w[1]) {
+            true => loading.stiffness = self.stiffness[..1].to_vec(),
+            false => loading.stiffness.clone_from(&self.stiffness),
+        }
         loading.rest_curvature.clone_from(&self.rest_curvature);
     }
 
@@ -122,6 +125,12 @@ impl Term for Elastic {
 
     fn vanishes(&self) -> bool {
         true
+    }
+
+    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
+        let mut out = super::jumps(&self.stiffness);
+        out.extend(super::jumps(&self.rest_curvature));
+        out
     }
 
     fn derivative(&self, parameter: &str, _mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {

@@ -131,6 +131,17 @@ impl Term for DeadForces {
             && self.points.iter().all(|(_, p)| *p == Vector3::zeros())
     }
 
+    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
+        let mut out = super::jumps(&self.distributed);
+        out.extend(
+            self.points
+                .iter()
+                .filter(|(_, p)| *p != Vector3::zeros())
+                .map(|(k, _)| *k),
+        );
+        out
+    }
+
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
         let n = self.distributed.len();
         let g = self.gravity.unwrap_or_else(Vector3::zeros);

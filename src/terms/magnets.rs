@@ -96,6 +96,13 @@ impl Term for Magnets {
                 && self.tip_magnet == Vector3::zeros())
     }
 
+    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
+        match self.field == Vector3::zeros() {
+            true => Vec::new(),
+            false => super::jumps(&self.magnetization),
+        }
+    }
+
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
         if let Some(c) = component(parameter, "magnetic_field") {
             Magnets::add(mesh, unit(c), &self.magnetization, self.tip_magnet, tangent);

@@ -50,6 +50,14 @@ pub trait Term: std::fmt::Debug + Send + Sync {
     /// Add its derivative in `parameter` (a scene path, `"tip_force[0]"`) to
     /// `tangent`: true when the parameter is its own, false otherwise.
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool>;
+
+    /// The interior nodes where it makes the rod's shape not smooth (a jump
+    /// of what it puts on the rod: a section's end, a point load, an
+    /// anchor), which the shape between the nodes does not interpolate across.
+    fn breaks(&self, mesh: &Mesh) -> Vec<usize> {
+        let _ = mesh;
+        Vec::new()
+    }
 }
 
 /// Every term of a scene.
@@ -108,6 +116,15 @@ impl Terms {
         self.all().iter().all(|t| t.vanishes())
     }
 
+    /// Every term's breaks (see [`Term::breaks`]), sorted, once each.
+    pub fn breaks(&self, mesh: &Mesh) -> Vec<usize> {
+        let mut all: Vec<usize> = self.all().iter().flat_map(|t| t.breaks(mesh)).collect();
+        all.retain(|j| (1..mesh.n()).contains(j));
+        all.sort_unstable();
+        all.dedup();
+        all
+    }
+
     /// The loading's derivative in `parameter` (a scene path), or `None`
     /// when no term owns it (the equations then depend on it otherwise:
     /// the mesh, the base, the held points).
@@ -147,6 +164,16 @@ pub(crate) fn split_index<'a>(name: &'a str, prefix: &str) -> Option<(usize, &'a
     let rest = name.strip_prefix(prefix)?.strip_prefix('[')?;
     let close = rest.find(']')?;
     Some((rest[..close].parse().ok()?, &rest[close + 1..]))
+}
+
+/// The interior nodes between elements whose values in `per_element` differ.
+pub(crate) fn jumps<T: PartialEq>(per_element: &[T]) -> Vec<usize> {
+    per_element
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| w[0] != w[1])
+        .map(|(i, _)| i + 1)
+        .collect()
 }
 
 /// A unit vector along axis `c`.

@@ -99,6 +99,17 @@ impl Term for Moments {
             && self.distributed.iter().all(|m| *m == Vector3::zeros())
     }
 
+    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
+        let mut out = super::jumps(&self.distributed);
+        out.extend(
+            self.points
+                .iter()
+                .filter(|(_, m)| *m != Vector3::zeros())
+                .map(|(k, _)| *k),
+        );
+        out
+    }
+
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
         let n = mesh.n();
         let node_moment = |node: usize, c: usize| NodeMoment {

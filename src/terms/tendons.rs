@@ -107,6 +107,19 @@ impl Term for Tendons {
         self.tendons.iter().all(|t| t.tension == 0.0)
     }
 
+    fn breaks(&self, mesh: &Mesh) -> Vec<usize> {
+        // Anchors, and where a routing changes (the tendon crosses a disk).
+        let mut out = self.last.clone();
+        for t in &self.tendons {
+            out.extend(
+                t.reroutes
+                    .iter()
+                    .map(|(start, _)| mesh.nearest_node(*start)),
+            );
+        }
+        out
+    }
+
     fn derivative(&self, parameter: &str, _mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
         let Some(k) = indexed(parameter, "tendons", ".tension") else {
             return Ok(false);

@@ -320,7 +320,11 @@ impl RodModel {
     /// interiors a caller keeps belonged to the old ones: forget them.
     pub(crate) fn set_tensions(&mut self, tensions: &[f64]) {
         self.terms.tendons.set_tensions(tensions);
-        self.reload();
+        // Only their curvature density changes (the IK in tension space sets
+        // them at every trial): the rest of the loading and the breaks stay.
+        self.terms
+            .refresh_densities(&self.rod.mesh, &mut self.rod.loading);
+        self.refresh_load_parameter();
     }
 
     /// Set the field in place.
@@ -340,11 +344,11 @@ impl RodModel {
     /// (the number of sections must divide `n`).
     pub fn set_section_curvature(&mut self, sections: &[[f64; 2]]) {
         debug_assert_eq!(self.n() % sections.len().max(1), 0);
-        self.terms.elastic.set_rest_curvature(sections);
-        self.rod
-            .loading
+        self.terms.elastic.set_rest_curvature(sections, self.n());
+        self.terms
+            .elastic
             .rest_curvature
-            .clone_from(&self.terms.elastic.rest_curvature);
+            .expand_into(&mut self.rod.loading.rest_curvature);
         self.refresh_rest();
     }
 
@@ -404,9 +408,12 @@ impl RodModel {
 
     fn refresh_breaks(&mut self) {
         let n = self.n();
-        let mut out = self.terms.breaks(self.mesh());
-        out.extend(crate::terms::jumps(self.mesh().element_lengths()));
-        out.extend(self.held_nodes.iter().copied().filter(|j| *j < n));
+        let mut out = std::mem::take(&mut self.breaks);
+        out.clear();
+        self.terms.breaks(self.mesh(), &mut out);
+        crate::terms::jumps(self.mesh().element_lengths(), &mut out);
+        out.extend(&self.held_nodes);
+        out.retain(|j| (1..n).contains(j));
         out.sort_unstable();
         out.dedup();
         self.breaks = out;

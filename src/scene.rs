@@ -36,6 +36,23 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use reach::clamped_end_deficit;
 use std::f64::consts::PI;
 
+/// The key of a load parameter, written out only for a message.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum LoadKey {
+    Named(&'static str),
+    /// `prefix[index]suffix`.
+    Indexed(&'static str, usize, &'static str),
+}
+
+impl std::fmt::Display for LoadKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LoadKey::Named(key) => f.write_str(key),
+            LoadKey::Indexed(prefix, i, suffix) => write!(f, "{prefix}[{i}]{suffix}"),
+        }
+    }
+}
+
 /// How the stiffness was given.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Stiffness {
@@ -618,7 +635,7 @@ impl Scene {
         }
         self.check_plausible()?;
         for (key, what, value) in self.load_parameters() {
-            self.check_load(|| key, what, value)?;
+            self.check_load(|| key.to_string(), what, value)?;
         }
         // No load: a rest shape too coiled for any n is underresolved, not refused.
         for (i, kappa) in self.rest_curvature.iter().enumerate() {
@@ -636,10 +653,11 @@ impl Scene {
         Ok(())
     }
 
-    /// Every load's dimensionless parameter, by key: its bending moment over
+    /// Every load's dimensionless parameter, by key (named only when a
+    /// message needs it: the check runs at every solver's start): its bending moment over
     /// the softest stiffness and the length (the curvature scale `kappa L` it
     /// alone gives the rod), with its formula.
-    fn load_parameters(&self) -> Vec<(String, &'static str, f64)> {
+    fn load_parameters(&self) -> Vec<(LoadKey, &'static str, f64)> {
         let (l, k_min) = (self.length, self.stiffness().min());
         let f = (0..self.sections())
             .map(|k| self.section_force(k).norm())
@@ -649,35 +667,47 @@ impl Scene {
             false => "distributed_force",
         };
         let mut out = vec![
-            (force_key.to_string(), "|f| L^3 / k", f * l / k_min * l * l),
             (
-                "tip_force".into(),
+                LoadKey::Named(force_key),
+                "|f| L^3 / k",
+                f * l / k_min * l * l,
+            ),
+            (
+                LoadKey::Named("tip_force"),
                 "|P| L^2 / k",
                 self.tip_force.norm() * l / k_min * l,
             ),
             (
-                "tip_moment".into(),
+                LoadKey::Named("tip_moment"),
                 "|M| L / k",
                 self.tip_moment.norm() * l / k_min,
             ),
             (
-                "tip_force_offset".into(),
+                LoadKey::Named("tip_force_offset"),
                 "|F| |c| L / k",
                 self.tip_force.norm() * self.tip_force_offset.norm() * l / k_min,
             ),
         ];
         for (i, p) in self.point_loads.iter().enumerate() {
             let value = p.force.norm() * l / k_min * l;
-            out.push((format!("point_loads[{i}].force"), "|F| L^2 / k", value));
+            out.push((
+                LoadKey::Indexed("point_loads", i, ".force"),
+                "|F| L^2 / k",
+                value,
+            ));
             let value = p.moment.norm() * l / k_min;
-            out.push((format!("point_loads[{i}].moment"), "|M| L / k", value));
+            out.push((
+                LoadKey::Indexed("point_loads", i, ".moment"),
+                "|M| L / k",
+                value,
+            ));
         }
         let m = (0..self.sections.len())
             .filter_map(|s| self.section_moment(s))
             .map(|m| m.norm())
             .fold(self.distributed_moment.norm(), f64::max);
         out.push((
-            "distributed_moment".into(),
+            LoadKey::Named("distributed_moment"),
             "|m| L^2 / k",
             m * l / k_min * l,
         ));
@@ -716,13 +746,13 @@ impl Scene {
     /// magnet) at `field`, without changing the scene.
     pub(crate) fn check_field_load(&self, field: Vector3<f64>) -> Result<()> {
         for (key, what, value) in self.field_load_parameters(field) {
-            self.check_load(|| key, what, value)?;
+            self.check_load(|| key.to_string(), what, value)?;
         }
         Ok(())
     }
 
     /// The field's load parameters at `field` (see [`Scene::load_parameters`]).
-    fn field_load_parameters(&self, field: Vector3<f64>) -> Vec<(String, &'static str, f64)> {
+    fn field_load_parameters(&self, field: Vector3<f64>) -> Vec<(LoadKey, &'static str, f64)> {
         let (l, k_min, b) = (self.length, self.stiffness().min(), field.norm());
         let mut out: Vec<_> = self
             .magnetization
@@ -730,11 +760,15 @@ impl Scene {
             .enumerate()
             .map(|(i, m)| {
                 let value = m.norm() * b * l / k_min * l;
-                (format!("magnetization[{i}]"), "|m| |B| L^2 / k", value)
+                (
+                    LoadKey::Indexed("magnetization", i, ""),
+                    "|m| |B| L^2 / k",
+                    value,
+                )
             })
             .collect();
         let value = self.tip_magnet.norm() * b * l / k_min;
-        out.push(("tip_magnet".into(), "|mu| |B| L / k", value));
+        out.push((LoadKey::Named("tip_magnet"), "|mu| |B| L / k", value));
         out
     }
 
@@ -742,13 +776,13 @@ impl Scene {
     /// changing the scene.
     pub(crate) fn check_tension_load(&self, tensions: &[f64]) -> Result<()> {
         for (key, what, value) in self.tension_load_parameters(tensions) {
-            self.check_load(|| key, what, value)?;
+            self.check_load(|| key.to_string(), what, value)?;
         }
         Ok(())
     }
 
     /// The tendons' load parameters at `tensions` (see [`Scene::load_parameters`]).
-    fn tension_load_parameters(&self, tensions: &[f64]) -> Vec<(String, &'static str, f64)> {
+    fn tension_load_parameters(&self, tensions: &[f64]) -> Vec<(LoadKey, &'static str, f64)> {
         let (l, k_min) = (self.length, self.stiffness().min());
         self.tendons
             .iter()
@@ -757,7 +791,7 @@ impl Scene {
             .map(|(i, (t, tension))| {
                 let value = tension * t.largest_offset() * l / k_min;
                 (
-                    format!("tendons[{i}].tension"),
+                    LoadKey::Indexed("tendons", i, ".tension"),
                     "|tension| |offset| L / k",
                     value,
                 )

@@ -295,50 +295,58 @@ fn actuation_the_drives_cannot_apply_is_refused_by_name() {
 }
 
 #[test]
-fn the_closed_form_tension_sensitivity_is_the_implicit_function_theorems() {
+fn the_tension_sensitivity_is_the_implicit_function_theorems_in_either_scheme() {
     // Solver::tension_sensitivity (each tendon's moment per unit tension, one
-    // back-substitution) against the general path (differences of the
-    // discrete equations at the fixed equilibrium) and a whole solve.
+    // back-substitution) against the general path (the same analytic
+    // derivatives through the scene's paths) and whole solves, fd2 and fe4.
     let robot = tendon_robot(None);
     let tensions = vec![3.0, 0.0, 1.0, 0.0, 2.0, 4.0, 0.5, 1.0, 0.0];
-    let actuation = Actuation {
-        tensions: tensions.clone(),
-        ..Actuation::default()
-    };
-    let scene = robot.actuated_scene(&actuation, 0.02).unwrap();
-    let settings = softspine::Settings {
-        n_elements: Some(robot.n_elements),
-        residual_tol: 1e-13,
-        ..Default::default()
-    };
-    let mut solver = softspine::Solver::new(&scene, settings).unwrap();
-    let sol = solver.solve(None).unwrap();
-    assert!(sol.converged());
-    let closed = solver.tension_sensitivity().unwrap();
-    let names: Vec<String> = (0..9).map(|i| format!("tendons[{i}].tension")).collect();
-    let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
-    let general = solver.sensitivity(&names).unwrap();
-    let scale = general.tip_position.norm();
-    // The general path differences a slack tendon with a 1e-9 N step: its
-    // round-off is about 1e-6 of the column there (1e-9 elsewhere).
-    let gap = (&closed.position - &general.tip_position).norm() / scale;
-    assert!(gap < 1e-5, "{gap:e}");
-    let taut = (closed.position.column(5) - general.tip_position.column(5)).norm();
-    assert!(taut < 1e-8 * scale, "{taut:e}");
-    // And a whole solve with the sixth tension moved.
-    let h = 1e-4;
-    let mut moved = tensions.clone();
-    moved[5] += h;
-    let tip = tip_of(
-        &robot,
-        &Actuation {
-            tensions: moved,
+    for scheme in [softspine::Scheme::Fd2, softspine::Scheme::Fe4] {
+        let actuation = Actuation {
+            tensions: tensions.clone(),
             ..Actuation::default()
-        },
-        0.02,
-    );
-    let difference = (tip - sol.tip_position()) / h;
-    assert!((difference - closed.position.column(5)).norm() < 1e-3 * scale);
+        };
+        let scene = robot.actuated_scene(&actuation, 0.02).unwrap();
+        let settings = softspine::Settings {
+            n_elements: Some(robot.n_elements),
+            scheme: Some(scheme),
+            residual_tol: 1e-13,
+            ..Default::default()
+        };
+        let mut solver = softspine::Solver::new(&scene, settings.clone()).unwrap();
+        let sol = solver.solve(None).unwrap();
+        assert!(sol.converged());
+        let closed = solver.tension_sensitivity().unwrap();
+        let names: Vec<String> = (0..9).map(|i| format!("tendons[{i}].tension")).collect();
+        let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
+        let general = solver.sensitivity(&names).unwrap();
+        assert!(general.exact.iter().all(|e| *e));
+        let scale = general.tip_position.norm();
+        let gap = (&closed.position - &general.tip_position).norm() / scale;
+        assert!(gap < 1e-10, "{scheme:?}: {gap:e}");
+        // And whole solves with the sixth tension moved (a five-point
+        // difference: truncation about h^4).
+        let h = 1e-2;
+        let tip = |dt: f64| {
+            let mut moved = tensions.clone();
+            moved[5] += dt;
+            let moved = Actuation {
+                tensions: moved,
+                ..Actuation::default()
+            };
+            let scene = robot.actuated_scene(&moved, 0.02).unwrap();
+            let sol = softspine::solve(&scene, settings.clone(), None).unwrap();
+            assert!(sol.converged());
+            sol.tip_position()
+        };
+        let difference =
+            (-tip(2.0 * h) + 8.0 * tip(h) - 8.0 * tip(-h) + tip(-2.0 * h)) / (12.0 * h);
+        let column = closed.position.column(5);
+        assert!(
+            (difference - column).norm() < 1e-7 * column.norm(),
+            "{scheme:?}: {difference} vs {column}"
+        );
+    }
 }
 
 #[test]

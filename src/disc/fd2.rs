@@ -78,6 +78,10 @@ struct Source<'a, const TANGENT: bool> {
     loading: &'a Loading,
     load: f64,
     held: NodeForces<'a>,
+    /// Whether the loading has an elastic law and an internal force: a
+    /// tangent may have neither (a tension's), and then skips them.
+    elastic: bool,
+    forces: bool,
 }
 
 impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
@@ -97,7 +101,21 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
             loading,
             load,
             held,
+            elastic: !loading.stiffness.is_empty() || !loading.rest_curvature.is_empty(),
+            forces: !loading.mean_force.is_empty() || !held.is_empty(),
         }
+    }
+
+    /// Whether anything of the loading acts on element `i` (always, but
+    /// along a tangent of one term's parameter).
+    #[inline(always)]
+    fn acts_on(&self, i: usize) -> bool {
+        let nonzero = |list: &[Vector3<f64>]| Self::entry(list, i) != Vector3::zeros();
+        !TANGENT
+            || (self.elastic && (nonzero(self.stiffness) || nonzero(self.rest)))
+            || self.forces
+            || !self.loading.body_loads.is_empty()
+            || self.loading.densities.iter().any(|d| d.acts_on(i))
     }
 
     /// A stiffness of element `i` from a list of one a rod or one an element.
@@ -165,16 +183,28 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
             w += shift;
         }
         let mut density_stiffness = None;
-        if self.loading.has_density(i) {
+        if !self.loading.densities.is_empty() {
             let omega = (2.0 / ds) * cv;
             let middle = 0.5 * (self.arcs[i - 1] + self.arcs[i]);
-            let (_, moment, stiffness) = self.loading.density(i, middle, &omega, self.load);
-            w += moment;
-            density_stiffness = Some(stiffness);
+            if let Some((_, moment, stiffness)) = self.loading.density(i, middle, &omega, self.load)
+            {
+                w += moment;
+                density_stiffness = Some(stiffness);
+            }
         }
         let amat = Matrix3::identity() * c0 + skew(&cv);
         let ga = -(amat * w);
         let gb = amat.transpose() * w;
+        if TANGENT && !self.forces {
+            // A tangent without forces (a tension's): its moment alone.
+            return ElementTerms {
+                ga,
+                gb,
+                jaa: Matrix3::zeros(),
+                jbb: Matrix3::zeros(),
+                jab: Matrix3::zeros(),
+            };
+        }
         // Load potential kappa * a^T S b with kappa = -ds/3 (F . T(a,b) term).
         let kappa = -ds / 3.0;
         let fbar = self.mean_force(i);
@@ -276,7 +306,16 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
             if i % crate::interrupt::POLL_STRIDE == 0 && crate::interrupt::requested() {
                 return;
             }
-            let mut t = self.element_terms(i, q, with_jacobian);
+            let mut t = match self.acts_on(i) {
+                true => self.element_terms(i, q, with_jacobian),
+                false => ElementTerms {
+                    ga: Vector3::zeros(),
+                    gb: Vector3::zeros(),
+                    jaa: Matrix3::zeros(),
+                    jbb: Matrix3::zeros(),
+                    jab: Matrix3::zeros(),
+                },
+            };
             for body in &self.loading.body_loads {
                 let field = self.load * body.world;
                 self.body_terms(i, q, &field, &body.body[i - 1], &mut t, with_jacobian);
@@ -404,25 +443,31 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
         // sum (the held points' forces are not scaled).
         let weighted = |i: usize| h_of[i - 1] * Self::entry(self.mean_force, i);
         let held = |i: usize| h_of[i - 1] * self.held.from_node(i);
-        let mut next = weighted(1);
+        let forces = !TANGENT || self.forces;
+        let mut next = match forces {
+            true => weighted(1),
+            false => Vector3::zeros(),
+        };
         for j in 1..=n {
-            let this = next;
-            next = match j < n {
-                true => weighted(j + 1),
-                false => Vector3::zeros(),
-            };
-            let mut weight = load * (this + next);
-            if !self.held.is_empty() {
-                weight += held(j);
-                if j < n {
-                    weight += held(j + 1);
+            if forces {
+                let this = next;
+                next = match j < n {
+                    true => weighted(j + 1),
+                    false => Vector3::zeros(),
+                };
+                let mut weight = load * (this + next);
+                if !self.held.is_empty() {
+                    weight += held(j);
+                    if j < n {
+                        weight += held(j + 1);
+                    }
                 }
-            }
-            let h = (-1.0 / 3.0) * weight;
-            let f = q[j].inverse_rotate(h);
-            g[j - 1] += Vector3::new(-f.y, f.x, 0.0);
-            if let Some(jac) = jac.as_deref_mut() {
-                jac.diag[j - 1] += f * Vector3::z().transpose() - f.z * Matrix3::identity();
+                let h = (-1.0 / 3.0) * weight;
+                let f = q[j].inverse_rotate(h);
+                g[j - 1] += Vector3::new(-f.y, f.x, 0.0);
+                if let Some(jac) = jac.as_deref_mut() {
+                    jac.diag[j - 1] += f * Vector3::z().transpose() - f.z * Matrix3::identity();
+                }
             }
             // The body-vector potentials of the elements that meet here.
             for body in &loading.body_loads {
@@ -489,6 +534,43 @@ impl Discretisation for Fd2 {
         interior_shift: &mut Vec<Vector3<f64>>,
     ) {
         interior_shift.clear();
+        if tangent.only_moments() {
+            // A parameter of the elastic law or a density (a section's rest
+            // curvature, a tension): the moment's derivative on the elements
+            // it moves, `dK (omega - omega0) - K domega0 + dW/domega`, the
+            // rest of the assembly skipped.
+            dg.iter_mut().for_each(|x| *x = Vector3::zeros());
+            let entry = Source::<true>::entry;
+            let (first, last) = tangent.support.unwrap_or((1, rod.n()));
+            for i in first..=last {
+                let (dk, drest) = (
+                    entry(&tangent.stiffness, i),
+                    entry(&tangent.rest_curvature, i),
+                );
+                let elastic = dk != Vector3::zeros() || drest != Vector3::zeros();
+                let density = tangent.densities.iter().any(|d| d.acts_on(i));
+                if !elastic && !density {
+                    continue;
+                }
+                let h = rod.h(i);
+                let c = q[i - 1].conj() * q[i];
+                let omega = (2.0 / h) * c.v;
+                let mut moment = dk.component_mul(&(omega - rod.loading.rest_of(i)))
+                    - rod.loading.stiffness_of(i).component_mul(&drest);
+                if density {
+                    let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
+                    if let Some((_, m, _)) = tangent.density(i, middle, &omega, 1.0) {
+                        moment += m;
+                    }
+                }
+                let amat = Matrix3::identity() * c.w + skew(&c.v);
+                dg[i - 1] += amat.transpose() * moment;
+                if i >= 2 {
+                    dg[i - 2] -= amat * moment;
+                }
+            }
+            return;
+        }
         let source = Source::<true>::new(rod, tangent, 1.0, NodeForces::NONE);
         source.assemble(q, dg, None, ASSEMBLY_CHUNK);
     }
@@ -512,10 +594,12 @@ impl Discretisation for Fd2 {
             let (cv, h) = ((a.conj() * b).v, rod.h(i));
             let e = (2.0 / h) * cv - loading.rest_of(i);
             let mut elastic = 0.5 * e.dot(&loading.stiffness_of(i).component_mul(&e));
-            if loading.has_density(i) {
+            if !loading.densities.is_empty() {
                 let omega = (2.0 / h) * cv;
                 let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
-                elastic += loading.density(i, middle, &omega, load).0;
+                if let Some((value, _, _)) = loading.density(i, middle, &omega, load) {
+                    elastic += value;
+                }
             }
             let mut work = load * loading.mean_force_of(i).dot(&mean_tangent(a, b));
             for body in &loading.body_loads {

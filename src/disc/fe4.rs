@@ -177,7 +177,10 @@ fn point_terms(
         // The curvature densities add to the elastic one: their gradient to
         // the moment, their Hessian to the stiffness.
         let s = el.start + tau * el.h;
-        let (v, moment, stiffness) = el.loading.density(el.index, s, &omega, el.scale);
+        let (v, moment, stiffness) = el
+            .loading
+            .density(el.index, s, &omega, el.scale)
+            .unwrap_or_default();
         value += v;
         mu += moment;
         k += stiffness;

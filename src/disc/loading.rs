@@ -57,14 +57,14 @@ pub trait CurvatureDensity: std::fmt::Debug + Send + Sync {
 
     /// Its value [N], gradient in `omega` [N m] and Hessian [N m^2] at arc
     /// length `s` of element `element`, curvature `omega` (material frame),
-    /// scaled by `scale` (the load scale).
+    /// scaled by `scale` (the load scale); `None` where it does not act.
     fn density(
         &self,
         element: usize,
         s: f64,
         omega: &Vector3<f64>,
         scale: f64,
-    ) -> (f64, Vector3<f64>, Matrix3<f64>);
+    ) -> Option<(f64, Vector3<f64>, Matrix3<f64>)>;
 }
 
 /// What the terms put on a rod of `n` elements (see the module's
@@ -96,6 +96,11 @@ pub struct Loading {
     pub node_moments: Vec<NodeMoment>,
     /// Curvature densities beyond the elastic law.
     pub densities: Vec<Arc<dyn CurvatureDensity>>,
+    /// A tangent's elements (from 1, both ends included) outside of which
+    /// its per-element entries and densities are zero (a section's rest
+    /// curvature, a tendon's tension): where a scheme need look. `None`:
+    /// anywhere (and always for a rod's own loading).
+    pub support: Option<(usize, usize)>,
 }
 
 impl Loading {
@@ -169,23 +174,43 @@ impl Loading {
         !self.densities.is_empty() && self.densities.iter().any(|d| d.acts_on(i))
     }
 
-    /// The curvature densities' sum at arc length `s` of element `i`.
-    #[inline(never)]
+    /// The curvature densities' sum at arc length `s` of element `i`;
+    /// `None` where none acts (the common element: no call).
+    #[inline(always)]
     pub fn density(
         &self,
         i: usize,
         s: f64,
         omega: &Vector3<f64>,
         scale: f64,
-    ) -> (f64, Vector3<f64>, Matrix3<f64>) {
-        let mut out = (0.0, Vector3::zeros(), Matrix3::zeros());
-        for d in self.densities.iter().filter(|d| d.acts_on(i)) {
-            let (v, m, k) = d.density(i, s, omega, scale);
-            out.0 += v;
-            out.1 += m;
-            out.2 += k;
+    ) -> Option<(f64, Vector3<f64>, Matrix3<f64>)> {
+        match self.densities.as_slice() {
+            [] => None,
+            [one] => one.density(i, s, omega, scale),
+            many => many
+                .iter()
+                .filter_map(|d| d.density(i, s, omega, scale))
+                .reduce(|a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2)),
         }
-        out
+    }
+
+    /// Whether it holds nothing at all (a tangent before a term's part).
+    pub fn is_empty(&self) -> bool {
+        self.stiffness.is_empty()
+            && self.rest_curvature.is_empty()
+            && self.densities.is_empty()
+            && self.only_moments()
+    }
+
+    /// Whether it holds only kinds that act through the curvature (the
+    /// elastic law, curvature densities): a tangent of such a parameter.
+    pub fn only_moments(&self) -> bool {
+        self.mean_force.is_empty()
+            && self.force_drop.is_empty()
+            && self.body_loads.is_empty()
+            && self.distributed_moment.is_empty()
+            && self.node_pairs.is_empty()
+            && self.node_moments.is_empty()
     }
 
     /// Whether the rest shape is the exact equilibrium: nothing but the
@@ -210,6 +235,12 @@ impl Loading {
     /// Add `factor` times `other` (a tangent's parts: a combination of
     /// terms' derivatives), entry by entry.
     pub fn add_scaled(&mut self, other: &Loading, factor: f64) {
+        // The union of the supports (anywhere if either is anywhere).
+        self.support = match (self.is_empty(), self.support, other.support) {
+            (true, _, support) => support,
+            (false, Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+            _ => None,
+        };
         fn add(to: &mut Vec<Vector3<f64>>, from: &[Vector3<f64>], factor: f64) {
             if from.is_empty() {
                 return;
@@ -310,8 +341,8 @@ impl CurvatureDensity for Scaled {
         s: f64,
         omega: &Vector3<f64>,
         scale: f64,
-    ) -> (f64, Vector3<f64>, Matrix3<f64>) {
-        let (v, m, k) = self.density.density(element, s, omega, scale);
-        (self.factor * v, self.factor * m, self.factor * k)
+    ) -> Option<(f64, Vector3<f64>, Matrix3<f64>)> {
+        let (v, m, k) = self.density.density(element, s, omega, scale)?;
+        Some((self.factor * v, self.factor * m, self.factor * k))
     }
 }

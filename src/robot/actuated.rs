@@ -274,8 +274,12 @@ impl ActuatedInverseSolver {
                 let sens = self.solver.tension_sensitivity().ok()?;
                 (sens.position, sens.rotation)
             } else {
+                // The scene's own values: each through its term's derivative.
                 let names = (0..self.x.len())
-                    .map(|j| format!("actuation[{j}]"))
+                    .map(|j| match self.space {
+                        ActuationSpace::Tensions => format!("tendons[{j}].tension"),
+                        _ => format!("magnetic_field[{j}]"),
+                    })
                     .collect();
                 let scene = self.solver.scene().clone();
                 let space = self.space;
@@ -285,7 +289,7 @@ impl ActuatedInverseSolver {
                 };
                 let sens = self
                     .solver
-                    .sensitivity_with(names, &values, |j, delta| {
+                    .sensitivity_of_paths(names, &values, |j, delta| {
                         let mut moved = scene.clone();
                         match space {
                             ActuationSpace::Tensions => moved.tendons[j].tension += delta,

@@ -148,15 +148,16 @@ impl Scene {
             }
         }
         let loads = self.load_parameters();
-        let (key, what, largest) = loads
-            .iter()
-            .fold(("", "", 0.0), |best, (key, what, value)| {
+        let (key, what, largest) = loads.iter().fold(
+            (super::LoadKey::Named(""), "", 0.0),
+            |best, (key, what, value)| {
                 if *value > best.2 {
-                    (key.as_str(), *what, *value)
+                    (*key, *what, *value)
                 } else {
                     best
                 }
-            });
+            },
+        );
         if largest > 0.0 && largest < ROUNDOFF_LOAD {
             out.push(format!(
                 "{key}: the largest load parameter, {what} = {largest:.1e}, moves the rod by \

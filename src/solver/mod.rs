@@ -35,8 +35,8 @@ pub(crate) use crate::read::check_tolerance;
 pub use adaptive::{solve_to_accuracy, Accuracy};
 pub use sensitivity::{Sensitivity, TipSensitivity};
 pub use settings::{
-    default_elements, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS, MAX_ELEMENTS,
-    MAX_PAPER_ELEMENTS, RESIDUAL_TOL_RANGE,
+    default_elements, Engine, Local, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS,
+    MAX_ELEMENTS, MAX_PAPER_ELEMENTS, RESIDUAL_TOL_RANGE,
 };
 pub use solution::{Solution, Status, MAX_RESOLVED_TURN};
 pub(crate) use workspace::{step_limit, LocalOutcome, LocalSolver, Workspace};
@@ -65,6 +65,11 @@ pub struct Solver {
     reach_limit: Option<ReachLimit>,
     /// The scene itself, for the paper's method (which builds its own system).
     scene: Scene,
+    /// The loading's derivative in each tendon's tension (at unit tension:
+    /// the tensions do not change it), kept for the IK in tension space; and
+    /// in each equal section's rest curvature, for the IK of a pneumatic robot.
+    tension_tangents: Vec<crate::disc::Loading>,
+    curvature_tangents: Vec<crate::disc::Loading>,
 }
 
 impl Solver {
@@ -77,10 +82,7 @@ impl Solver {
         let reach_limit = scene.check_constraints(n)?;
         // What only the discrete potential models (shooting and the paper's
         // system do not).
-        if matches!(
-            settings.method,
-            Method::Shooting | Method::Paper | Method::PaperLiteral
-        ) {
+        if !settings.method.on_the_potential() {
             if let Some(what) = scene.only_the_potential_models() {
                 return Err(Error::argument(
                     "method",
@@ -91,7 +93,7 @@ impl Solver {
                 ));
             }
         }
-        if settings.method == Method::Shooting && !scene.guides.is_empty() {
+        if settings.method.engine() == Engine::Shooting && !scene.guides.is_empty() {
             return Err(Error::argument(
                 "method",
                 "shooting does not support guides (held interior points); use 'newton'",
@@ -100,11 +102,9 @@ impl Solver {
         let scheme = settings.scheme_for(scene, None);
         let model = RodModel::new(scene, n).with_scheme(scheme);
         let work = Workspace::new(&model)?;
-        let local: Box<dyn LocalSolver + Send + Sync> = match settings.method {
-            Method::Newton | Method::Shooting => Box::new(newton::Newton),
-            Method::LevenbergMarquardt | Method::Paper | Method::PaperLiteral => {
-                Box::new(lm::LevenbergMarquardt::new(&model))
-            }
+        let local: Box<dyn LocalSolver + Send + Sync> = match settings.method.local() {
+            Local::Newton => Box::new(newton::Newton),
+            Local::LevenbergMarquardt => Box::new(lm::LevenbergMarquardt::new(&model)),
         };
         Ok(Solver {
             model,
@@ -113,6 +113,8 @@ impl Solver {
             local,
             reach_limit,
             scene: scene.clone(),
+            tension_tangents: Vec::new(),
+            curvature_tangents: Vec::new(),
         })
     }
 
@@ -240,6 +242,8 @@ impl Solver {
         scene.check_derived()?;
         self.model = RodModel::new(&scene, self.model.n()).with_scheme(self.model.scheme());
         self.work.interior.forget();
+        self.tension_tangents.clear();
+        self.curvature_tangents.clear();
         self.scene = scene;
         Ok(())
     }
@@ -292,8 +296,8 @@ impl Solver {
                 ));
             }
         }
-        if matches!(self.settings.method, Method::Paper | Method::PaperLiteral) {
-            return self.solve_paper();
+        if let Engine::Paper { literal } = self.settings.method.engine() {
+            return self.solve_paper(literal);
         }
         let tol = self.model.effective_tol(self.settings.residual_tol);
         let (model, w) = (&self.model, &mut self.work);
@@ -316,7 +320,7 @@ impl Solver {
             };
             return Ok(self.finish(ending, 0, 0));
         }
-        if self.settings.method == Method::Shooting {
+        if self.settings.method.engine() == Engine::Shooting {
             return Ok(self.solve_shooting(initial));
         }
         if initial.is_none() && model.is_trivial() {
@@ -391,7 +395,7 @@ impl Solver {
         // gets there: held points that only a strongly bent (buckled) rod
         // reaches, torsion far stiffer than bending. LM is dense, so it is only
         // a fallback, and only for moderate n. It shares the iteration budget.
-        if self.settings.method == Method::Newton
+        if self.settings.method.engine() == Engine::Potential(Local::Newton)
             && direct_state.is_none()
             && 3 * (model.n() + model.constraints().len()) <= LM_FALLBACK_UNKNOWNS
         {

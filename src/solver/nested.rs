@@ -13,7 +13,7 @@
 //! every n. If it does not (a coarse rod that misses a feature of the scene),
 //! the fine solve falls back to the full strategy.
 
-use super::{is_stable, Method, Settings, Solver};
+use super::{is_stable, Engine, Local, Settings, Solver};
 use crate::error::Result;
 use crate::quat::Quat;
 use crate::scene::Scene;
@@ -62,7 +62,9 @@ pub(crate) fn coarse_elements(
     load_parameter: f64,
 ) -> Option<usize> {
     let n = settings.elements_for(scene);
-    if settings.method != Method::Newton || n < NEST_FACTOR * COARSE_ELEMENTS {
+    if settings.method.engine() != Engine::Potential(Local::Newton)
+        || n < NEST_FACTOR * COARSE_ELEMENTS
+    {
         return None;
     }
     let m = scene.sections();
@@ -205,6 +207,7 @@ fn next_to(coarse: &[Quat], q: &[Quat]) -> bool {
 mod tests {
     use super::*;
     use crate::model::element_turn;
+    use crate::solver::Method;
 
     fn scene(json: &str) -> Scene {
         Scene::from_json_str(json).unwrap()

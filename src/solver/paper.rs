@@ -3,7 +3,7 @@
 
 use super::solution::judge;
 use super::workspace::{evaluate, is_stable};
-use super::{Method, Solution, Solver, Status};
+use super::{Solution, Solver, Status};
 use crate::error::{Error, Result};
 use crate::paper_method::solve_paper;
 use crate::scene::ReachLimit;
@@ -11,8 +11,7 @@ use crate::scene::ReachLimit;
 impl Solver {
     /// The seed paper's method (see `paper_method`); its answer is reported with
     /// the model's residual and stability at the renormalised quaternions.
-    pub(super) fn solve_paper(&mut self) -> Result<Solution> {
-        let literal = self.settings.method == Method::PaperLiteral;
+    pub(super) fn solve_paper(&mut self, literal: bool) -> Result<Solution> {
         if let Some(ReachLimit::FullReach(reason) | ReachLimit::BeyondDiscreteReach(reason)) =
             &self.reach_limit
         {

@@ -33,41 +33,56 @@ impl Solver {
             ));
         }
         let per = n / sections;
-        self.tip_sensitivity_with(2 * sections, |_, column| {
-            // The rest curvature's component of one section's elements.
-            let (s, c) = (column / 2, column % 2);
-            let mut rest = vec![Vector3::zeros(); n];
-            for k in &mut rest[s * per..(s + 1) * per] {
-                k[c] = 1.0;
-            }
-            Ok(Loading {
-                rest_curvature: rest,
-                ..Loading::empty()
-            })
-        })
+        if self.curvature_tangents.len() != 2 * sections {
+            self.curvature_tangents = (0..2 * sections)
+                .map(|column| {
+                    // The rest curvature's component of one section's elements.
+                    let (s, c) = (column / 2, column % 2);
+                    let mut rest = vec![Vector3::zeros(); n];
+                    for k in &mut rest[s * per..(s + 1) * per] {
+                        k[c] = 1.0;
+                    }
+                    Loading {
+                        rest_curvature: rest,
+                        support: Some((s * per + 1, (s + 1) * per)),
+                        ..Loading::empty()
+                    }
+                })
+                .collect();
+        }
+        let tangents = std::mem::take(&mut self.curvature_tangents);
+        let out = self.tip_sensitivity_with(&tangents);
+        self.curvature_tangents = tangents;
+        out
     }
 
     /// Sensitivity of the tip of the last (converged, free-tip)
     /// equilibrium to the tendons' tensions, one column a tendon of the scene.
     pub fn tension_sensitivity(&mut self) -> Result<TipSensitivity> {
         let tendons = self.scene.tendons.len();
-        self.tip_sensitivity_with(tendons, |model, column| {
-            let name = format!("tendons[{column}].tension");
-            model
-                .terms()
-                .derivative(&name, model.mesh())?
-                .ok_or_else(|| Error::argument(name, "no such tendon"))
-        })
+        if self.tension_tangents.len() != tendons {
+            let model = &self.model;
+            self.tension_tangents = (0..tendons)
+                .map(|j| {
+                    let name = format!("tendons[{j}].tension");
+                    model
+                        .terms()
+                        .derivative(&name, model.mesh())?
+                        .ok_or_else(|| Error::argument(name, "no such tendon"))
+                })
+                .collect::<Result<_>>()?;
+        }
+        let tangents = std::mem::take(&mut self.tension_tangents);
+        let out = self.tip_sensitivity_with(&tangents);
+        self.tension_tangents = tangents;
+        out
     }
 
-    /// The tip's sensitivity to `columns` parameters of which `tangent`
-    /// gives the loading's derivative, by the implicit function theorem on
-    /// the factored Jacobian (free tip).
-    fn tip_sensitivity_with(
-        &mut self,
-        columns: usize,
-        tangent: impl Fn(&RodModel, usize) -> Result<Loading>,
-    ) -> Result<TipSensitivity> {
+    /// The tip's sensitivity to the parameters of which `tangents` are the
+    /// loading's derivatives, by the implicit function theorem on the
+    /// factored Jacobian (free tip).
+    fn tip_sensitivity_with(&mut self, tangents: &[Loading]) -> Result<TipSensitivity> {
+        let columns = tangents.len();
         let n = self.model.n();
         if self.model.is_constrained() {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
@@ -95,10 +110,11 @@ impl Solver {
         let turn = tip.rotation();
         let mut shift = Vec::new();
         let mut moved = vec![Vector3::zeros(); n + 1];
-        for column in 0..columns {
-            let t = tangent(model, column)?;
-            model.residual_derivative(&w.q, &[], &t, &mut w.interior, &mut w.step, &mut shift);
-            model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
+        for (column, t) in tangents.iter().enumerate() {
+            model.residual_derivative(&w.q, &[], t, &mut w.interior, &mut w.step, &mut shift);
+            if !shift.is_empty() {
+                model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
+            }
             w.lu.solve_in_place(&mut w.step);
             // d theta / dp = -A^{-1} dg/dp; the tip also moves with the
             // interior at fixed nodes (fe4).
@@ -360,6 +376,33 @@ fn differenced(
     models.ok_or_else(|| refusal.expect("an attempt without models was refused"))
 }
 
+/// The loading's derivative in the scene path `path` (and each held point's
+/// target's): a term's own parameter, or a held point's target; `None`
+/// when neither (the equations are differenced).
+fn path_tangent(model: &RodModel, path: &str) -> Option<(Loading, Vec<Vector3<f64>>)> {
+    let mut moves = vec![Vector3::zeros(); model.constraints().len()];
+    if let Some((c, axis)) = held_target(model, path) {
+        moves[c][axis] = 1.0;
+        return Some((Loading::empty(), moves));
+    }
+    let tangent = model.terms().derivative(path, model.mesh()).ok()??;
+    Some((tangent, moves))
+}
+
+/// The held point and axis whose target the scene path `path` is
+/// (`guides[i].position[c]`, a held tip's `tip.position[c]`).
+fn held_target(model: &RodModel, path: &str) -> Option<(usize, usize)> {
+    let constraints = model.constraints();
+    let tip_held = constraints.last().is_some_and(|c| c.node == model.n());
+    match crate::terms::split_index(path, "guides") {
+        Some((g, rest)) => crate::terms::component(rest, ".position").map(|c| (g, c)),
+        None if tip_held => {
+            crate::terms::component(path, "tip.position").map(|c| (constraints.len() - 1, c))
+        }
+        None => None,
+    }
+}
+
 /// Relative step of a parameter in the map to the scene's values: the
 /// values it moves, and by how much, by central differences (exact where
 /// the map is linear, as every scene parameter's is; a robot's parameters
@@ -386,9 +429,7 @@ fn loading_tangent(
     if plus.len() != minus.len() {
         return None;
     }
-    let constraints = model.constraints();
-    let tip_held = constraints.last().is_some_and(|c| c.node == model.n());
-    let mut moves = vec![Vector3::zeros(); constraints.len()];
+    let mut moves = vec![Vector3::zeros(); model.constraints().len()];
     let mut tangent = Loading::empty();
     for ((path, a), (other, b)) in plus.iter().zip(&minus) {
         if path != other {
@@ -399,14 +440,7 @@ fn loading_tangent(
         }
         let rate = (a - b) / (2.0 * delta);
         // A held point's target: its row moves, no term does.
-        let target = match crate::terms::split_index(path, "guides") {
-            Some((g, rest)) => crate::terms::component(rest, ".position").map(|c| (g, c)),
-            None if tip_held => {
-                crate::terms::component(path, "tip.position").map(|c| (constraints.len() - 1, c))
-            }
-            None => None,
-        };
-        if let Some((c, axis)) = target {
+        if let Some((c, axis)) = held_target(model, path) {
             moves.get_mut(c)?[axis] += rate;
             continue;
         }
@@ -458,7 +492,7 @@ impl Solver {
             })
             .collect();
         let scene = self.scene.clone();
-        self.sensitivity_with(names.clone(), &values, |j, delta| {
+        self.sensitivity_of_paths(names.clone(), &values, |j, delta| {
             if let Some(i) = tensions[j] {
                 let mut moved = scene.clone();
                 moved.tendons[i].tension += delta;
@@ -489,11 +523,36 @@ impl Solver {
         values: &[f64],
         scene_at: impl Fn(usize, f64) -> Result<Scene>,
     ) -> Result<Sensitivity> {
+        let tangent_of =
+            |model: &RodModel, j: usize, value: f64| loading_tangent(model, &scene_at, j, value);
+        self.sensitivity_core(parameters, values, tangent_of, &scene_at)
+    }
+
+    /// [`Solver::sensitivity_with`] of parameters that are the scene's own
+    /// values, named by their paths (`"tendons[0].tension"`): each goes
+    /// straight through its term's derivative.
+    pub(crate) fn sensitivity_of_paths(
+        &mut self,
+        paths: Vec<String>,
+        values: &[f64],
+        scene_at: impl Fn(usize, f64) -> Result<Scene>,
+    ) -> Result<Sensitivity> {
+        let names = paths.clone();
+        let tangent_of = |model: &RodModel, j: usize, _: f64| path_tangent(model, &paths[j]);
+        self.sensitivity_core(names, values, tangent_of, scene_at)
+    }
+
+    /// [`Solver::sensitivity_with`] with the loading's tangent of each
+    /// parameter from `tangent_of` (`None`: the equations are differenced).
+    fn sensitivity_core(
+        &mut self,
+        parameters: Vec<String>,
+        values: &[f64],
+        tangent_of: impl Fn(&RodModel, usize, f64) -> Option<(Loading, Vec<Vector3<f64>>)>,
+        scene_at: impl Fn(usize, f64) -> Result<Scene>,
+    ) -> Result<Sensitivity> {
         use super::constrained;
-        if !matches!(
-            self.settings.method,
-            super::Method::Newton | super::Method::LevenbergMarquardt
-        ) {
+        if !self.settings.method.on_the_potential() {
             return Err(Error::argument(
                 "sensitivity",
                 "needs the equilibrium of method 'newton' or 'lm'",
@@ -541,7 +600,6 @@ impl Solver {
             exact: vec![false; k],
         };
         let m = r0.len();
-        let mut positions = vec![Vector3::zeros(); n + 1];
         let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
         let model_at = |j: usize, delta: f64| -> Result<RodModel> {
             let scene = scene_at(j, delta)?;
@@ -549,18 +607,34 @@ impl Solver {
             Ok(RodModel::new(&scene, n).with_scheme(scheme))
         };
         let mut shift = Vec::new();
+        // The tip's position Jacobian in the rotations and (fe4, through the
+        // internal nodes the reactions load) in the reactions, for the
+        // outputs of an analytic column.
+        let mut d_tip = vec![nalgebra::Matrix3::zeros(); n];
+        model.position_jacobian(&q0, n, &w.interior, &mut d_tip);
+        let with_tip: Vec<usize> = model
+            .constraints()
+            .iter()
+            .map(|c| c.node)
+            .chain([n])
+            .collect();
+        let tip_compliance =
+            model
+                .discretisation()
+                .held_point_compliance(model.rod(), &q0, &with_tip, &w.interior);
+        let mut moved_nodes = vec![Vector3::zeros(); n + 1];
         for (j, &value) in values.iter().enumerate() {
             // dF/dp at the fixed state (rotations and reactions): from the
             // terms' analytic derivatives where every scene value the
             // parameter moves belongs to a term or a held point's target,
             // else by central differences of the discrete equations.
-            let analytic = loading_tangent(model, &scene_at, j, value);
+            let analytic = tangent_of(model, j, value);
             out.exact[j] = analytic.is_some();
             let mut models = None;
             if let Some((tangent, target_moves)) = &analytic {
                 model.residual_derivative(&q0, &r0, tangent, &mut w.interior, &mut w.g, &mut shift);
+                model.position_derivative(&q0, &mut w.interior, &shift, &mut moved_nodes);
                 if held {
-                    model.position_derivative(&q0, &mut w.interior, &shift, &mut positions);
                     for ((h, c), moved) in w
                         .kkt
                         .h
@@ -568,7 +642,7 @@ impl Solver {
                         .zip(model.constraints())
                         .zip(target_moves)
                     {
-                        *h = positions[c.node] - moved;
+                        *h = moved_nodes[c.node] - moved;
                     }
                 }
             } else {
@@ -615,7 +689,32 @@ impl Solver {
                 w.step.iter_mut().for_each(|x| *x = -*x);
             }
             // The state's tangent: d theta / dp = w.step (node i at index i - 1),
-            // d R / dp = w.kkt.rhs. The outputs by central differences along it.
+            // d R / dp = w.kkt.rhs. An analytic column's outputs from it
+            // (but a clamped tip's reaction moment); the others' by central
+            // differences along it.
+            let reaction_step = |c: usize| {
+                Vector3::new(w.kkt.rhs[3 * c], w.kkt.rhs[3 * c + 1], w.kkt.rhs[3 * c + 2])
+            };
+            if analytic.is_some() && !clamped {
+                let mut dr = d_tip
+                    .iter()
+                    .zip(&w.step)
+                    .map(|(b, x)| b * x)
+                    .sum::<Vector3<f64>>()
+                    + moved_nodes[n];
+                if let Some(e) = &tip_compliance {
+                    // The tip is the last of `with_tip`: E dR over the held points.
+                    for c in 0..m {
+                        dr += e.fixed_view::<3, 3>(3 * m, 3 * c) * reaction_step(c);
+                    }
+                }
+                out.tip_position.set_column(j, &dr);
+                out.tip_rotation.set_column(j, &q0[n].rotate(w.step[n - 1]));
+                if let Some(col) = out.tip_reaction_force.as_mut() {
+                    col.set_column(j, &reaction_step(m - 1));
+                }
+                continue;
+            }
             let turn = w.step.iter().map(|x| x.amax()).fold(0.0, f64::max);
             let eps = match turn > 0.0 {
                 true => (OUTPUT_TURN / turn).min(response_step),

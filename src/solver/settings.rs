@@ -27,7 +27,55 @@ pub enum Method {
     Shooting,
 }
 
+/// How a method finds the equilibrium: the one choice the driver makes on
+/// the method ([`Method::engine`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Engine {
+    /// On the discrete potential: a local method with the driver's coarse
+    /// start, direct attempt, load continuation and fallbacks.
+    Potential(Local),
+    /// Shooting: the rod's equations integrated from the base, its own solver.
+    Shooting,
+    /// The seed paper's system over `[q, F]` (`literal`: without the
+    /// unit-norm rows).
+    Paper { literal: bool },
+}
+
+/// The local method of a solve on the discrete potential (and the one the
+/// other engines' answers are checked with).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Local {
+    Newton,
+    LevenbergMarquardt,
+}
+
 impl Method {
+    /// How this method finds the equilibrium.
+    pub fn engine(self) -> Engine {
+        match self {
+            Method::Newton => Engine::Potential(Local::Newton),
+            Method::LevenbergMarquardt => Engine::Potential(Local::LevenbergMarquardt),
+            Method::Paper => Engine::Paper { literal: false },
+            Method::PaperLiteral => Engine::Paper { literal: true },
+            Method::Shooting => Engine::Shooting,
+        }
+    }
+
+    /// Whether it solves the discrete potential (everything a scene holds,
+    /// the sensitivities): Newton and Levenberg-Marquardt.
+    pub fn on_the_potential(self) -> bool {
+        matches!(self.engine(), Engine::Potential(_))
+    }
+
+    /// The local method its answers are found or checked with.
+    pub fn local(self) -> Local {
+        match self.engine() {
+            Engine::Potential(local) => local,
+            Engine::Shooting => Local::Newton,
+            Engine::Paper { .. } => Local::LevenbergMarquardt,
+        }
+    }
+
     /// The name [`Method::from_str`](std::str::FromStr) reads.
     pub fn name(self) -> &'static str {
         match self {

@@ -1,11 +1,11 @@
 //! The elastic energy `1/2 (omega - omega0)^T K (omega - omega0)` per length
 //! (docs/model.md "The elastic energy"): a diagonal stiffness `K` and a rest
-//! curvature `omega0` (material frame) for each element, from the rod's and
+//! curvature `omega0` (material frame), one a section, from the rod's and
 //! its sections'. Its parameters are the stiffness (diagonal or a round
 //! rod's `E`, `G` and diameter, the rod's or a section's) and the rest
 //! curvature of each section.
 
-use super::{section_of, split_index, Term};
+use super::{section_of, split_index, PerSection, Term};
 use crate::disc::Loading;
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -13,13 +13,14 @@ use crate::scene::{Scene, Stiffness};
 use nalgebra::Vector3;
 use std::f64::consts::PI;
 
-/// Stiffness and rest curvature, element by element.
+/// Stiffness and rest curvature, section by section.
 #[derive(Debug, Clone)]
 pub struct Elastic {
-    /// Stiffness of each element [N m^2].
-    pub stiffness: Vec<Vector3<f64>>,
-    /// Rest curvature of each element, material frame [1/m].
-    pub rest_curvature: Vec<Vector3<f64>>,
+    /// Stiffness of each section [N m^2].
+    pub stiffness: PerSection<Vector3<f64>>,
+    /// Rest curvature of each of the rest curvature's sections, material
+    /// frame [1/m] (one zero: straight).
+    pub rest_curvature: PerSection<Vector3<f64>>,
     /// The rod's stiffness as given, and each section's (None: the rod's).
     spec: Stiffness,
     section_specs: Vec<Option<Stiffness>>,
@@ -32,35 +33,34 @@ impl Elastic {
     pub fn new(scene: &Scene, mesh: &Mesh) -> Self {
         let n = mesh.n();
         let sections = scene.sections();
-        let stiffness = (0..n)
-            .map(|i| match scene.sections.is_empty() {
-                true => scene.stiffness_spec.diagonal(),
-                false => scene.section_stiffness(section_of(i, sections, n)),
-            })
-            .collect();
+        let stiffness = match scene.sections.is_empty() {
+            true => vec![scene.stiffness_spec.diagonal()],
+            false => (0..sections).map(|s| scene.section_stiffness(s)).collect(),
+        };
         let mut elastic = Elastic {
-            stiffness,
-            rest_curvature: vec![Vector3::zeros(); n],
+            stiffness: PerSection::new(stiffness, n),
+            rest_curvature: PerSection::new(vec![Vector3::zeros()], n),
             spec: scene.stiffness_spec.clone(),
             section_specs: scene.sections.iter().map(|p| p.stiffness.clone()).collect(),
             sections,
             rest_sections: scene.rest_curvature.len(),
         };
-        elastic.set_rest_curvature(&scene.rest_curvature);
+        elastic.set_rest_curvature(&scene.rest_curvature, n);
         elastic
     }
 
-    /// Replace the rest curvature, one `[kappa_x, kappa_y]` a section (the
-    /// number of sections divides `n`; none: straight).
-    pub fn set_rest_curvature(&mut self, sections: &[[f64; 2]]) {
-        let n = self.rest_curvature.len();
-        let m = sections.len().max(1);
+    /// Replace the rest curvature, one `[kappa_x, kappa_y]` a section of `n`
+    /// elements (the number of sections divides `n`; none: straight).
+    pub fn set_rest_curvature(&mut self, sections: &[[f64; 2]], n: usize) {
         self.rest_sections = sections.len();
-        for (i, k) in self.rest_curvature.iter_mut().enumerate() {
-            *k = sections
-                .get(section_of(i, m, n))
-                .map_or(Vector3::zeros(), |s| Vector3::new(s[0], s[1], 0.0));
-        }
+        let values = match sections.is_empty() {
+            true => vec![Vector3::zeros()],
+            false => sections
+                .iter()
+                .map(|k| Vector3::new(k[0], k[1], 0.0))
+                .collect(),
+        };
+        self.rest_curvature = PerSection::new(values, n);
     }
 
     /// `dK / dp` of a stiffness given as `spec` in its component `key`
@@ -86,37 +86,30 @@ impl Elastic {
         }
     }
 
-    /// The elements a stiffness parameter moves (a section's, or the rod's
+    /// The sections a stiffness parameter moves (a section's, or the rod's
     /// where no section has its own) and `dK/dp` there.
     fn stiffness_tangent(&self, parameter: &str) -> Option<(Vec<bool>, Vector3<f64>)> {
-        let n = self.stiffness.len();
         if let Some(key) = parameter.strip_prefix("stiffness.") {
             let d = Elastic::stiffness_derivative(&self.spec, key)?;
-            let moved = (0..n)
-                .map(|i| {
-                    let s = section_of(i, self.sections, n);
-                    self.section_specs.get(s).is_none_or(|k| k.is_none())
-                })
+            let moved = (0..self.sections)
+                .map(|s| self.section_specs.get(s).is_none_or(|k| k.is_none()))
                 .collect();
             return Some((moved, d));
         }
         let (s, rest) = split_index(parameter, "sections")?;
         let key = rest.strip_prefix(".stiffness.")?;
         let d = Elastic::stiffness_derivative(self.section_specs.get(s)?.as_ref()?, key)?;
-        let moved = (0..n)
-            .map(|i| section_of(i, self.sections, n) == s)
-            .collect();
-        Some((moved, d))
+        Some(((0..self.sections).map(|k| k == s).collect(), d))
     }
 }
 
 impl Term for Elastic {
     fn apply(&self, _mesh: &Mesh, loading: &mut Loading) {
-        match self.stiffness.windows(2).all(|w| w[0] == w[1]) {
-            true => loading.stiffness = self.stiffness[..1].to_vec(),
-            false => loading.stiffness.clone_from(&self.stiffness),
-        }
-        loading.rest_curvature.clone_from(&self.rest_curvature);
+        loading.stiffness = match self.stiffness.uniform() {
+            Some(k) => vec![k],
+            None => self.stiffness.expand(),
+        };
+        self.rest_curvature.expand_into(&mut loading.rest_curvature);
     }
 
     fn moment_scale(&self, _length: f64) -> f64 {
@@ -127,18 +120,17 @@ impl Term for Elastic {
         true
     }
 
-    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
-        let mut out = super::jumps(&self.stiffness);
-        out.extend(super::jumps(&self.rest_curvature));
-        out
+    fn breaks(&self, _mesh: &Mesh, out: &mut Vec<usize>) {
+        self.stiffness.breaks(out);
+        self.rest_curvature.breaks(out);
     }
 
-    fn derivative(&self, parameter: &str, _mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
-        let n = self.stiffness.len();
+    fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
+        let n = mesh.n();
         if let Some((moved, d)) = self.stiffness_tangent(parameter) {
             tangent.stiffness.resize(n, Vector3::zeros());
-            for (k, m) in tangent.stiffness.iter_mut().zip(moved) {
-                if m {
+            for (i, k) in tangent.stiffness.iter_mut().enumerate() {
+                if moved[section_of(i, self.sections, n)] {
                     *k += d;
                 }
             }
@@ -153,6 +145,12 @@ impl Term for Elastic {
             if s >= self.rest_sections {
                 return Ok(false);
             }
+            // The section's elements alone.
+            let per = n / self.rest_sections;
+            tangent.support = match tangent.is_empty() {
+                true => Some((s * per + 1, (s + 1) * per)),
+                false => None,
+            };
             tangent.rest_curvature.resize(n, Vector3::zeros());
             for (i, k) in tangent.rest_curvature.iter_mut().enumerate() {
                 if section_of(i, self.rest_sections, n) == s {

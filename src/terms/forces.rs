@@ -5,7 +5,7 @@
 //! `-F(s) . T(s)` per length with `F(s)` the sum of the forces beyond `s`:
 //! a term of the internal force in the loading.
 
-use super::{component, split_index, unit, Term};
+use super::{component, split_index, unit, PerSection, Term};
 use crate::disc::Loading;
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -15,57 +15,51 @@ use nalgebra::Vector3;
 /// Distributed and point forces, world frame.
 #[derive(Debug, Clone)]
 pub struct DeadForces {
-    /// Force per length on each element [N/m].
-    pub distributed: Vec<Vector3<f64>>,
+    /// Force per length on each section [N/m].
+    pub distributed: PerSection<Vector3<f64>>,
     /// Forces at nodes `(node, force)` [N], and their arc lengths [m].
     pub points: Vec<(usize, Vector3<f64>)>,
     point_arcs: Vec<f64>,
-    /// Linear density of each element [kg/m] and whether its section gives
-    /// its own; the gravity it weighs under [m/s^2].
-    density: Vec<f64>,
-    own_density: Vec<bool>,
+    /// Linear density of each section [kg/m] and whether it is its own;
+    /// the gravity it weighs under [m/s^2].
+    density: PerSection<(f64, bool)>,
     gravity: Option<Vector3<f64>>,
-    sections: usize,
 }
 
 impl DeadForces {
     pub fn new(scene: &Scene, mesh: &Mesh) -> Self {
         let n = mesh.n();
-        let sections = scene.sections();
-        let section = |i: usize| super::section_of(i, sections, n);
         let rod_density = scene.gravity.as_ref().map_or(0.0, |g| g.linear_density);
-        let own = |i: usize| {
-            scene
-                .sections
-                .get(section(i))
-                .and_then(|p| p.linear_density)
+        let (distributed, density) = match scene.sections.is_empty() {
+            true => (vec![scene.distributed_force()], vec![(rod_density, false)]),
+            false => (0..scene.sections())
+                .map(|s| {
+                    let own = scene.sections.get(s).and_then(|p| p.linear_density);
+                    (
+                        scene.section_force(s),
+                        (own.unwrap_or(rod_density), own.is_some()),
+                    )
+                })
+                .unzip(),
         };
-        let distributed = (0..n)
-            .map(|i| match scene.sections.is_empty() {
-                true => scene.distributed_force(),
-                false => scene.section_force(section(i)),
-            })
-            .collect();
         DeadForces {
-            distributed,
+            distributed: PerSection::new(distributed, n),
             points: scene
                 .point_loads
                 .iter()
                 .map(|p| (mesh.nearest_node(p.s), p.force))
                 .collect(),
             point_arcs: scene.point_loads.iter().map(|p| p.s).collect(),
-            density: (0..n).map(|i| own(i).unwrap_or(rod_density)).collect(),
-            own_density: (0..n).map(|i| own(i).is_some()).collect(),
+            density: PerSection::new(density, n),
             gravity: scene.gravity.as_ref().map(|g| g.vector),
-            sections,
         }
     }
 
-    /// Add the internal force of the distributed forces `f` (one an element)
-    /// and the point forces `points` to `loading`.
+    /// Add the internal force of the distributed forces `f` (of element `i`
+    /// from 0) and the point forces `points` to `loading`.
     fn add_internal_force(
         mesh: &Mesh,
-        f: &[Vector3<f64>],
+        f: impl Fn(usize) -> Vector3<f64>,
         points: &[(usize, Vector3<f64>)],
         loading: &mut Loading,
     ) {
@@ -95,7 +89,7 @@ impl DeadForces {
             if j == 0 {
                 break;
             }
-            let on_element = f.get(j - 1).copied().unwrap_or_else(Vector3::zeros) * h[j - 1];
+            let on_element = f(j - 1) * h[j - 1];
             loading.mean_force[j - 1] += beyond + 0.5 * on_element + points_from(j, false);
             loading.force_drop[j - 1] += on_element;
             beyond += on_element;
@@ -108,12 +102,13 @@ impl Term for DeadForces {
         if self.vanishes() {
             return;
         }
-        DeadForces::add_internal_force(mesh, &self.distributed, &self.points, loading);
+        DeadForces::add_internal_force(mesh, |i| self.distributed.at(i), &self.points, loading);
     }
 
     fn moment_scale(&self, length: f64) -> f64 {
         let largest = self
             .distributed
+            .values()
             .iter()
             .map(|f| f.norm())
             .fold(0.0, f64::max);
@@ -127,56 +122,57 @@ impl Term for DeadForces {
     }
 
     fn vanishes(&self) -> bool {
-        self.distributed.iter().all(|f| *f == Vector3::zeros())
+        self.distributed
+            .values()
+            .iter()
+            .all(|f| *f == Vector3::zeros())
             && self.points.iter().all(|(_, p)| *p == Vector3::zeros())
     }
 
-    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
-        let mut out = super::jumps(&self.distributed);
+    fn breaks(&self, _mesh: &Mesh, out: &mut Vec<usize>) {
+        self.distributed.breaks(out);
         out.extend(
             self.points
                 .iter()
                 .filter(|(_, p)| *p != Vector3::zeros())
                 .map(|(k, _)| *k),
         );
-        out
     }
 
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
-        let n = self.distributed.len();
         let g = self.gravity.unwrap_or_else(Vector3::zeros);
-        let mut df = vec![Vector3::zeros(); n];
-        let mut dp = Vec::new();
-        if let Some(c) = component(parameter, "distributed_force") {
-            df.iter_mut().for_each(|f| *f = unit(c));
+        let sections = self.density.values().len();
+        let n = mesh.n();
+        // The distributed force's derivative on each section, or a point force's.
+        let df: Vec<Vector3<f64>> = if let Some(c) = component(parameter, "distributed_force") {
+            vec![unit(c); sections]
         } else if parameter == "gravity.linear_density" {
-            for (f, own) in df.iter_mut().zip(&self.own_density) {
-                if !own {
-                    *f = g;
-                }
-            }
+            let rod = |(_, own): &(f64, bool)| if *own { Vector3::zeros() } else { g };
+            self.density.values().iter().map(rod).collect()
         } else if let Some(c) = component(parameter, "gravity.vector") {
-            for (f, rho) in df.iter_mut().zip(&self.density) {
-                *f = *rho * unit(c);
-            }
+            self.density
+                .values()
+                .iter()
+                .map(|(rho, _)| *rho * unit(c))
+                .collect()
         } else if let Some((s, ".linear_density")) = split_index(parameter, "sections") {
-            for (i, f) in df.iter_mut().enumerate() {
-                if super::section_of(i, self.sections, n) == s && self.own_density[i] {
-                    *f = g;
-                }
-            }
+            let own = |(k, (_, own)): (usize, &(f64, bool))| match k == s && *own {
+                true => g,
+                false => Vector3::zeros(),
+            };
+            self.density.values().iter().enumerate().map(own).collect()
         } else if let Some((k, rest)) = split_index(parameter, "point_loads") {
-            let Some(c) = component(rest, ".force") else {
+            let (Some(c), Some((node, _))) = (component(rest, ".force"), self.points.get(k)) else {
                 return Ok(false);
             };
-            let Some((node, _)) = self.points.get(k) else {
-                return Ok(false);
-            };
-            dp.push((*node, unit(c)));
+            let none = |_| Vector3::zeros();
+            DeadForces::add_internal_force(mesh, none, &[(*node, unit(c))], tangent);
+            return Ok(true);
         } else {
             return Ok(false);
-        }
-        DeadForces::add_internal_force(mesh, &df, &dp, tangent);
+        };
+        let df = PerSection::new(df, n);
+        DeadForces::add_internal_force(mesh, |i| df.at(i), &[], tangent);
         Ok(true)
     }
 }

@@ -5,7 +5,7 @@
 //! potentials in the loading. Its parameters are the field, the
 //! magnetisation and the tip magnet.
 
-use super::{component, split_index, unit, Term};
+use super::{component, split_index, unit, PerSection, Term};
 use crate::disc::{BodyLoad, Loading, NodePair};
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -15,8 +15,9 @@ use nalgebra::Vector3;
 /// Magnetisation, tip magnet and field.
 #[derive(Debug, Clone)]
 pub struct Magnets {
-    /// Magnetisation of each element, material frame [A m^2 / m] (empty: none).
-    pub magnetization: Vec<Vector3<f64>>,
+    /// Magnetisation of each of its sections, material frame [A m^2 / m]
+    /// (None: none).
+    pub magnetization: Option<PerSection<Vector3<f64>>>,
     /// The tip magnet's dipole moment, material frame [A m^2].
     pub tip_magnet: Vector3<f64>,
     /// Uniform field, world frame [T].
@@ -30,34 +31,29 @@ impl Magnets {
         let n = mesh.n();
         let k = scene.magnetization.len();
         Magnets {
-            magnetization: match k {
-                0 => Vec::new(),
-                _ => (0..n)
-                    .map(|i| scene.magnetization[super::section_of(i, k, n)])
-                    .collect(),
-            },
+            magnetization: (k > 0).then(|| PerSection::new(scene.magnetization.clone(), n)),
             tip_magnet: scene.tip_magnet,
             field: scene.magnetic_field,
             sections: k,
         }
     }
 
-    /// Add the potentials of `magnetization` (one an element, or none) and
+    /// Add the potentials of `magnetization` (one a section, or none) and
     /// `tip_magnet` in the field `field` to `loading`.
     fn add(
         mesh: &Mesh,
         field: Vector3<f64>,
-        magnetization: &[Vector3<f64>],
+        magnetization: Option<&PerSection<Vector3<f64>>>,
         tip_magnet: Vector3<f64>,
         loading: &mut Loading,
     ) {
         if field == Vector3::zeros() {
             return;
         }
-        if !magnetization.is_empty() {
+        if let Some(m) = magnetization {
             loading.body_loads.push(BodyLoad {
                 world: field,
-                body: magnetization.to_vec(),
+                body: m.expand(),
             });
         }
         if tip_magnet != Vector3::zeros() {
@@ -72,19 +68,15 @@ impl Magnets {
 
 impl Term for Magnets {
     fn apply(&self, mesh: &Mesh, loading: &mut Loading) {
-        Magnets::add(
-            mesh,
-            self.field,
-            &self.magnetization,
-            self.tip_magnet,
-            loading,
-        );
+        let m = self.magnetization.as_ref();
+        Magnets::add(mesh, self.field, m, self.tip_magnet, loading);
     }
 
     fn moment_scale(&self, length: f64) -> f64 {
         let largest = self
             .magnetization
             .iter()
+            .flat_map(|m| m.values())
             .map(|m| m.norm())
             .fold(0.0, f64::max);
         self.field.norm() * (self.tip_magnet.norm() + length * largest)
@@ -92,24 +84,28 @@ impl Term for Magnets {
 
     fn vanishes(&self) -> bool {
         self.field == Vector3::zeros()
-            || (self.magnetization.iter().all(|m| *m == Vector3::zeros())
+            || (self
+                .magnetization
+                .iter()
+                .flat_map(|m| m.values())
+                .all(|m| *m == Vector3::zeros())
                 && self.tip_magnet == Vector3::zeros())
     }
 
-    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
-        match self.field == Vector3::zeros() {
-            true => Vec::new(),
-            false => super::jumps(&self.magnetization),
+    fn breaks(&self, _mesh: &Mesh, out: &mut Vec<usize>) {
+        if let (Some(m), false) = (&self.magnetization, self.field == Vector3::zeros()) {
+            m.breaks(out);
         }
     }
 
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
         if let Some(c) = component(parameter, "magnetic_field") {
-            Magnets::add(mesh, unit(c), &self.magnetization, self.tip_magnet, tangent);
+            let m = self.magnetization.as_ref();
+            Magnets::add(mesh, unit(c), m, self.tip_magnet, tangent);
             return Ok(true);
         }
         if let Some(c) = component(parameter, "tip_magnet") {
-            Magnets::add(mesh, self.field, &[], unit(c), tangent);
+            Magnets::add(mesh, self.field, None, unit(c), tangent);
             return Ok(true);
         }
         if let Some((s, rest)) = split_index(parameter, "magnetization") {
@@ -120,13 +116,14 @@ impl Term for Magnets {
             if s >= self.sections {
                 return Ok(false);
             }
-            let body: Vec<Vector3<f64>> = (0..n)
-                .map(|i| match super::section_of(i, self.sections, n) == s {
+            let body: Vec<Vector3<f64>> = (0..self.sections)
+                .map(|k| match k == s {
                     true => unit(c),
                     false => Vector3::zeros(),
                 })
                 .collect();
-            Magnets::add(mesh, self.field, &body, Vector3::zeros(), tangent);
+            let body = PerSection::new(body, n);
+            Magnets::add(mesh, self.field, Some(&body), Vector3::zeros(), tangent);
             return Ok(true);
         }
         Ok(false)

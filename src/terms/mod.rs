@@ -40,6 +40,13 @@ pub trait Term: std::fmt::Debug + Send + Sync {
     /// Add what it puts on the rod (at load scale 1) to `loading`.
     fn apply(&self, mesh: &Mesh, loading: &mut Loading);
 
+    /// Add its curvature densities alone (a term of that kind; `apply`
+    /// adds them too): what [`Terms::refresh_densities`] redoes when only
+    /// they change.
+    fn apply_densities(&self, mesh: &Mesh, loading: &mut Loading) {
+        let _ = (mesh, loading);
+    }
+
     /// The largest moment it can exert on the rod [N m]: its share of the
     /// load parameter (the curvature scale that sets the round-off floor).
     fn moment_scale(&self, length: f64) -> f64;
@@ -51,12 +58,12 @@ pub trait Term: std::fmt::Debug + Send + Sync {
     /// `tangent`: true when the parameter is its own, false otherwise.
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool>;
 
-    /// The interior nodes where it makes the rod's shape not smooth (a jump
-    /// of what it puts on the rod: a section's end, a point load, an
-    /// anchor), which the shape between the nodes does not interpolate across.
-    fn breaks(&self, mesh: &Mesh) -> Vec<usize> {
-        let _ = mesh;
-        Vec::new()
+    /// Add the interior nodes where it makes the rod's shape not smooth (a
+    /// jump of what it puts on the rod: a section's end, a point load, an
+    /// anchor), which the shape between the nodes does not interpolate
+    /// across, to `out`.
+    fn breaks(&self, mesh: &Mesh, out: &mut Vec<usize>) {
+        let _ = (mesh, out);
     }
 }
 
@@ -105,6 +112,16 @@ impl Terms {
         loading
     }
 
+    /// The loading's curvature densities again, the rest of it kept (after
+    /// a change of a density's parameter: the tensions, set at every trial
+    /// of the IK in tension space).
+    pub fn refresh_densities(&self, mesh: &Mesh, loading: &mut Loading) {
+        loading.densities.clear();
+        for term in self.all() {
+            term.apply_densities(mesh, loading);
+        }
+    }
+
     /// The largest moment the loads can exert [N m] (the elastic law's own
     /// turning is counted apart, as the rest turn).
     pub fn moment_scale(&self, length: f64) -> f64 {
@@ -116,13 +133,11 @@ impl Terms {
         self.all().iter().all(|t| t.vanishes())
     }
 
-    /// Every term's breaks (see [`Term::breaks`]), sorted, once each.
-    pub fn breaks(&self, mesh: &Mesh) -> Vec<usize> {
-        let mut all: Vec<usize> = self.all().iter().flat_map(|t| t.breaks(mesh)).collect();
-        all.retain(|j| (1..mesh.n()).contains(j));
-        all.sort_unstable();
-        all.dedup();
-        all
+    /// Every term's breaks (see [`Term::breaks`]) into `out`, unsorted.
+    pub fn breaks(&self, mesh: &Mesh, out: &mut Vec<usize>) {
+        for term in self.all() {
+            term.breaks(mesh, out);
+        }
     }
 
     /// The loading's derivative in `parameter` (a scene path), or `None`
@@ -130,11 +145,70 @@ impl Terms {
     /// the mesh, the base, the held points).
     pub fn derivative(&self, parameter: &str, mesh: &Mesh) -> Result<Option<Loading>> {
         let mut tangent = Loading::empty();
-        let mut owned = false;
+        let mut owners = 0;
         for term in self.all() {
-            owned |= term.derivative(parameter, mesh, &mut tangent)?;
+            owners += usize::from(term.derivative(parameter, mesh, &mut tangent)?);
         }
-        Ok(owned.then_some(tangent))
+        if owners > 1 {
+            // Each owner's support was its own: the union is not known.
+            tangent.support = None;
+        }
+        Ok((owners > 0).then_some(tangent))
+    }
+}
+
+/// Values one a section (or one for the rod) of a rod of `n` elements, each
+/// section cut into the same number of them: what a term keeps of the scene,
+/// expanded to the elements only in the loading.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerSection<T> {
+    values: Vec<T>,
+    n: usize,
+}
+
+impl<T: Copy + PartialEq> PerSection<T> {
+    /// `values` (at least one) over `n` elements.
+    pub fn new(values: Vec<T>, n: usize) -> Self {
+        debug_assert!(!values.is_empty());
+        PerSection { values, n }
+    }
+
+    /// The value of element `i` (from 0).
+    #[inline]
+    pub fn at(&self, i: usize) -> T {
+        self.values[section_of(i, self.values.len(), self.n)]
+    }
+
+    /// One value an element.
+    pub fn expand(&self) -> Vec<T> {
+        (0..self.n).map(|i| self.at(i)).collect()
+    }
+
+    /// One value an element, into `out` (its buffer kept).
+    pub fn expand_into(&self, out: &mut Vec<T>) {
+        out.clear();
+        out.extend((0..self.n).map(|i| self.at(i)));
+    }
+
+    /// The one value, when every section has it.
+    pub fn uniform(&self) -> Option<T> {
+        let first = self.values[0];
+        self.values.iter().all(|v| *v == first).then_some(first)
+    }
+
+    /// The values, one a section.
+    pub fn values(&self) -> &[T] {
+        &self.values
+    }
+
+    /// The nodes between sections whose values differ, into `out`.
+    pub fn breaks(&self, out: &mut Vec<usize>) {
+        let m = self.values.len();
+        out.extend(
+            (1..m)
+                .filter(|k| self.values[k - 1] != self.values[*k])
+                .map(|k| k * self.n / m),
+        );
     }
 }
 
@@ -166,14 +240,16 @@ pub(crate) fn split_index<'a>(name: &'a str, prefix: &str) -> Option<(usize, &'a
     Some((rest[..close].parse().ok()?, &rest[close + 1..]))
 }
 
-/// The interior nodes between elements whose values in `per_element` differ.
-pub(crate) fn jumps<T: PartialEq>(per_element: &[T]) -> Vec<usize> {
-    per_element
-        .windows(2)
-        .enumerate()
-        .filter(|(_, w)| w[0] != w[1])
-        .map(|(i, _)| i + 1)
-        .collect()
+/// The interior nodes between elements whose values in `per_element`
+/// differ, into `out`.
+pub(crate) fn jumps<T: PartialEq>(per_element: &[T], out: &mut Vec<usize>) {
+    out.extend(
+        per_element
+            .windows(2)
+            .enumerate()
+            .filter(|(_, w)| w[0] != w[1])
+            .map(|(i, _)| i + 1),
+    );
 }
 
 /// A unit vector along axis `c`.

@@ -6,7 +6,7 @@
 //! stability of an equilibrium is judged on its symmetric part (as for any
 //! dead moment: a sufficient condition, see `stable`).
 
-use super::{component, split_index, unit, Term};
+use super::{component, split_index, unit, PerSection, Term};
 use crate::disc::{Loading, NodeMoment};
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -20,32 +20,19 @@ pub struct Moments {
     pub tip: Vector3<f64>,
     /// At nodes `(node, moment)` [N m]: every point load's moment, zero or not.
     pub points: Vec<(usize, Vector3<f64>)>,
-    /// Per length on each element [N m / m] (empty: none).
-    pub distributed: Vec<Vector3<f64>>,
-    /// Whether each element's section gives its own distributed moment.
-    own: Vec<bool>,
-    sections: usize,
+    /// Per length on each section [N m / m], and whether it is the
+    /// section's own.
+    pub distributed: PerSection<(Vector3<f64>, bool)>,
 }
 
 impl Moments {
     pub fn new(scene: &Scene, mesh: &Mesh) -> Self {
-        let n = mesh.n();
-        let sections = scene.sections();
-        let own: Vec<bool> = (0..n)
-            .map(|i| {
-                let s = super::section_of(i, sections, n);
-                scene.section_moment(s).is_some()
+        let distributed = (0..scene.sections())
+            .map(|s| match scene.section_moment(s) {
+                Some(m) => (m, true),
+                None => (scene.distributed_moment, false),
             })
             .collect();
-        let distributed = match scene.has_distributed_moment() {
-            false => Vec::new(),
-            true => (0..n)
-                .map(|i| {
-                    let s = super::section_of(i, sections, n);
-                    scene.section_moment(s).unwrap_or(scene.distributed_moment)
-                })
-                .collect(),
-        };
         Moments {
             tip: scene.tip_moment,
             points: scene
@@ -53,10 +40,16 @@ impl Moments {
                 .iter()
                 .map(|p| (mesh.nearest_node(p.s), p.moment))
                 .collect(),
-            distributed,
-            own,
-            sections,
+            distributed: PerSection::new(distributed, mesh.n()),
         }
+    }
+
+    /// Whether a distributed moment acts.
+    fn distributed_acts(&self) -> bool {
+        self.distributed
+            .values()
+            .iter()
+            .any(|(m, _)| *m != Vector3::zeros())
     }
 
     /// Set the tip moment.
@@ -79,16 +72,22 @@ impl Term for Moments {
                 moment: *moment,
             });
         }
-        if self.distributed.iter().any(|m| *m != Vector3::zeros()) {
-            loading.distributed_moment.clone_from(&self.distributed);
+        if self.distributed_acts() {
+            loading.distributed_moment = self
+                .distributed
+                .expand()
+                .into_iter()
+                .map(|(m, _)| m)
+                .collect();
         }
     }
 
     fn moment_scale(&self, length: f64) -> f64 {
         let largest = self
             .distributed
+            .values()
             .iter()
-            .map(|m| m.norm())
+            .map(|(m, _)| m.norm())
             .fold(0.0, f64::max);
         self.tip.norm() + self.points.iter().map(|(_, m)| m.norm()).sum::<f64>() + length * largest
     }
@@ -96,18 +95,19 @@ impl Term for Moments {
     fn vanishes(&self) -> bool {
         self.tip == Vector3::zeros()
             && self.points.iter().all(|(_, m)| *m == Vector3::zeros())
-            && self.distributed.iter().all(|m| *m == Vector3::zeros())
+            && !self.distributed_acts()
     }
 
-    fn breaks(&self, _mesh: &Mesh) -> Vec<usize> {
-        let mut out = super::jumps(&self.distributed);
+    fn breaks(&self, _mesh: &Mesh, out: &mut Vec<usize>) {
+        if self.distributed_acts() {
+            self.distributed.breaks(out);
+        }
         out.extend(
             self.points
                 .iter()
                 .filter(|(_, m)| *m != Vector3::zeros())
                 .map(|(k, _)| *k),
         );
-        out
     }
 
     fn derivative(&self, parameter: &str, mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
@@ -122,8 +122,8 @@ impl Term for Moments {
         }
         if let Some(c) = component(parameter, "distributed_moment") {
             tangent.distributed_moment.resize(n, Vector3::zeros());
-            for (m, own) in tangent.distributed_moment.iter_mut().zip(&self.own) {
-                if !own {
+            for (i, m) in tangent.distributed_moment.iter_mut().enumerate() {
+                if !self.distributed.at(i).1 {
                     *m += unit(c);
                 }
             }
@@ -134,8 +134,9 @@ impl Term for Moments {
                 return Ok(false);
             };
             tangent.distributed_moment.resize(n, Vector3::zeros());
+            let sections = self.distributed.values().len();
             for (i, m) in tangent.distributed_moment.iter_mut().enumerate() {
-                if super::section_of(i, self.sections, n) == s {
+                if super::section_of(i, sections, n) == s {
                     *m += unit(c);
                 }
             }

@@ -49,8 +49,11 @@ impl CurvatureDensity for TendonDensity {
         s: f64,
         omega: &Vector3<f64>,
         scale: f64,
-    ) -> (f64, Vector3<f64>, Matrix3<f64>) {
-        density(&self.tendons[..self.through[element - 1]], scale, s, omega)
+    ) -> Option<(f64, Vector3<f64>, Matrix3<f64>)> {
+        match self.through[element - 1] {
+            0 => None,
+            k => Some(density(&self.tendons[..k], scale, s, omega)),
+        }
     }
 }
 
@@ -86,7 +89,11 @@ impl Tendons {
 }
 
 impl Term for Tendons {
-    fn apply(&self, _mesh: &Mesh, loading: &mut Loading) {
+    fn apply(&self, mesh: &Mesh, loading: &mut Loading) {
+        self.apply_densities(mesh, loading);
+    }
+
+    fn apply_densities(&self, _mesh: &Mesh, loading: &mut Loading) {
         if self.tendons.is_empty() {
             return;
         }
@@ -107,9 +114,9 @@ impl Term for Tendons {
         self.tendons.iter().all(|t| t.tension == 0.0)
     }
 
-    fn breaks(&self, mesh: &Mesh) -> Vec<usize> {
+    fn breaks(&self, mesh: &Mesh, out: &mut Vec<usize>) {
         // Anchors, and where a routing changes (the tendon crosses a disk).
-        let mut out = self.last.clone();
+        out.extend(&self.last);
         for t in &self.tendons {
             out.extend(
                 t.reroutes
@@ -117,7 +124,6 @@ impl Term for Tendons {
                     .map(|(start, _)| mesh.nearest_node(*start)),
             );
         }
-        out
     }
 
     fn derivative(&self, parameter: &str, _mesh: &Mesh, tangent: &mut Loading) -> Result<bool> {
@@ -132,6 +138,10 @@ impl Term for Tendons {
             tension: 1.0,
             ..self.tendons[at].clone()
         };
+        tangent.support = match tangent.is_empty() {
+            true => Some((1, self.last[at].max(1))),
+            false => None,
+        };
         tangent.densities.push(Arc::new(TendonDensity {
             tendons: vec![unit],
             through: self.through(&self.last[at..=at]),
@@ -143,9 +153,9 @@ impl Term for Tendons {
 /// The tendons' potential density at curvature `omega` (material frame) at
 /// arc length `s`, tensions times `scale`: its value [N], gradient in
 /// `omega` (a moment [N m]) and Hessian [N m^2]. `tendons` are those that
-/// reach past `s`. Kept out of line: the elements without tendons, the
-/// common case, keep a small kernel.
-#[inline(never)]
+/// reach past `s`. Called from the tendons' curvature density, out of the
+/// schemes' line.
+#[inline]
 pub fn density(
     tendons: &[Tendon],
     scale: f64,

@@ -1240,6 +1240,29 @@ mod tests {
     }
 
     #[test]
+    fn the_gauss_rest_derivative_matches_central_differences() {
+        let h = 0.3;
+        let curvatures: [Vector3<f64>; 3] = [
+            Vector3::new(2.0, -1.0, 0.0),
+            Vector3::new(1e-4, 2e-4, 0.0),
+            Vector3::new(6.0, 3.0, 0.0),
+        ];
+        for kappa0 in curvatures {
+            for d in [Vector3::x(), Vector3::y(), Vector3::new(0.3, -0.7, 0.0)] {
+                let step = 1e-6 * kappa0.norm().max(1.0);
+                let fd = (gauss_rest_curvature(kappa0 + step * d, h)
+                    - gauss_rest_curvature(kappa0 - step * d, h))
+                    / (2.0 * step);
+                let exact = gauss_rest_derivative(kappa0, h, d);
+                assert!((fd - exact).norm() < 1e-8, "{kappa0} {d}: {fd} vs {exact}");
+            }
+        }
+        // At zero curvature the map is the identity to first order.
+        let d = Vector3::new(0.4, -0.2, 0.0);
+        assert_eq!(gauss_rest_derivative(Vector3::zeros(), h, d), d);
+    }
+
+    #[test]
     fn chord_jacobian_matches_central_differences() {
         let x = nodes();
         let h = 0.13;

@@ -5,7 +5,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::Vector3;
-use softspine::paper_method::{solve_paper, PaperSettings};
+use softspine::methods::paper::{solve_paper, PaperSettings};
 use softspine::{Method, Quat, Scene, Settings, Solver};
 use std::hint::black_box;
 

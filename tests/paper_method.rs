@@ -2,7 +2,7 @@
 //! form's collapse, and determinism across thread counts.
 
 use nalgebra::Vector3;
-use softspine::paper_method::{solve_paper, PaperSettings};
+use softspine::methods::paper::{solve_paper, PaperSettings};
 use softspine::{solve, Quat, Scene, Settings};
 
 fn newton_tip(scene: &Scene, n: usize) -> Vector3<f64> {

@@ -34,7 +34,7 @@ fn a_three_section_scene_solves_with_default_settings() {
 
 // --- Settings read by name (issue 11, item 6) --------------------------------
 
-use softspine::paper_method::PaperSettings;
+use softspine::methods::paper::PaperSettings;
 use softspine::{Accuracy, Error, Method, Value};
 
 fn json(text: &str) -> Value {

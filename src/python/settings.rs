@@ -3,7 +3,7 @@
 //! and checks its kind) and `validate` (ranges); defaults are the core's.
 
 use super::convert::*;
-use crate::paper_method::PaperSettings;
+use crate::methods::paper::PaperSettings;
 use crate::{Accuracy, IkSettings, Settings, Value};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;

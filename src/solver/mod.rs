@@ -14,8 +14,7 @@
 //! nested.rs        the coarse rod of nested iteration
 //! adaptive.rs      accuracy on demand
 //! sensitivity.rs   the tip's derivatives (implicit function theorem)
-//! paper.rs         the seed paper's method, reported like the others
-//! shooting.rs      shooting: RK4 on the rod equations, Newton on the base wrench
+//! report.rs        shooting and the paper's method (crate::methods), reported like the others
 //! ```
 
 mod adaptive;
@@ -24,10 +23,9 @@ mod continuation;
 mod lm;
 mod nested;
 mod newton;
-mod paper;
+mod report;
 mod sensitivity;
 mod settings;
-mod shooting;
 mod solution;
 mod workspace;
 

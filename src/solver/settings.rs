@@ -4,8 +4,8 @@
 //! [`Settings::validate`].
 
 use crate::error::{Error, Result};
+use crate::methods::paper::PaperSettings;
 use crate::model::Scheme;
-use crate::paper_method::PaperSettings;
 use crate::read::{as_argument, check_tolerance, count, finite, string, Table};
 use crate::scene::{Scene, TipCondition};
 use crate::value::Value;

@@ -1,4 +1,4 @@
-//! Shooting (`Method::Shooting`): the baseline most continuum-robot users
+//! Shooting (`method = "shooting"`): the baseline most continuum-robot users
 //! know. The Kirchhoff rod equations are integrated from the base by classic
 //! fourth-order Runge-Kutta, one step an element (so the nodes are the step
 //! points, point loads and section ends fall on them, and the rest curvature
@@ -20,10 +20,11 @@
 //! if it fails, by load continuation from the rest shape (and for a held tip
 //! by a second leg that moves the tip from where the loaded free rod puts it
 //! to its target), the same strategy as the finite-element driver's.
+//!
+//! [`shoot`] returns the base wrench ([`Shot`]); [`Shot::shape`] integrates
+//! it into the nodes. Whether a shape is a stable equilibrium is the
+//! discrete model's judgement, asked of the caller through a closure.
 
-use super::solution::judge;
-use super::workspace::{evaluate, is_stable};
-use super::{Settings, Solution, Solver, Status};
 use crate::interrupt;
 use crate::interrupt::POLL_STRIDE;
 use crate::model::{element_turn, slerp, RodModel};
@@ -55,6 +56,29 @@ struct Rod<'a> {
     free_base_force: Vector3<f64>,
     tip_force: Vector3<f64>,
     tip_moment: Vector3<f64>,
+}
+
+/// A shape shooting asks its caller to judge: is it a stable equilibrium of
+/// the discrete model at this load scale?
+pub struct Candidate<'a> {
+    /// The node quaternions of the shot.
+    pub quaternions: &'a [Quat],
+    /// The loads' scale along the continuation (1 at full load).
+    pub load_scale: f64,
+    /// A held tip's reaction force [N, world] and the moment its support
+    /// exerts [N m, tip frame]; `None` on the free rod's leg.
+    pub held_tip: Option<(Vector3<f64>, Vector3<f64>)>,
+}
+
+/// The limits of one shooting solve.
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    /// The largest scaled tip mismatch accepted.
+    pub tol: f64,
+    /// Newton iterations in all.
+    pub max_iterations: usize,
+    /// The smallest continuation step before the path is given up.
+    pub min_continuation_step: f64,
 }
 
 /// The end state of one integration.
@@ -163,6 +187,16 @@ impl<'a> Rod<'a> {
             moment: m,
             force,
         }
+    }
+
+    /// What a held tip's support adds at the shot's tip: the force [N,
+    /// world] and the moment in the tip's frame [N m].
+    fn held_tip_reaction(&self, tip: &TipState) -> (Vector3<f64>, Vector3<f64>) {
+        let n = self.model.n();
+        (
+            tip.force - (self.point[n] + self.tip_force),
+            tip.quaternion.inverse_rotate(tip.moment - self.tip_moment),
+        )
     }
 
     /// The scaled tip mismatch (dimensionless, angle-like): the moment rows
@@ -291,14 +325,62 @@ impl Newton<'_, '_> {
 }
 
 /// The outcome of a shooting solve: the base wrench and how it ended.
-struct Shot {
+pub struct Shot {
     x: Vector6,
-    converged: bool,
-    iterations: usize,
-    steps: usize,
-    residual: f64,
+    pub converged: bool,
+    /// Newton iterations spent.
+    pub iterations: usize,
+    /// Continuation steps taken.
+    pub steps: usize,
+    /// The largest scaled tip mismatch at the end.
+    pub residual: f64,
     /// Why it did not converge, when a continuation stopped.
-    note: Option<String>,
+    pub note: Option<String>,
+}
+
+/// The tip of an integrated shot: a held tip's reactions.
+pub struct ShotTip {
+    /// The held tip's reaction force [N, world].
+    pub reaction_force: Option<Vector3<f64>>,
+    /// The moment the held tip's support exerts, in the tip's frame [N m].
+    pub reaction_torque_body: Option<Vector3<f64>>,
+    /// The same moment in the world frame [N m].
+    pub reaction_moment: Option<Vector3<f64>>,
+}
+
+impl Shot {
+    /// Integrate the shot into the node quaternions and positions (`n + 1`
+    /// each) and give the held tip's reactions.
+    pub fn shape(
+        &self,
+        model: &RodModel,
+        scene: &Scene,
+        quaternions: &mut [Quat],
+        positions: &mut [Vector3<f64>],
+    ) -> ShotTip {
+        let full = Rod::new(model, scene, 1.0);
+        let held = !model.constraints().is_empty();
+        let m0 = self.x.fixed_rows::<3>(0).into_owned();
+        let n0 = if held {
+            self.x.fixed_rows::<3>(3).into_owned()
+        } else {
+            full.free_base_force
+        };
+        let tip = full.integrate(m0, n0, Some(quaternions), Some(positions));
+        if !held {
+            return ShotTip {
+                reaction_force: None,
+                reaction_torque_body: None,
+                reaction_moment: None,
+            };
+        }
+        let (force, torque) = full.held_tip_reaction(&tip);
+        ShotTip {
+            reaction_force: Some(force),
+            reaction_torque_body: Some(torque),
+            reaction_moment: Some(tip.moment - full.tip_moment),
+        }
+    }
 }
 
 /// Adaptive continuation over `t` in `[0, 1]`: `solve_at(t, x, budget)` runs
@@ -372,295 +454,205 @@ const CROSSING_STEP: f64 = 1e-3;
 const STEP_ITERATIONS: usize = 25;
 const DIRECT_ITERATIONS: usize = 60;
 
-impl Solver {
-    /// Solve by shooting (see the module documentation).
-    pub(super) fn solve_shooting(&mut self, initial: Option<&[Quat]>) -> Solution {
-        let (model, work) = (&self.model, &mut self.work);
-        let settings: &Settings = &self.settings;
-        let tol = model.effective_tol(settings.residual_tol);
-        let budget = settings.max_iterations;
-        let held = !model.constraints().is_empty();
-        let moment_scale = model.stiffness().max() / model.length();
-        let mut scale = Vector6::repeat(moment_scale);
-        scale
-            .fixed_rows_mut::<3>(3)
-            .fill(moment_scale / model.length());
-        let full = Rod::new(model, &self.scene, 1.0);
-        let free_target = TipTarget {
-            position: None,
-            orientation: None,
-        };
-        let held_target = TipTarget {
-            position: model.constraints().last().map(|c| c.target),
-            orientation: model.clamped_tip(),
-        };
-        let mut x = Vector6::zeros();
-        x.fixed_rows_mut::<3>(0)
-            .copy_from(&start_moment(model, &full, initial));
+/// Solve by shooting (see the module documentation) from a warm start's
+/// shape or the rigid estimate; `stable` judges a candidate shape.
+pub fn shoot(
+    model: &RodModel,
+    scene: &Scene,
+    limits: Limits,
+    initial: Option<&[Quat]>,
+    stable: &mut dyn FnMut(&Candidate) -> bool,
+) -> Shot {
+    let tol = limits.tol;
+    let budget = limits.max_iterations;
+    let held = !model.constraints().is_empty();
+    let moment_scale = model.stiffness().max() / model.length();
+    let mut scale = Vector6::repeat(moment_scale);
+    scale
+        .fixed_rows_mut::<3>(3)
+        .fill(moment_scale / model.length());
+    let full = Rod::new(model, scene, 1.0);
+    let free_target = TipTarget {
+        position: None,
+        orientation: None,
+    };
+    let held_target = TipTarget {
+        position: model.constraints().last().map(|c| c.target),
+        orientation: model.clamped_tip(),
+    };
+    let mut x = Vector6::zeros();
+    x.fixed_rows_mut::<3>(0)
+        .copy_from(&start_moment(model, &full, initial));
+    x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
+    let direct = Newton {
+        rod: &full,
+        target: if held { held_target } else { free_target },
+        held,
+        scale,
+    };
+    let (mut converged, mut iterations) = direct.run(&mut x, budget.min(DIRECT_ITERATIONS), tol);
+    let mut steps = 0;
+    // Shooting converges to whatever equilibrium is nearest its start: a
+    // direct answer on an unstable branch (found on 8 of 426 random free
+    // scenes) gives way to the load path from rest, which stays on the
+    // stable branch, as in the finite-element driver.
+    let direct_unstable = converged && !shot_is_stable(&full, &x, held, stable);
+    let mut note = None;
+    if !converged || direct_unstable {
+        // Leg 1: the loads from zero on the free rod (exact rest shape at 0).
+        let mut free = Vector6::zeros();
+        let (ok, spent, taken, reached) = continuation(
+            |lambda, x, its| {
+                let rod = Rod::new(model, scene, lambda);
+                let newton = Newton {
+                    rod: &rod,
+                    target: free_target,
+                    held: false,
+                    scale,
+                };
+                newton.run(x, its, tol)
+            },
+            |lambda, x, out| {
+                let rod = Rod::new(model, scene, lambda);
+                let m0 = x.fixed_rows::<3>(0).into_owned();
+                rod.integrate(m0, rod.free_base_force, Some(out), None);
+            },
+            // The rest shape is stable: the path keeps its stability but
+            // where the loading itself changes it.
+            |lambda, x| {
+                let rod = Rod::new(model, scene, lambda);
+                free_rod_is_stable(&rod, x, lambda, stable)
+            },
+            model.n() + 1,
+            &mut free,
+            budget - iterations.min(budget),
+            limits.min_continuation_step,
+        );
+        iterations += spent;
+        steps += taken;
+        converged = ok;
+        if !ok {
+            note = Some(format!(
+                "shooting could not follow the load path from the rest shape: it stopped \
+                 at load scale {reached:.3} of 1"
+            ));
+        }
+        x = free;
         x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
-        let direct = Newton {
-            rod: &full,
-            target: if held { held_target } else { free_target },
-            held,
-            scale,
-        };
-        let (mut converged, mut iterations) =
-            direct.run(&mut x, budget.min(DIRECT_ITERATIONS), tol);
-        let mut steps = 0;
-        // Shooting converges to whatever equilibrium is nearest its start: a
-        // direct answer on an unstable branch (found on 8 of 426 random free
-        // scenes) gives way to the load path from rest, which stays on the
-        // stable branch, as in the finite-element driver.
-        let direct_unstable = converged && !shot_is_stable(model, &full, work, &x, held);
-        let mut note = None;
-        if !converged || direct_unstable {
-            // Leg 1: the loads from zero on the free rod (exact rest shape at 0).
-            let mut free = Vector6::zeros();
+        if ok && held {
+            // Leg 2: the held tip from where the loaded free rod puts it.
+            let released = full.integrate(
+                free.fixed_rows::<3>(0).into_owned(),
+                full.free_base_force,
+                None,
+                None,
+            );
+            let goal = held_target;
+            let start_q = goal.orientation.map(|g| {
+                if g.dot(released.quaternion) < 0.0 {
+                    -released.quaternion
+                } else {
+                    released.quaternion
+                }
+            });
             let (ok, spent, taken, reached) = continuation(
-                |lambda, x, its| {
-                    let rod = Rod::new(model, &self.scene, lambda);
+                |mu, x, its| {
+                    let target = TipTarget {
+                        position: goal
+                            .position
+                            .map(|p| released.position + mu * (p - released.position)),
+                        orientation: goal.orientation.zip(start_q).map(|(g, s)| slerp(s, g, mu)),
+                    };
                     let newton = Newton {
-                        rod: &rod,
-                        target: free_target,
-                        held: false,
+                        rod: &full,
+                        target,
+                        held: true,
                         scale,
                     };
                     newton.run(x, its, tol)
                 },
-                |lambda, x, out| {
-                    let rod = Rod::new(model, &self.scene, lambda);
-                    let m0 = x.fixed_rows::<3>(0).into_owned();
-                    rod.integrate(m0, rod.free_base_force, Some(out), None);
+                |_, x, out| {
+                    let (m0, n0) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
+                    full.integrate(m0.into_owned(), n0.into_owned(), Some(out), None);
                 },
-                // The rest shape is stable: the path keeps its stability but
-                // where the loading itself changes it.
-                |lambda, x| {
-                    let rod = Rod::new(model, &self.scene, lambda);
-                    free_rod_is_stable(model, &rod, work, x, lambda)
-                },
+                // The held leg moves the tip along an arbitrary route:
+                // its stability is judged at the end, as the FE driver's.
+                |_, _| true,
                 model.n() + 1,
-                &mut free,
+                &mut x,
                 budget - iterations.min(budget),
-                settings.min_continuation_step,
+                limits.min_continuation_step,
             );
             iterations += spent;
             steps += taken;
             converged = ok;
             if !ok {
                 note = Some(format!(
-                    "shooting could not follow the load path from the rest shape: it stopped \
-                     at load scale {reached:.3} of 1"
+                    "shooting could not move the held tip from where the loaded free rod \
+                     puts it to its target: it stopped at {reached:.3} of the way"
                 ));
             }
-            x = free;
-            x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
-            if ok && held {
-                // Leg 2: the held tip from where the loaded free rod puts it.
-                let released = full.integrate(
-                    free.fixed_rows::<3>(0).into_owned(),
-                    full.free_base_force,
-                    None,
-                    None,
-                );
-                let goal = held_target;
-                let start_q = goal.orientation.map(|g| {
-                    if g.dot(released.quaternion) < 0.0 {
-                        -released.quaternion
-                    } else {
-                        released.quaternion
-                    }
-                });
-                let (ok, spent, taken, reached) = continuation(
-                    |mu, x, its| {
-                        let target = TipTarget {
-                            position: goal
-                                .position
-                                .map(|p| released.position + mu * (p - released.position)),
-                            orientation: goal
-                                .orientation
-                                .zip(start_q)
-                                .map(|(g, s)| slerp(s, g, mu)),
-                        };
-                        let newton = Newton {
-                            rod: &full,
-                            target,
-                            held: true,
-                            scale,
-                        };
-                        newton.run(x, its, tol)
-                    },
-                    |_, x, out| {
-                        let (m0, n0) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
-                        full.integrate(m0.into_owned(), n0.into_owned(), Some(out), None);
-                    },
-                    // The held leg moves the tip along an arbitrary route:
-                    // its stability is judged at the end, as the FE driver's.
-                    |_, _| true,
-                    model.n() + 1,
-                    &mut x,
-                    budget - iterations.min(budget),
-                    settings.min_continuation_step,
-                );
-                iterations += spent;
-                steps += taken;
-                converged = ok;
-                if !ok {
-                    note = Some(format!(
-                        "shooting could not move the held tip from where the loaded free rod \
-                         puts it to its target: it stopped at {reached:.3} of the way"
-                    ));
-                }
-            }
-            // An unstable direct answer is no answer: the load path from the
-            // rest shape leads to the equilibrium the finite-element driver
-            // finds, and when shooting cannot follow it, it says so.
         }
-        let residual = direct.residual(&x).amax();
-        self.finish_shooting(Shot {
-            x,
-            converged,
-            iterations,
-            steps,
-            residual,
-            note,
-        })
+        // An unstable direct answer is no answer: the load path from the
+        // rest shape leads to the equilibrium the finite-element driver
+        // finds, and when shooting cannot follow it, it says so.
     }
-
-    fn finish_shooting(&mut self, shot: Shot) -> Solution {
-        let (model, w) = (&self.model, &mut self.work);
-        let full = Rod::new(model, &self.scene, 1.0);
-        let held = !model.constraints().is_empty();
-        let m0 = shot.x.fixed_rows::<3>(0).into_owned();
-        let n0 = if held {
-            shot.x.fixed_rows::<3>(3).into_owned()
-        } else {
-            full.free_base_force
-        };
-        let mut positions = vec![Vector3::zeros(); model.n() + 1];
-        let tip = full.integrate(m0, n0, Some(&mut w.q), Some(&mut positions));
-        // The held tip's reactions: what the tip's support adds to the loads.
-        w.kkt
-            .reactions
-            .iter_mut()
-            .for_each(|r| *r = Vector3::zeros());
-        if held {
-            let tip_load = full.point[model.n()] + full.tip_force;
-            if let Some(r) = w.kkt.reactions.last_mut() {
-                *r = tip.force - tip_load;
-            }
-            w.kkt.tip_torque = tip.quaternion.inverse_rotate(tip.moment - full.tip_moment);
-        }
-        let solved = if shot.converged {
-            Ok(())
-        } else if shot.iterations >= self.settings.max_iterations {
-            Err(Status::IterationLimit)
-        } else {
-            Err(Status::NotConverged)
-        };
-        let tol = model.effective_tol(self.settings.residual_tol);
-        let (status, note) = judge(model, &w.q, &positions, shot.residual, solved, tol);
-        // Stability from the finite-difference scheme's Hessian at the shot
-        // shape (a second-order neighbour of its equilibrium).
-        evaluate(model, w, 1.0);
-        let stable = status == Status::Converged && is_stable(model, w);
-        let message = note.unwrap_or_else(|| match status {
-            Status::Converged => format!(
-                "converged by shooting (RK4, {} steps{})",
-                model.n(),
-                if shot.steps > 0 {
-                    format!(", {} continuation steps", shot.steps)
-                } else {
-                    String::new()
-                }
-            ),
-            _ => shot.note.clone().unwrap_or_else(|| {
-                format!(
-                    "shooting did not converge: tip mismatch {:.1e} after {} iterations",
-                    shot.residual, shot.iterations
-                )
-            }),
-        });
-        let reactions = w.kkt.reactions.clone();
-        Solution {
-            n_elements: model.n(),
-            scheme: crate::disc::Scheme::Rk4,
-            length: model.length(),
-            section_lengths: Vec::new(),
-            quaternions: w.q.clone(),
-            positions,
-            internal_quaternions: Vec::new(),
-            breaks: Some(model.breaks().to_vec()),
-            forces: model.node_forces(&reactions),
-            stiffness: model.stiffness(),
-            section_stiffness: Vec::new(),
-            rest_curvature: self.scene.rest_curvature.clone(),
-            tip_moment: model.tip_moment(),
-            tip_reaction_force: held.then(|| reactions[reactions.len() - 1]),
-            tip_reaction_moment: model.clamped_tip().map(|_| tip.moment - full.tip_moment),
-            guide_reactions: Vec::new(),
-            status,
-            iterations: shot.iterations,
-            continuation_steps: shot.steps,
-            residual_norm: shot.residual,
-            energy: model.energy(&w.q, &mut w.interior),
-            stable,
-            message,
-            error_estimate: None,
-            extrapolated_tip: None,
-            solve_time: 0.0,
-        }
+    let residual = direct.residual(&x).amax();
+    Shot {
+        x,
+        converged,
+        iterations,
+        steps,
+        residual,
+        note,
     }
 }
 
 /// Whether the rod shot with the base wrench `x` (the base force too when
-/// `held`) is a stable equilibrium at full load, judged by the
-/// finite-difference scheme's Hessian at its nodes, the held tip's
-/// reaction included (`w.q` and the reactions are overwritten).
+/// `held`) is a stable equilibrium at full load, the held tip's reaction
+/// included.
 fn shot_is_stable(
-    model: &RodModel,
     rod: &Rod,
-    w: &mut super::Workspace,
     x: &Vector6,
     held: bool,
+    stable: &mut dyn FnMut(&Candidate) -> bool,
 ) -> bool {
     if !held {
-        return free_rod_is_stable(model, rod, w, x, 1.0);
+        return free_rod_is_stable(rod, x, 1.0, stable);
     }
     let (m0, n0) = (
         x.fixed_rows::<3>(0).into_owned(),
         x.fixed_rows::<3>(3).into_owned(),
     );
-    let tip = rod.integrate(m0, n0, Some(&mut w.q), None);
-    w.kkt
-        .reactions
-        .iter_mut()
-        .for_each(|r| *r = Vector3::zeros());
-    if let Some(r) = w.kkt.reactions.last_mut() {
-        *r = tip.force - (rod.point[model.n()] + rod.tip_force);
-    }
-    w.kkt.tip_torque = tip.quaternion.inverse_rotate(tip.moment - rod.tip_moment);
-    evaluate(model, w, 1.0);
-    is_stable(model, w)
+    let mut quaternions = vec![Quat::IDENTITY; rod.model.n() + 1];
+    let tip = rod.integrate(m0, n0, Some(&mut quaternions), None);
+    stable(&Candidate {
+        quaternions: &quaternions,
+        load_scale: 1.0,
+        held_tip: Some(rod.held_tip_reaction(&tip)),
+    })
 }
 
-/// Whether the free rod shot with the base wrench `x` is a stable
-/// equilibrium, judged by the finite-difference scheme's Hessian at its nodes
-/// (`w.q` is overwritten).
+/// Whether the free rod shot with the base wrench `x` at load scale
+/// `lambda` is a stable equilibrium.
 fn free_rod_is_stable(
-    model: &RodModel,
     rod: &Rod,
-    w: &mut super::Workspace,
     x: &Vector6,
     lambda: f64,
+    stable: &mut dyn FnMut(&Candidate) -> bool,
 ) -> bool {
+    let mut quaternions = vec![Quat::IDENTITY; rod.model.n() + 1];
     rod.integrate(
         x.fixed_rows::<3>(0).into_owned(),
         rod.free_base_force,
-        Some(&mut w.q),
+        Some(&mut quaternions),
         None,
     );
-    evaluate(model, w, lambda);
-    is_stable(model, w)
+    stable(&Candidate {
+        quaternions: &quaternions,
+        load_scale: lambda,
+        held_tip: None,
+    })
 }
 
 /// The base moment to start from: from a warm start's first element, else

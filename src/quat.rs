@@ -37,6 +37,19 @@ impl Quat {
         Quat { w: 0.0, v }
     }
 
+    /// `q (0, e_k)` for the three axes `e_k`: the columns of `G(q)^T`,
+    /// written out (built from `Vector3::ith` in a loop, the axis went
+    /// through memory and stalled the fd2 kernel's store forwarding).
+    #[inline(always)]
+    pub fn times_axes(self) -> [Quat; 3] {
+        let (w, v) = (self.w, self.v);
+        [
+            Quat::new(-v.x, w, v.z, -v.y),
+            Quat::new(-v.y, -v.z, w, v.x),
+            Quat::new(-v.z, v.y, -v.x, w),
+        ]
+    }
+
     pub fn conj(self) -> Self {
         Quat {
             w: self.w,
@@ -190,6 +203,15 @@ pub(crate) fn body_vector_terms(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn times_axes_is_the_product_with_each_pure_axis() {
+        let q = Quat::new(0.3, -0.5, 0.7, 0.2);
+        for (k, got) in q.times_axes().into_iter().enumerate() {
+            let want = q * Quat::pure(Vector3::ith(k, 1.0));
+            assert_eq!(got.to_array(), want.to_array(), "axis {k}");
+        }
+    }
 
     #[test]
     fn rotation_matches_rotate_and_tangent() {

@@ -246,8 +246,7 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
                         - cv * w.transpose()
                         - w * cv.transpose());
             // 1/4 kappa G(a) S G(b)^T, column by column: G(b)^T e_k = b * (0, e_k).
-            for col in 0..3 {
-                let bek = b * Quat::pure(Vector3::ith(col, 1.0));
+            for (col, bek) in b.times_axes().into_iter().enumerate() {
                 let v = (a.conj() * tangent_form_apply(&fbar, bek)).v;
                 jab.set_column(col, &(jab.column(col) + 0.25 * kappa * v));
             }
@@ -288,8 +287,7 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
         t.jbb += radial + 0.5 * skew(&gb);
         if i >= 2 {
             t.jaa += radial + 0.5 * skew(&ga);
-            for col in 0..3 {
-                let bek = b * Quat::pure(Vector3::ith(col, 1.0));
+            for (col, bek) in b.times_axes().into_iter().enumerate() {
                 let v = (a.conj() * rotation_form_apply(field, m, bek)).v;
                 t.jab
                     .set_column(col, &(t.jab.column(col) + 0.25 * kappa * v));

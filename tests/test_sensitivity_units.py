@@ -75,7 +75,8 @@ PARAMETERS = [
     "sections[1].length", "point_loads[0].moment[0]", "distributed_moment[1]",
 ]
 # The parameters that move the mesh or a tendon's routing: their equations'
-# derivative is a central difference; every other one is the terms' own.
+# derivative is differenced (central at one and two steps, extrapolated);
+# every other one is the terms' own.
 DIFFERENCED = {"tendons[0].offset[0]", "tendons[0].twist", "sections[0].length",
                "sections[1].length"}
 
@@ -165,9 +166,9 @@ def test_the_same_rod_in_any_units_has_the_same_sensitivities(scheme):
     for metres in (1e3, 1e-3):
         scale = np.abs(si).max(axis=0)
         error = (np.abs(columns[metres] - si).max(axis=0) / scale)
-        # The terms' own derivatives agree to round-off; a differenced
-        # column to its differences' (a step that is unit-free too).
-        bound = np.array([1e-9 if p in DIFFERENCED else 1e-10 for p in PARAMETERS])
+        # The terms' own derivatives agree to round-off (measured 4e-14); a
+        # differenced column to its differences' (a unit-free step: 1.5e-11).
+        bound = np.array([1e-10 if p in DIFFERENCED else 1e-12 for p in PARAMETERS])
         assert np.all(error < bound), dict(zip(PARAMETERS, error, strict=True))
 
 
@@ -198,6 +199,41 @@ def test_every_kind_matches_differences_of_whole_solves(scheme, metres):
         for rows in (slice(0, 3), slice(3, 6)):
             scale = np.abs(fd[rows]).max()
             assert np.abs(analytic[rows, j] - fd[rows]).max() <= 1e-7 * scale, (path, rows)
+
+
+@pytest.mark.parametrize("scheme", ["fd2", "fe4"])
+def test_a_differenced_column_is_exact_to_round_off(scheme):
+    """A section's length moves the mesh: its column is differenced. Unloaded,
+    the equilibrium is the rest shape at any length, exact to round-off, so
+    five-point differences of whole solves give its derivative to 1e-12
+    (not the solve's tolerance): the column must agree to 1e-11 of it
+    (measured 2e-12; the second-order differences before were 1e-10 to 8e-10
+    off)."""
+    n = 24 if scheme == "fd2" else 12
+    data = {key: BASE[key] for key in ("length", "stiffness", "rest_curvature")}
+    data["sections"] = [{"length": s["length"], "stiffness": s["stiffness"]}
+                        for s in BASE["sections"]]
+    solver = softspine.Solver(data, n_elements=n, scheme=scheme)
+    base = solver.solve(check=True)
+    assert base.iterations == 0, "the rest shape is the exact equilibrium"
+    parameters = ["sections[0].length", "sections[1].length"]
+    sens = solver.sensitivity(parameters)
+    assert not any(sens.exact)
+    analytic = np.vstack([sens.tip_position, sens.tip_rotation])
+    for j, path in enumerate(parameters):
+        section = int(path[len("sections[")])
+        h = 1e-3 * data["sections"][section]["length"]
+        poses = []
+        for k in (2, 1, -1, -2):
+            scene = copy.deepcopy(data)
+            scene["sections"][section]["length"] += k * h
+            scene["length"] += k * h
+            poses.append(tip_pose(softspine.solve(scene, n_elements=n, scheme=scheme),
+                                  base.tip_quaternion))
+        fd = (-poses[0] + 8 * poses[1] - 8 * poses[2] + poses[3]) / (12 * h)
+        for rows in (slice(0, 3), slice(3, 6)):
+            scale = np.abs(fd[rows]).max()
+            assert np.abs(analytic[rows, j] - fd[rows]).max() <= 1e-11 * scale, (path, rows)
 
 
 def test_a_pinned_tip_in_any_units_has_the_same_reaction_sensitivity():

@@ -152,18 +152,21 @@ pub struct Sensitivity {
 }
 
 /// Largest node turn [rad] of the state's move along a sensitivity column in
-/// the directional differences of the tip's outputs: their truncation error
-/// is about its square (1e-10 relative), their round-off 1e-16 over it.
-const OUTPUT_TURN: f64 = 1e-5;
+/// the directional differences of the tip's outputs (at one and two steps,
+/// extrapolated): their truncation error is about its fourth power
+/// (1e-16 relative; at 1e-3 a section's length had 2e-10), their round-off
+/// 1e-16 over it (1e-12).
+const OUTPUT_TURN: f64 = 1e-4;
 
 /// Relative change of the discrete equations (of their residual's own scale,
 /// and of a held point's position over `L`) by which a parameter's step moves
-/// them in the central differences of `dF/dp`: truncation about its square
-/// where they are not linear in the parameter (1e-10), round-off about
-/// `eps` over it (1e-11). A step in the parameter's own units instead lost
-/// every digit on a rod in centimetres (a tip force step of 1e-9 N against
-/// a force scale of 1e9 N).
-const PARAMETER_RESPONSE: f64 = 1e-5;
+/// them in the differences of `dF/dp` (central at one and two steps,
+/// extrapolated): truncation about its fourth power where they are not
+/// linear in the parameter (1e-16, but a section's length had 2e-10 at a
+/// response of 1e-3), round-off about `eps` over it (1e-12).
+/// A step in the parameter's own units instead lost every digit on a rod in
+/// centimetres (a tip force step of 1e-9 N against a force scale of 1e9 N).
+const PARAMETER_RESPONSE: f64 = 1e-4;
 
 /// Rescalings of a parameter's step before the response is taken as it is
 /// (a parameter that moves nothing has a zero column), and the most one
@@ -291,11 +294,27 @@ fn first_step(value: f64) -> f64 {
     }
 }
 
+/// The models of a parameter's differences: at `±step` and, where the
+/// scene allows them, at `±2 step`.
+struct Stencil {
+    step: f64,
+    near: (RodModel, RodModel),
+    far: Option<(RodModel, RodModel)>,
+}
+
+/// `(4 d(h) - d(2h)) / 3` of central differences `d` at one and two steps:
+/// the fourth-order derivative (Richardson), from `near = (f(h) - f(-h)) / 2`
+/// and `far = (f(2h) - f(-2h)) / 2`, in units of `h`.
+#[inline]
+fn extrapolated(near: Vector3<f64>, far: Vector3<f64>) -> Vector3<f64> {
+    (4.0 * near - 0.5 * far) / 3.0
+}
+
 /// The discrete equations' derivative in parameter `j` (now `value`) at the
-/// fixed state `(q, reactions)` by central differences, with the step that
-/// moves them by [`PARAMETER_RESPONSE`] of their own scale whatever the
-/// parameter's units: `dg` and (held points) `dh` times the step, and the
-/// models at both ends with the step.
+/// fixed state `(q, reactions)` by central differences at one and two steps
+/// (extrapolated), with the step that moves them by [`PARAMETER_RESPONSE`]
+/// of their own scale whatever the parameter's units: `dg` and (held
+/// points) `dh` times the step, and the models of the stencil.
 fn differenced(
     model: &RodModel,
     model_at: &impl Fn(usize, f64) -> Result<RodModel>,
@@ -304,14 +323,36 @@ fn differenced(
     (q, reactions): (&[crate::quat::Quat], &[Vector3<f64>]),
     dg: &mut [Vector3<f64>],
     dh: &mut [Vector3<f64>],
-) -> Result<(RodModel, RodModel, f64)> {
+) -> Result<Stencil> {
     let n = model.n();
     let held = model.is_constrained();
     let m = reactions.len();
-    let (mut g_plus, mut g_minus) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
-    let (mut h_plus, mut h_minus) = (vec![Vector3::zeros(); m], vec![Vector3::zeros(); m]);
+    let mut g = [vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]];
+    let mut h = [vec![Vector3::zeros(); m], vec![Vector3::zeros(); m]];
     let mut positions = vec![Vector3::zeros(); n + 1];
     let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
+    // `(f(+) - f(-)) / 2` of the residual and the held points' rows at the
+    // fixed state, into `dg` and `dh`.
+    let mut half_difference =
+        |plus: &RodModel, minus: &RodModel, dg: &mut [Vector3<f64>], dh: &mut [Vector3<f64>]| {
+            for (side, at) in [plus, minus].into_iter().enumerate() {
+                // Each model's interior (fe4) loaded by the reactions, for its
+                // held points' positions.
+                let mut interior = at.new_interior();
+                evaluate_at(at, q, reactions, &mut interior, &mut g[side], &mut scratch);
+                if held {
+                    at.constraint_residual(q, 1.0, &mut interior, &mut positions, &mut h[side]);
+                }
+            }
+            for (d, (a, b)) in dg.iter_mut().zip(g[0].iter().zip(&g[1])) {
+                *d = 0.5 * (a - b);
+            }
+            if held {
+                for (d, (a, b)) in dh.iter_mut().zip(h[0].iter().zip(&h[1])) {
+                    *d = 0.5 * (a - b);
+                }
+            }
+        };
     let mut step = first_step(value);
     let mut models = None;
     let mut refusal = None;
@@ -328,35 +369,9 @@ fn differenced(
                 continue;
             }
         };
-        // Each model's interior (fe4) loaded by the reactions, for its
-        // held points' positions.
-        let (mut inner_plus, mut inner_minus) = (plus.new_interior(), minus.new_interior());
-        evaluate_at(
-            &plus,
-            q,
-            reactions,
-            &mut inner_plus,
-            &mut g_plus,
-            &mut scratch,
-        );
-        evaluate_at(
-            &minus,
-            q,
-            reactions,
-            &mut inner_minus,
-            &mut g_minus,
-            &mut scratch,
-        );
-        for (g, (a, b)) in dg.iter_mut().zip(g_plus.iter().zip(&g_minus)) {
-            *g = 0.5 * (a - b);
-        }
+        half_difference(&plus, &minus, dg, dh);
         let mut response = model.residual_norm(dg);
         if held {
-            plus.constraint_residual(q, 1.0, &mut inner_plus, &mut positions, &mut h_plus);
-            minus.constraint_residual(q, 1.0, &mut inner_minus, &mut positions, &mut h_minus);
-            for (h, (a, b)) in dh.iter_mut().zip(h_plus.iter().zip(&h_minus)) {
-                *h = 0.5 * (a - b);
-            }
             let moved = dh.iter().map(|h| h.amax()).fold(0.0, f64::max);
             response = response.max(moved / model.length());
         }
@@ -373,7 +388,33 @@ fn differenced(
         }
         step *= factor;
     }
-    models.ok_or_else(|| refusal.expect("an attempt without models was refused"))
+    let Some((plus, minus, step)) = models else {
+        return Err(refusal.expect("an attempt without models was refused"));
+    };
+    // `dg`, `dh` hold the differences of these models (the last evaluated).
+    // The far pair: where the scene refuses it, the near pair alone serves
+    // (second order).
+    let far = match (model_at(j, 2.0 * step), model_at(j, -2.0 * step)) {
+        (Ok(a), Ok(b)) => Some((a, b)),
+        _ => None,
+    };
+    if let Some((far_plus, far_minus)) = &far {
+        let (mut dg_far, mut dh_far) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); m]);
+        half_difference(far_plus, far_minus, &mut dg_far, &mut dh_far);
+        for (d, f) in dg.iter_mut().zip(&dg_far) {
+            *d = extrapolated(*d, *f);
+        }
+        if held {
+            for (d, f) in dh.iter_mut().zip(&dh_far) {
+                *d = extrapolated(*d, *f);
+            }
+        }
+    }
+    Ok(Stencil {
+        step,
+        near: (plus, minus),
+        far,
+    })
 }
 
 /// The loading's derivative in the scene path `path` (and each held point's
@@ -404,9 +445,11 @@ fn held_target(model: &RodModel, path: &str) -> Option<(usize, usize)> {
 }
 
 /// Relative step of a parameter in the map to the scene's values: the
-/// values it moves, and by how much, by central differences (exact where
-/// the map is linear, as every scene parameter's is; a robot's parameters
-/// map to the scene's through its own models).
+/// values it moves, and by how much, by central differences at one and two
+/// steps, extrapolated (exact where the map is linear, as every scene
+/// parameter's is; a robot's parameters map to the scene's through its own
+/// models, smooth: truncation about the step's fourth power, round-off
+/// `eps` over the step, 1e-12).
 const VALUE_STEP: f64 = 1e-4;
 
 /// The loading's derivative in parameter `j` (now `value`) and each held
@@ -424,21 +467,32 @@ fn loading_tangent(
         0.0 => 1e-6,
         v => VALUE_STEP * v.abs(),
     };
-    let plus = scene_at(j, delta).ok()?.to_value().numbers();
-    let minus = scene_at(j, -delta).ok()?.to_value().numbers();
-    if plus.len() != minus.len() {
+    let values = |k: f64| Some(scene_at(j, k * delta).ok()?.to_value().numbers());
+    let (plus, minus) = (values(1.0)?, values(-1.0)?);
+    // The far pair where the scene allows it (else the near pair alone).
+    let far = values(2.0).zip(values(-2.0));
+    let same_paths = |a: &[(String, f64)], b: &[(String, f64)]| {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.0 == y.0)
+    };
+    if !same_paths(&plus, &minus)
+        || far
+            .as_ref()
+            .is_some_and(|(a, b)| !same_paths(&plus, a) || !same_paths(&plus, b))
+    {
         return None;
     }
     let mut moves = vec![Vector3::zeros(); model.constraints().len()];
     let mut tangent = Loading::empty();
-    for ((path, a), (other, b)) in plus.iter().zip(&minus) {
-        if path != other {
-            return None;
-        }
+    for (i, ((path, a), (_, b))) in plus.iter().zip(&minus).enumerate() {
         if a == b {
             continue;
         }
-        let rate = (a - b) / (2.0 * delta);
+        let near = 0.5 * (a - b);
+        let half = match &far {
+            Some((fp, fm)) => (4.0 * near - 0.25 * (fp[i].1 - fm[i].1)) / 3.0,
+            None => near,
+        };
+        let rate = half / delta;
         // A held point's target: its row moves, no term does.
         if let Some((c, axis)) = held_target(model, path) {
             moves.get_mut(c)?[axis] += rate;
@@ -660,7 +714,7 @@ impl Solver {
             // their scale: the differences' own, or an analytic column's
             // (which bounds the outputs' step below, whatever the units).
             let (step, response_step) = match &models {
-                Some((_, _, step)) => (*step, *step),
+                Some(stencil) => (stencil.step, stencil.step),
                 None => {
                     let mut response = model.residual_norm(&w.g);
                     if held {
@@ -720,56 +774,61 @@ impl Solver {
                 true => (OUTPUT_TURN / turn).min(response_step),
                 false => response_step,
             };
-            // The models of the residual's differences serve when the step
-            // keeps the state's move small enough (the common case).
-            let (plus, minus) = match models {
-                Some((plus, minus, step)) if eps == step => (plus, minus),
-                _ => (model_at(j, eps)?, model_at(j, -eps)?),
+            // The stencil's models serve when the step keeps the state's move
+            // small enough (the common case).
+            let (near, far) = match models {
+                Some(stencil) if eps == stencil.step => (stencil.near, stencil.far),
+                _ => {
+                    let far = match (model_at(j, 2.0 * eps), model_at(j, -2.0 * eps)) {
+                        (Ok(a), Ok(b)) => Some((a, b)),
+                        _ => None,
+                    };
+                    ((model_at(j, eps)?, model_at(j, -eps)?), far)
+                }
             };
-            let moved = |sign: f64| -> (Vec<crate::quat::Quat>, Vec<Vector3<f64>>) {
+            // The tip's report at the state moved by `k eps` along the column
+            // with the model at `k eps`.
+            let mut report = |at: &RodModel, k: f64| -> TipReport {
                 let mut q = q0.clone();
                 for (i, x) in w.step.iter().enumerate() {
-                    q[i + 1] = q0[i + 1].perturbed(sign * eps * x);
+                    q[i + 1] = q0[i + 1].perturbed(k * eps * x);
                 }
-                let r = (0..m)
-                    .map(|c| {
-                        let d = Vector3::new(
-                            w.kkt.rhs[3 * c],
-                            w.kkt.rhs[3 * c + 1],
-                            w.kkt.rhs[3 * c + 2],
-                        );
-                        r0[c] + sign * eps * d
-                    })
-                    .collect();
-                (q, r)
+                let r: Vec<Vector3<f64>> =
+                    (0..m).map(|c| r0[c] + k * eps * reaction_step(c)).collect();
+                tip_report(at, &q, &r, &mut scratch)
             };
-            let (qp, rp) = moved(1.0);
-            let (qm, rm) = moved(-1.0);
-            let (a, b) = (
-                tip_report(&plus, &qp, &rp, &mut scratch),
-                tip_report(&minus, &qm, &rm, &mut scratch),
-            );
-            let diff = |x: Vector3<f64>, y: Vector3<f64>| (x - y) / (2.0 * eps);
-            out.tip_position
-                .set_column(j, &diff(a.position, b.position));
-            // The world-frame turn from the minus to the plus orientation.
-            let turn = a.orientation * b.orientation.conj();
-            let turn = if turn.w < 0.0 { -turn } else { turn };
-            out.tip_rotation
-                .set_column(j, &(turn.v * (2.0 / (2.0 * eps))));
-            if let (Some(col), Some(x), Some(y)) = (
-                out.tip_reaction_force.as_mut(),
-                a.reaction_force,
-                b.reaction_force,
-            ) {
-                col.set_column(j, &diff(x, y));
+            // `(f(+) - f(-)) / 2` of every output of a pair of reports: the
+            // position, the world-frame turn from the minus to the plus
+            // orientation (`2 v` of the relative rotation, odd in the step as
+            // the difference), the reactions.
+            let half = |a: &TipReport, b: &TipReport| -> [Option<Vector3<f64>>; 4] {
+                let turn = a.orientation * b.orientation.conj();
+                let turn = if turn.w < 0.0 { -turn } else { turn };
+                let pair = |x: Option<Vector3<f64>>, y: Option<Vector3<f64>>| {
+                    x.zip(y).map(|(x, y)| 0.5 * (x - y))
+                };
+                [
+                    Some(0.5 * (a.position - b.position)),
+                    Some(turn.v),
+                    pair(a.reaction_force, b.reaction_force),
+                    pair(a.reaction_moment, b.reaction_moment),
+                ]
+            };
+            let mut outputs = half(&report(&near.0, 1.0), &report(&near.1, -1.0));
+            if let Some((far_plus, far_minus)) = &far {
+                let wide = half(&report(far_plus, 2.0), &report(far_minus, -2.0));
+                for (o, f) in outputs.iter_mut().zip(wide) {
+                    *o = o.zip(f).map(|(o, f)| extrapolated(o, f));
+                }
             }
-            if let (Some(col), Some(x), Some(y)) = (
-                out.tip_reaction_moment.as_mut(),
-                a.reaction_moment,
-                b.reaction_moment,
-            ) {
-                col.set_column(j, &diff(x, y));
+            let [position, turn, force, moment] = outputs.map(|o| o.map(|v| v / eps));
+            out.tip_position.set_column(j, &position.expect("always"));
+            out.tip_rotation.set_column(j, &turn.expect("always"));
+            if let (Some(col), Some(x)) = (out.tip_reaction_force.as_mut(), force) {
+                col.set_column(j, &x);
+            }
+            if let (Some(col), Some(x)) = (out.tip_reaction_moment.as_mut(), moment) {
+                col.set_column(j, &x);
             }
         }
         Ok(out)

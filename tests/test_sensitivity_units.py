@@ -74,11 +74,10 @@ PARAMETERS = [
     "magnetic_field[2]", "magnetization[1][2]", "point_loads[0].force[1]", "sections[0].length",
     "sections[1].length", "point_loads[0].moment[0]", "distributed_moment[1]",
 ]
-# The parameters that move the mesh or a tendon's routing: their equations'
-# derivative is differenced (central at one and two steps, extrapolated);
-# every other one is the terms' own.
-DIFFERENCED = {"tendons[0].offset[0]", "tendons[0].twist", "sections[0].length",
-               "sections[1].length"}
+# The parameters that move the mesh: their equations' derivative is
+# differenced (central at one and two steps, extrapolated); every other one,
+# a tendon's routing too, is the terms' own.
+DIFFERENCED = {"sections[0].length", "sections[1].length"}
 
 
 def power_of(path: str) -> int:
@@ -234,6 +233,37 @@ def test_a_differenced_column_is_exact_to_round_off(scheme):
         for rows in (slice(0, 3), slice(3, 6)):
             scale = np.abs(fd[rows]).max()
             assert np.abs(analytic[rows, j] - fd[rows]).max() <= 1e-11 * scale, (path, rows)
+
+
+@pytest.mark.parametrize("scheme", ["fd2", "fe4"])
+def test_a_tendon_routed_by_section_has_analytic_routing_columns(scheme):
+    """Each routing's offset and twist is the tendon term's own parameter:
+    an analytic column, equal to five-point differences of whole solves."""
+    n = 24 if scheme == "fd2" else 12
+    data = copy.deepcopy(BASE)
+    data["tendons"] = [{"tension": 0.5, "offset": [[0.01, 0.0], [-0.004, 0.008]],
+                        "twist": [0.3, -1.2]}]
+    parameters = ["tendons[0].offset[0][1]", "tendons[0].offset[1][0]",
+                  "tendons[0].twist[0]", "tendons[0].twist[1]"]
+    solver = softspine.Solver(data, n_elements=n, scheme=scheme, residual_tol=TIGHT)
+    base = solver.solve(check=True)
+    sens = solver.sensitivity(parameters)
+    assert all(sens.exact)
+    analytic = np.vstack([sens.tip_position, sens.tip_rotation])
+    for j, path in enumerate(parameters):
+        box, key = at(data, path)
+        h = 1e-3 * (abs(box[key]) or 0.01)
+        poses = []
+        for k in (2, 1, -1, -2):
+            scene = copy.deepcopy(data)
+            moved_box, moved_key = at(scene, path)
+            moved_box[moved_key] += k * h
+            poses.append(tip_pose(softspine.solve(scene, n_elements=n, scheme=scheme,
+                                                  residual_tol=TIGHT), base.tip_quaternion))
+        fd = (-poses[0] + 8 * poses[1] - 8 * poses[2] + poses[3]) / (12 * h)
+        for rows in (slice(0, 3), slice(3, 6)):
+            scale = np.abs(fd[rows]).max()
+            assert np.abs(analytic[rows, j] - fd[rows]).max() <= 1e-7 * scale, (path, rows)
 
 
 def test_a_pinned_tip_in_any_units_has_the_same_reaction_sensitivity():

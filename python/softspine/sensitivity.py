@@ -34,9 +34,9 @@ class Sensitivity:
     """(3, k): d(tip reaction moment)/dp of a clamped tip, N m per unit."""
     exact: list[bool] | None = None
     """Per column, whether it comes from the terms' analytic derivatives
-    (exact, in any units); ``False``: the parameter moves the mesh, the base
-    or a tendon's routing, and the equations' derivative is a central
-    difference at the fixed state (about 1e-10 relative)."""
+    (exact, in any units); ``False``: the parameter moves the mesh (a
+    section's length) or the base, and the column is differenced at one and
+    two unit-free steps, extrapolated (round-off, about 1e-12 relative)."""
     solution: Solution | None = None
     """The equilibrium (``Robot.sensitivity``)."""
 

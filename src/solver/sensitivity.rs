@@ -145,9 +145,9 @@ pub struct Sensitivity {
     /// `d (tip reaction moment) / d p` of a clamped tip [N m per unit].
     pub tip_reaction_moment: Option<nalgebra::Matrix3xX<f64>>,
     /// Per column, whether the equations' derivative is the terms' analytic
-    /// one (false: a central difference of the discrete equations, for a
-    /// parameter that moves the mesh, the base or a tendon's routing;
-    /// accurate to about 1e-10 relative).
+    /// one (false: for a parameter that moves the mesh or the base,
+    /// differences of the discrete equations and of the tip's outputs at one
+    /// and two unit-free steps, extrapolated; about 1e-12 relative).
     pub exact: Vec<bool>,
 }
 
@@ -454,8 +454,8 @@ const VALUE_STEP: f64 = 1e-4;
 
 /// The loading's derivative in parameter `j` (now `value`) and each held
 /// point's target's, when every scene value it moves belongs to a term or
-/// is a held point's target (else `None`: the mesh, the base, a tendon's
-/// routing, whose equations are differenced as a whole). Each value's rate
+/// is a held point's target (else `None`: the mesh and the base,
+/// whose equations are differenced as a whole). Each value's rate
 /// goes through its term's analytic derivative.
 fn loading_tangent(
     model: &RodModel,

@@ -1,0 +1,80 @@
+"""The reach test of issue 27, seeded, to rerun on any build: for each robot,
+targets made by forward solves of random admissible drives (the robot's own
+workspace sampler: muscle lengths, tensions or fields within their limits),
+then the inverse kinematics of each target from the robot's default start.
+A target made this way is reachable by construction; every miss is counted
+with its ending.
+
+    python tools/reach_campaign.py              # 150 targets a robot
+    python tools/reach_campaign.py --targets 30 --robots tendon catheter
+
+Prints, per robot: targets reached, the endings of the others, and the IK
+time per point (median and 95th percentile, one core).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+import softspine
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def robots() -> dict[str, tuple[softspine.Robot, float]]:
+    """The issue's robots and the payload [kg] each carries."""
+    half = 0.25  # half the tilt [rad] about the x axis
+    tilted = softspine.Robot({"base_quaternion": [math.cos(half), math.sin(half), 0.0, 0.0]})
+    example = ROOT / "examples" / "robots"
+    return {
+        "pneumatic": (softspine.Robot(), 0.0),
+        "tilted": (tilted, 0.0),
+        "tendon": (softspine.Robot.from_file(example / "tendon_robot.toml"), 0.0),
+        "catheter": (softspine.Robot.from_file(example / "magnetic_catheter.toml"), 0.0),
+        "three_sections_30g": (softspine.Robot({"sections": 3, "n_elements": 18}), 0.03),
+    }
+
+
+def campaign(name: str, robot: softspine.Robot, load: float, count: int, seed: int) -> None:
+    drawn = robot.workspace(count, load, seed=seed, threads=1, progress=False)
+    usable = (drawn.status == "converged") & drawn.stable
+    targets = drawn.tip_positions[usable]
+    endings: Counter[str] = Counter()
+    seconds = []
+    misses = []
+    for target in targets:
+        started = time.perf_counter()
+        result = robot.inverse(target, load)
+        seconds.append(time.perf_counter() - started)
+        if not result.reached:
+            endings[str(result.ending)] += 1
+            misses.append(result.tip_miss)
+    reached = len(targets) - sum(endings.values())
+    times = np.array(seconds) * 1e3
+    worst = f", misses up to {max(misses) * 1e3:.1f} mm" if misses else ""
+    print(f"{name:20s} {reached:3d} of {len(targets)} reached "
+          f"({count - len(targets)} draws not a stable equilibrium); "
+          f"IK per point median {np.median(times):.1f} ms, 95 % {np.percentile(times, 95):.1f} ms; "
+          f"endings of the misses {dict(endings)}{worst}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--targets", type=int, default=150)
+    parser.add_argument("--seed", type=int, default=27)
+    parser.add_argument("--robots", nargs="*", default=None)
+    args = parser.parse_args()
+    for name, (robot, load) in robots().items():
+        if args.robots and name not in args.robots:
+            continue
+        campaign(name, robot, load, args.targets, args.seed)
+
+
+if __name__ == "__main__":
+    main()

@@ -41,25 +41,29 @@ def robots() -> dict[str, tuple[softspine.Robot, float]]:
     }
 
 
-def campaign(name: str, robot: softspine.Robot, load: float, count: int, seed: int) -> None:
+def reach(robot: softspine.Robot, load: float, count: int, seed: int) -> dict:
+    """The IK of `count` targets drawn from the robot's admissible drives
+    (seeded): the targets, which were reached, each ending and the seconds."""
     drawn = robot.workspace(count, load, seed=seed, threads=1, progress=False)
     usable = (drawn.status == "converged") & drawn.stable
-    targets = drawn.tip_positions[usable]
-    endings: Counter[str] = Counter()
-    seconds = []
-    misses = []
-    for target in targets:
+    out: dict = {"targets": drawn.tip_positions[usable], "drawn": int(count),
+                 "results": [], "seconds": []}
+    for target in out["targets"]:
         started = time.perf_counter()
-        result = robot.inverse(target, load)
-        seconds.append(time.perf_counter() - started)
-        if not result.reached:
-            endings[str(result.ending)] += 1
-            misses.append(result.tip_miss)
-    reached = len(targets) - sum(endings.values())
-    times = np.array(seconds) * 1e3
-    worst = f", misses up to {max(misses) * 1e3:.1f} mm" if misses else ""
-    print(f"{name:20s} {reached:3d} of {len(targets)} reached "
-          f"({count - len(targets)} draws not a stable equilibrium); "
+        out["results"].append(robot.inverse(target, load))
+        out["seconds"].append(time.perf_counter() - started)
+    return out
+
+
+def campaign(name: str, robot: softspine.Robot, load: float, count: int, seed: int) -> None:
+    found = reach(robot, load, count, seed)
+    misses = [r for r in found["results"] if not r.reached]
+    endings = Counter(str(r.ending) for r in misses)
+    times = np.array(found["seconds"]) * 1e3
+    worst = f", misses up to {max(r.tip_miss for r in misses) * 1e3:.1f} mm" if misses else ""
+    total = len(found["targets"])
+    print(f"{name:20s} {total - len(misses):3d} of {total} reached "
+          f"({count - total} draws not a stable equilibrium); "
           f"IK per point median {np.median(times):.1f} ms, 95 % {np.percentile(times, 95):.1f} ms; "
           f"endings of the misses {dict(endings)}{worst}")
 

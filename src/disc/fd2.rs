@@ -186,7 +186,13 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
         if !self.loading.densities.is_empty() {
             let omega = (2.0 / ds) * cv;
             let middle = 0.5 * (self.arcs[i - 1] + self.arcs[i]);
-            if let Some((_, moment, stiffness)) = self.loading.density(i, middle, &omega, self.load)
+            if !with_jacobian {
+                // A residual alone (a line search's trial) needs the moment alone.
+                if let Some(moment) = self.loading.density_moment(i, middle, &omega, self.load) {
+                    w += moment;
+                }
+            } else if let Some((_, moment, stiffness)) =
+                self.loading.density(i, middle, &omega, self.load)
             {
                 w += moment;
                 density_stiffness = Some(stiffness);
@@ -557,7 +563,7 @@ impl Discretisation for Fd2 {
                     - rod.loading.stiffness_of(i).component_mul(&drest);
                 if density {
                     let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
-                    if let Some((_, m, _)) = tangent.density(i, middle, &omega, 1.0) {
+                    if let Some(m) = tangent.density_moment(i, middle, &omega, 1.0) {
                         moment += m;
                     }
                 }

@@ -65,6 +65,18 @@ pub trait CurvatureDensity: std::fmt::Debug + Send + Sync {
         omega: &Vector3<f64>,
         scale: f64,
     ) -> Option<(f64, Vector3<f64>, Matrix3<f64>)>;
+
+    /// Its gradient alone (a moment), for the residual's derivatives, which
+    /// need no value and no stiffness.
+    fn moment(
+        &self,
+        element: usize,
+        s: f64,
+        omega: &Vector3<f64>,
+        scale: f64,
+    ) -> Option<Vector3<f64>> {
+        self.density(element, s, omega, scale).map(|(_, m, _)| m)
+    }
 }
 
 /// What the terms put on a rod of `n` elements (see the module's
@@ -191,6 +203,25 @@ impl Loading {
                 .iter()
                 .filter_map(|d| d.density(i, s, omega, scale))
                 .reduce(|a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2)),
+        }
+    }
+
+    /// The curvature densities' moments alone ([`Loading::density`]'s second).
+    #[inline(always)]
+    pub fn density_moment(
+        &self,
+        i: usize,
+        s: f64,
+        omega: &Vector3<f64>,
+        scale: f64,
+    ) -> Option<Vector3<f64>> {
+        match self.densities.as_slice() {
+            [] => None,
+            [one] => one.moment(i, s, omega, scale),
+            many => many
+                .iter()
+                .filter_map(|d| d.moment(i, s, omega, scale))
+                .reduce(|a, b| a + b),
         }
     }
 
@@ -344,5 +375,15 @@ impl CurvatureDensity for Scaled {
     ) -> Option<(f64, Vector3<f64>, Matrix3<f64>)> {
         let (v, m, k) = self.density.density(element, s, omega, scale)?;
         Some((self.factor * v, self.factor * m, self.factor * k))
+    }
+
+    fn moment(
+        &self,
+        element: usize,
+        s: f64,
+        omega: &Vector3<f64>,
+        scale: f64,
+    ) -> Option<Vector3<f64>> {
+        Some(self.factor * self.density.moment(element, s, omega, scale)?)
     }
 }

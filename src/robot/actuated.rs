@@ -333,7 +333,11 @@ impl ActuatedInverseSolver {
         self.unrefined = false;
         let (mut state, mut ending) = self.descend(&goal, &pull, max_iterations)?;
         let (mut spent, mut starts, mut unrefined) = (self.iterations, 1, self.unrefined);
-        for start in self.restarts(&target) {
+        let restarts = match ending {
+            IkEnding::Reached => Vec::new(),
+            _ => self.restarts(&target),
+        };
+        for start in restarts {
             if ending == IkEnding::Reached {
                 break;
             }

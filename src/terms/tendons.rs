@@ -55,6 +55,19 @@ impl CurvatureDensity for TendonDensity {
             k => Some(density(&self.tendons[..k], scale, s, omega)),
         }
     }
+
+    fn moment(
+        &self,
+        element: usize,
+        s: f64,
+        omega: &Vector3<f64>,
+        scale: f64,
+    ) -> Option<Vector3<f64>> {
+        match self.through[element - 1] {
+            0 => None,
+            k => Some(moment(&self.tendons[..k], scale, s, omega)),
+        }
+    }
 }
 
 /// Which number of a tendon's routing a parameter is: routing `routing`
@@ -347,6 +360,22 @@ pub fn density(
     (value, moment, hessian)
 }
 
+/// [`density`]'s moment alone: `sum tension rho x v / |v|`.
+#[inline]
+pub fn moment(tendons: &[Tendon], scale: f64, s: f64, omega: &Vector3<f64>) -> Vector3<f64> {
+    let mut moment = Vector3::zeros();
+    for t in tendons {
+        let tension = scale * t.tension;
+        if tension == 0.0 {
+            continue;
+        }
+        let (rho, drho) = t.routing(s);
+        let v = Vector3::z() + omega.cross(&rho) + drho;
+        moment += tension * rho.cross(&(v / v.norm()));
+    }
+    moment
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -372,6 +401,11 @@ mod tests {
         ];
         let omega = Vector3::new(1.3, -2.1, 0.4);
         let (_, m, h) = density(&tendons, 1.0, 0.3, &omega);
+        assert_eq!(
+            moment(&tendons, 1.0, 0.3, &omega),
+            m,
+            "the moment alone is the same"
+        );
         let step = 1e-6;
         for c in 0..3 {
             let d = Vector3::ith(c, step);

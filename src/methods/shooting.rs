@@ -496,7 +496,9 @@ pub fn shoot(
     // direct answer on an unstable branch (found on 8 of 426 random free
     // scenes) gives way to the load path from rest, which stays on the
     // stable branch, as in the finite-element driver.
-    let direct_unstable = converged && !shot_is_stable(&full, &x, held, stable);
+    // The shape a candidate is judged at, drawn once for the whole solve.
+    let mut shape = vec![Quat::IDENTITY; model.n() + 1];
+    let direct_unstable = converged && !shot_is_stable(&full, &x, held, &mut shape, stable);
     let mut note = None;
     if !converged || direct_unstable {
         // Leg 1: the loads from zero on the free rod (exact rest shape at 0).
@@ -521,7 +523,7 @@ pub fn shoot(
             // where the loading itself changes it.
             |lambda, x| {
                 let rod = Rod::new(model, scene, lambda);
-                free_rod_is_stable(&rod, x, lambda, stable)
+                free_rod_is_stable(&rod, x, lambda, &mut shape, stable)
             },
             model.n() + 1,
             &mut free,
@@ -610,46 +612,46 @@ pub fn shoot(
 
 /// Whether the rod shot with the base wrench `x` (the base force too when
 /// `held`) is a stable equilibrium at full load, the held tip's reaction
-/// included.
+/// included (its nodes drawn into `shape`).
 fn shot_is_stable(
     rod: &Rod,
     x: &Vector6,
     held: bool,
+    shape: &mut [Quat],
     stable: &mut dyn FnMut(&Candidate) -> bool,
 ) -> bool {
     if !held {
-        return free_rod_is_stable(rod, x, 1.0, stable);
+        return free_rod_is_stable(rod, x, 1.0, shape, stable);
     }
     let (m0, n0) = (
         x.fixed_rows::<3>(0).into_owned(),
         x.fixed_rows::<3>(3).into_owned(),
     );
-    let mut quaternions = vec![Quat::IDENTITY; rod.model.n() + 1];
-    let tip = rod.integrate(m0, n0, Some(&mut quaternions), None);
+    let tip = rod.integrate(m0, n0, Some(&mut *shape), None);
     stable(&Candidate {
-        quaternions: &quaternions,
+        quaternions: shape,
         load_scale: 1.0,
         held_tip: Some(rod.held_tip_reaction(&tip)),
     })
 }
 
 /// Whether the free rod shot with the base wrench `x` at load scale
-/// `lambda` is a stable equilibrium.
+/// `lambda` is a stable equilibrium (its nodes drawn into `shape`).
 fn free_rod_is_stable(
     rod: &Rod,
     x: &Vector6,
     lambda: f64,
+    shape: &mut [Quat],
     stable: &mut dyn FnMut(&Candidate) -> bool,
 ) -> bool {
-    let mut quaternions = vec![Quat::IDENTITY; rod.model.n() + 1];
     rod.integrate(
         x.fixed_rows::<3>(0).into_owned(),
         rod.free_base_force,
-        Some(&mut quaternions),
+        Some(&mut *shape),
         None,
     );
     stable(&Candidate {
-        quaternions: &quaternions,
+        quaternions: shape,
         load_scale: lambda,
         held_tip: None,
     })

@@ -183,6 +183,19 @@ struct State {
     e: DVector<f64>,
 }
 
+impl State {
+    /// Whether its equilibrium may serve as an answer and a warm start (an
+    /// ending may return a state that is not).
+    fn usable(&self) -> bool {
+        self.sol.converged() && self.sol.stable
+    }
+
+    /// How far the tip is from the target [m].
+    fn miss(&self) -> f64 {
+        self.e.rows(0, 3).norm()
+    }
+}
+
 /// Inverse kinematics of a tendon-driven or magnetic robot under one tip
 /// mass, reusing its forward solver and the last answer as the warm start of
 /// the next (trajectories).
@@ -348,15 +361,13 @@ impl ActuatedInverseSolver {
             let (other, other_ending) = self.descend(&goal, &pull, max_iterations)?;
             spent += self.iterations;
             starts += 1;
-            let usable = |s: &State| s.sol.converged() && s.sol.stable;
-            let miss = |s: &State| s.e.rows(0, 3).norm();
             let better = match (
                 other_ending == IkEnding::Reached,
-                usable(&other),
-                usable(&state),
+                other.usable(),
+                state.usable(),
             ) {
                 (true, true, _) => true,
-                (false, true, true) => miss(&other) < miss(&state),
+                (false, true, true) => other.miss() < state.miss(),
                 (false, true, false) => true,
                 _ => false,
             };
@@ -370,8 +381,7 @@ impl ActuatedInverseSolver {
                 self.follow_target(&pull, target, direction, tol, max_iterations)?;
             spent += used;
             starts += 1;
-            let usable = other.sol.converged() && other.sol.stable;
-            if other_ending == IkEnding::Reached && usable {
+            if other_ending == IkEnding::Reached && other.usable() {
                 (state, ending, unrefined) = (other, other_ending, self.unrefined);
             }
         }
@@ -416,8 +426,7 @@ impl ActuatedInverseSolver {
             self.unrefined = false;
             let (state, ending) = self.descend(&staged, pull, max_iterations)?;
             spent += self.iterations;
-            let usable = state.sol.converged() && state.sol.stable;
-            if !usable || (stage < TARGET_STAGES && ending != IkEnding::Reached) {
+            if !state.usable() || (stage < TARGET_STAGES && ending != IkEnding::Reached) {
                 return Ok((state, ending, spent));
             }
             self.x = state.x.clone();
@@ -782,12 +791,12 @@ impl ActuatedInverseSolver {
     }
 
     fn conclude(&mut self, state: State, ending: IkEnding) -> IkResult {
-        let usable = state.sol.converged() && state.sol.stable;
+        let usable = state.usable();
         self.q = usable.then(|| state.sol.quaternions.clone());
         if usable {
             self.x = state.x.clone();
         }
-        let miss = state.e.rows(0, 3).norm();
+        let miss = state.miss();
         let message = self.message(ending, miss, &state.x);
         let kappa = vec![[0.0; 2]; self.robot.sections];
         let lengths = self.robot.muscle_lengths(&kappa);

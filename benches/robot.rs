@@ -31,7 +31,7 @@ fn ik(c: &mut Criterion) {
                             let previous = solver.solve(a, None, None, 1e-9, 60).unwrap();
                             let started = std::time::Instant::now();
                             let r = solver
-                                .solve(b, None, Some(&previous.rest_curvature), 1e-9, 60)
+                                .solve(b, None, Some(&previous.drive(solver.space())), 1e-9, 60)
                                 .unwrap();
                             total += started.elapsed();
                             assert!(r.reached);

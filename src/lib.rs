@@ -61,9 +61,8 @@ pub struct ReadmeDoctests;
 pub use model::{RodModel, Scheme};
 pub use quat::Quat;
 pub use robot::{
-    ActuatedInverseSolver, Actuation, ActuationSpace, Calibration, CalibrationSettings, IkEnding,
-    IkOptions, IkResult, IkSample, IkSettings, InverseSolver, Robot, SectionSpec, Strategy,
-    TendonRoute,
+    Actuation, ActuationSpace, Calibration, CalibrationSettings, IkEnding, IkOptions, IkResult,
+    IkSample, IkSettings, InverseSolver, Robot, SectionSpec, Strategy, TendonRoute,
 };
 pub use scene::{
     Gravity, Guide, PointLoad, Scene, SectionProperties, Stiffness, Tendon, TipCondition,

@@ -6,9 +6,12 @@ The reached fractions are printed (``pytest -s``)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+import softspine
 from softspine import Robot
 
 from isolated import run_isolated
@@ -74,6 +77,44 @@ def test_the_true_actuation_as_reference_is_reached_in_one_iteration():
         tip = robot.forward(kappa, load=0.03).tip_position
         r = robot.inverse(tip, load=0.03, reference=kappa)
         assert r.reached and r.iterations == 1, r.message
+
+
+def test_the_answer_is_the_least_curvature_that_reaches_the_target():
+    """Of the curvatures that reach a target, the IK returns the one closest to
+    the reference (zero): within range it lies in the row space of the tip's
+    Jacobian. Before the engines were one, the first target ended with 20 %
+    of its curvature off that span (golden IK target 1)."""
+    robot = Robot()
+    for target in ([0.049473625570461525, 0.037934201498685226, -0.903208088274919],
+                   [0.046288581064953295, 0.2711159538877757, -0.84109366543862]):
+        r = robot.inverse(target, load=0.02)
+        assert r.reached and robot.within_bounds(r.rest_curvature), r.message
+        jac = robot.sensitivity(r.rest_curvature, load=0.02,
+                                parameters="rest_curvature").tip_position
+        kappa = r.rest_curvature.ravel()
+        y = np.linalg.lstsq(jac.T, kappa, rcond=None)[0]
+        assert np.linalg.norm(kappa - jac.T @ y) < 1e-5 * np.linalg.norm(kappa)
+
+
+def test_tol_means_the_same_angle_for_a_direction_on_every_drive():
+    """One meaning of tol: the tip within tol of the point and its tangent
+    within tol / L of the direction, whatever drives the robot."""
+    example = Path(__file__).resolve().parent.parent / "examples" / "robots"
+    cases = [(Robot(), 0.02, np.array([[0.4, -0.2], [0.3, 0.1]] * 5)),
+             (Robot.from_file(example / "tendon_robot.toml"), 0.02, None)]
+    for robot, load, kappa in cases:
+        if kappa is None:
+            sol = robot.forward(tensions=[6.0, 0, 0, 0, 5.0, 0, 0, 0, 4.0], load=load)
+        else:
+            sol = robot.forward(kappa, load=load)
+        tangent = sol.rotation_matrices[-1][:, 2]
+        tol = 1e-6
+        r = robot.inverse(sol.tip_position, load=load, direction=tangent, tol=tol)
+        assert r.ending == softspine.IkEnding.REACHED, r.message
+        reached = r.solution.rotation_matrices[-1][:, 2]
+        angle = np.arctan2(np.linalg.norm(np.cross(reached, tangent)), reached @ tangent)
+        length = robot.to_dict()["length"]
+        assert r.tip_miss <= tol and angle <= tol / length, (r.tip_miss, angle)
 
 
 def test_a_target_farther_than_the_robot_is_long_is_out_of_reach():

@@ -9,10 +9,7 @@ use super::detach::detach_solve;
 use super::scene::PyScene;
 use super::settings::ik_settings_arg;
 use super::solution::{quaternions_arg, PySolution};
-use crate::robot::{
-    trajectory, ActuatedInverseSolver, Actuation, IkOptions, IkResult, IkStart, InverseSolver,
-    Robot,
-};
+use crate::robot::{trajectory, Actuation, IkOptions, IkResult, IkStart, InverseSolver, Robot};
 use crate::Settings;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
@@ -212,15 +209,8 @@ impl PyIkResult {
 #[pyclass(name = "InverseSolver", module = "softspine._core", frozen)]
 pub struct PyInverseSolver {
     /// Shared with a worker thread during a long solve (see `detach_solve`).
-    pub(super) inner: Arc<Mutex<IkEngine>>,
+    pub(super) inner: Arc<Mutex<InverseSolver>>,
     pub(super) long_passes: bool,
-}
-
-/// The inverse solver of a robot's actuation space: muscle curvatures, or
-/// tendon tensions and the field.
-pub(super) enum IkEngine {
-    Muscles(InverseSolver),
-    Drives(ActuatedInverseSolver),
 }
 
 #[pymethods]
@@ -257,31 +247,17 @@ impl PyInverseSolver {
         // Locked without the GIL; None if a solve panicked holding the lock.
         let inner = Arc::clone(&self.inner);
         let r = detach_solve(py, self.long_passes, move || match inner.lock() {
-            Ok(mut engine) => match &mut *engine {
-                IkEngine::Muscles(solver) => {
-                    if pretension.is_some() {
-                        return Err(crate::Error::argument(
-                            "pretension",
-                            "pulls tendons; this robot's actuation is its muscles' curvature",
-                        ));
-                    }
-                    solver
-                        .solve_with(target, direction, reference.as_deref(), &settings)
-                        .map(Some)
-                }
-                IkEngine::Drives(solver) => {
-                    let options = IkOptions {
-                        tip_mass: 0.0,
-                        reference,
-                        direction,
-                        settings,
-                        pretension,
-                        initial: None,
-                    };
-                    solver.robot().check_actuated_ik(&options)?;
-                    solver.solve_with(target, &options).map(Some)
-                }
-            },
+            Ok(mut solver) => {
+                let options = IkOptions {
+                    tip_mass: 0.0,
+                    reference,
+                    direction,
+                    settings,
+                    pretension,
+                    initial: None,
+                };
+                solver.solve_with(target, &options).map(Some)
+            }
             Err(_) => Ok(None),
         })?;
         let r = r.ok_or_else(|| {
@@ -771,14 +747,9 @@ impl PyRobot {
         #[pyo3(from_py_with = load_arg)] load: f64,
     ) -> PyResult<PyInverseSolver> {
         warn_user(py, &self.inner.load_warnings(load))?;
-        let engine = match self.inner.actuation_space() {
-            crate::robot::ActuationSpace::Curvature => {
-                IkEngine::Muscles(InverseSolver::new(&self.inner, load)?)
-            }
-            _ => IkEngine::Drives(ActuatedInverseSolver::new(&self.inner, load)?),
-        };
+        let solver = InverseSolver::new(&self.inner, load)?;
         Ok(PyInverseSolver {
-            inner: Arc::new(Mutex::new(engine)),
+            inner: Arc::new(Mutex::new(solver)),
             long_passes: self.inner.has_long_passes(),
         })
     }

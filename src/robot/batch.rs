@@ -3,8 +3,7 @@
 //! of [`crate::batch`] (see there for chunking, warm starts and threads).
 
 use super::{
-    ActuatedInverseSolver, Actuation, ActuationSpace, IkEnding, IkOptions, IkResult, InverseSolver,
-    Robot, Strategy,
+    Actuation, ActuationSpace, IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy,
 };
 use crate::batch::{check_batch_size, run_chunks, BatchControl, BatchSettings, ResultSize, Sample};
 use crate::error::{Error, Result};
@@ -182,18 +181,8 @@ impl Robot {
             ));
         }
         let ik = &options.settings;
-        if self.actuation_space() != ActuationSpace::Curvature {
-            // Tensions or a field: a chunk reuses one inverse solver of them.
-            self.check_actuated_ik(options)?;
-            return run_chunks(
-                targets.len(),
-                self.result_size("targets", settings),
-                settings,
-                control,
-                || ActuatedInverseSolver::new(self, options.tip_mass),
-                |solver, i| Ok(IkSample::of(solver.solve_with(targets[i], options)?)),
-            );
-        }
+        // Checked once, before any chunk runs.
+        let reference = InverseSolver::new(self, options.tip_mass)?.reference_of(options)?;
         run_chunks(
             targets.len(),
             self.result_size("targets", settings),
@@ -204,16 +193,16 @@ impl Robot {
                 Strategy::Geometric => Ok(None),
             },
             |solver, i| {
-                let target = &targets[i];
+                let target = targets[i];
                 let r = match solver {
                     Some(solver) => solver.solve(
-                        *target,
+                        target,
                         options.direction,
-                        options.reference.as_deref(),
+                        reference.as_deref(),
                         ik.tol,
                         ik.max_iterations,
                     )?,
-                    None => self.inverse(*target, options)?,
+                    None => self.inverse(target, options)?,
                 };
                 Ok(IkSample::of(r))
             },

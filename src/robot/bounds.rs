@@ -1,18 +1,23 @@
-//! The muscles' length range as linear constraints on the curvature, and the
-//! bounded least-squares step of the inverse kinematics.
+//! A drive's range as linear constraints, block by block, and the bounded
+//! least-squares step of the inverse kinematics.
 //!
-//! A section's curvature `k` is within range when no two of its muscles differ
-//! in length by more than the range's span (the common mode centres the three
-//! in the range): `(lever_i - lever_j) . k <= span` for the six ordered pairs,
-//! a hexagon in the `(kappa_x, kappa_y)` plane. The step
+//! The drive's coordinates come in equal blocks that share the same rows
+//! `a_r . x_s <= b_r`:
+//! * muscles: a section's curvature `k` is within range when no two of its
+//!   muscles differ in length by more than the range's span (the common mode
+//!   centres the three in the range): `(lever_i - lever_j) . k <= span` for
+//!   the six ordered pairs, a hexagon in the `(kappa_x, kappa_y)` plane;
+//! * tendons: each tension alone, `-t <= 0` and `t <= max_tension`.
+//!
+//! The step
 //!
 //! ```text
-//! minimise |x - r|^2 + |J x - e|^2 / c   subject to   kappa + x within range
+//! minimise |d - r|^2 + |J d - e|^2 / c   subject to   x + d within range
 //! ```
 //!
-//! is the minimum-norm Gauss-Newton step (`r = kappa_ref - kappa`) as `c -> 0`
-//! and a Levenberg-Marquardt step for `r = 0` and `c = mu`. It is solved by a
-//! primal active-set method from `x = 0` (feasible), with `H^{-1}` applied by
+//! is the minimum-norm Gauss-Newton step (`r = x_ref - x`) as `c -> 0` and a
+//! Levenberg-Marquardt step for `r = 0` and `c = mu`. It is solved by a
+//! primal active-set method from `d = 0` (feasible), with `H^{-1}` applied by
 //! the Woodbury identity, so a step costs O(m) a working-set row and a step
 //! that stays within range costs one pass over the constraints.
 
@@ -23,55 +28,93 @@ use nalgebra::{DMatrix, DVector};
 /// (feasible, improved) point.
 const MAX_ROUNDS: usize = 60;
 
-/// The six constraint rows shared by every section and the span they bound.
+/// The constraint rows shared by every block of the drive's coordinates.
 #[derive(Debug, Clone)]
-pub(super) struct Bounds {
-    rows: [[f64; 2]; 6],
-    span: f64,
+pub(crate) struct Bounds {
+    /// Coordinates a block.
+    block: usize,
+    /// `a_r`, `block` coefficients a row, row after row.
+    rows: Vec<f64>,
+    /// `b_r`, one a row.
+    limits: Vec<f64>,
 }
 
-/// A constraint: row `r` of section `s`.
+/// A constraint: row `r` of block `s`.
 type Row = (usize, usize);
 
 /// A bounded step and how many constraints hold it back.
-pub(super) struct BoundedStep {
+pub(crate) struct BoundedStep {
     pub step: DVector<f64>,
     /// Working-set rows at the end (constraints that limit the step).
     pub blocking: usize,
 }
 
 impl Bounds {
-    pub fn new(robot: &Robot) -> Self {
+    /// The muscles' length range of `robot`'s sections (see the module docs).
+    pub fn muscles(robot: &Robot) -> Self {
         let lever = robot.lever();
         let pairs = [(0, 1), (1, 2), (2, 0), (1, 0), (2, 1), (0, 2)];
+        let span = robot.muscle_length_range[1] - robot.muscle_length_range[0];
         Bounds {
-            rows: pairs.map(|(i, j)| [lever[i][0] - lever[j][0], lever[i][1] - lever[j][1]]),
-            span: robot.muscle_length_range[1] - robot.muscle_length_range[0],
+            block: 2,
+            rows: pairs
+                .iter()
+                .flat_map(|&(i, j)| [lever[i][0] - lever[j][0], lever[i][1] - lever[j][1]])
+                .collect(),
+            limits: vec![span; 6],
         }
     }
 
-    fn dot(&self, (s, r): Row, v: &DVector<f64>) -> f64 {
-        self.rows[r][0] * v[2 * s] + self.rows[r][1] * v[2 * s + 1]
+    /// Tensions between zero and `upper` (none: no upper bound).
+    pub fn tensions(upper: Option<f64>) -> Self {
+        match upper {
+            Some(upper) => Bounds {
+                block: 1,
+                rows: vec![-1.0, 1.0],
+                limits: vec![0.0, upper],
+            },
+            None => Bounds {
+                block: 1,
+                rows: vec![-1.0],
+                limits: vec![0.0],
+            },
+        }
     }
 
-    /// Room left by row `(s, r)` at `kappa` (never negative: `kappa` is within range).
-    fn slack(&self, kappa: &[[f64; 2]], (s, r): Row) -> f64 {
-        let k = kappa[s];
-        (self.span - self.rows[r][0] * k[0] - self.rows[r][1] * k[1]).max(0.0)
+    fn row(&self, r: usize) -> &[f64] {
+        &self.rows[r * self.block..(r + 1) * self.block]
+    }
+
+    fn row_count(&self) -> usize {
+        self.limits.len()
+    }
+
+    fn dot(&self, (s, r): Row, v: &DVector<f64>) -> f64 {
+        let at = s * self.block;
+        self.row(r)
+            .iter()
+            .zip(&v.as_slice()[at..at + self.block])
+            .map(|(a, x)| a * x)
+            .sum()
+    }
+
+    /// Room left by row `(s, r)` at `x` (never negative: `x` is within range).
+    fn slack(&self, x: &DVector<f64>, row: Row) -> f64 {
+        (self.limits[row.1] - self.dot(row, x)).max(0.0)
     }
 
     fn dense(&self, (s, r): Row, len: usize) -> DVector<f64> {
         let mut a = DVector::zeros(len);
-        a[2 * s] = self.rows[r][0];
-        a[2 * s + 1] = self.rows[r][1];
+        a.rows_mut(s * self.block, self.block)
+            .copy_from_slice(self.row(r));
         a
     }
 
-    /// The step defined in the module docs, from `kappa` (within range).
+    /// The step defined in the module docs, from `x` (within range).
     /// `None` if `c I + J J^T` is singular.
     pub fn step(
         &self,
-        kappa: &[[f64; 2]],
+        x: &DVector<f64>,
         j: &DMatrix<f64>,
         e: &DVector<f64>,
         r: &DVector<f64>,
@@ -85,7 +128,7 @@ impl Bounds {
         let free = r + j.transpose() * g.solve(&(e - j * r));
         let mut qp = ActiveSet {
             bounds: self,
-            kappa,
+            at: x,
             free,
             h_inv: &h_inv,
             work: Vec::new(),
@@ -98,7 +141,8 @@ impl Bounds {
 /// The primal active-set method on one step (see the module docs).
 struct ActiveSet<'a> {
     bounds: &'a Bounds,
-    kappa: &'a [[f64; 2]],
+    /// Where the step starts (within range).
+    at: &'a DVector<f64>,
     free: DVector<f64>,
     h_inv: &'a dyn Fn(&DVector<f64>) -> DVector<f64>,
     /// Working set: constraints held with equality.
@@ -153,23 +197,29 @@ impl ActiveSet<'_> {
         if w == 0 {
             return d;
         }
-        let rows = &self.bounds.rows;
+        let bounds = self.bounds;
         let gram = DMatrix::from_fn(w, w, |i, k| {
             let ((si, ri), (sk, rk)) = (self.work[i], self.work[k]);
             if si == sk {
-                rows[ri][0] * rows[rk][0] + rows[ri][1] * rows[rk][1]
+                bounds
+                    .row(ri)
+                    .iter()
+                    .zip(bounds.row(rk))
+                    .map(|(a, b)| a * b)
+                    .sum()
             } else {
                 0.0
             }
         });
-        let rates = DVector::from_fn(w, |i, _| self.bounds.dot(self.work[i], &d));
+        let rates = DVector::from_fn(w, |i, _| bounds.dot(self.work[i], &d));
         let Some(y) = gram.lu().solve(&rates) else {
             return d;
         };
         let mut held = d;
         for (&(s, r), v) in self.work.iter().zip(y.iter()) {
-            held[2 * s] -= rows[r][0] * v;
-            held[2 * s + 1] -= rows[r][1] * v;
+            for (c, a) in bounds.row(r).iter().enumerate() {
+                held[s * bounds.block + c] -= a * v;
+            }
         }
         held
     }
@@ -197,7 +247,7 @@ impl ActiveSet<'_> {
         let m = DMatrix::from_fn(w, w, |i, k| self.bounds.dot(self.work[i], &h_a[k]));
         let rhs = DVector::from_fn(w, |i, _| {
             let row = self.work[i];
-            self.bounds.slack(self.kappa, row) - self.bounds.dot(row, &self.free)
+            self.bounds.slack(self.at, row) - self.bounds.dot(row, &self.free)
         });
         let nu = m.lu().solve(&rhs)?;
         let mut target = self.free.clone();
@@ -216,22 +266,20 @@ impl ActiveSet<'_> {
         skip_work: bool,
     ) -> (f64, Option<Row>) {
         // Rates at rounding level would add rows dependent on the working set.
-        let widest = self
-            .bounds
-            .rows
-            .iter()
-            .map(|r| r[0].hypot(r[1]))
+        let bounds = self.bounds;
+        let widest = (0..bounds.row_count())
+            .map(|r| bounds.row(r).iter().map(|a| a * a).sum::<f64>().sqrt())
             .fold(0.0, f64::max);
         let tiny = 1e-12 * d.norm() * widest;
         let mut best = (1.0, None);
-        for s in 0..self.kappa.len() {
-            for r in 0..6 {
+        for s in 0..self.at.len() / bounds.block {
+            for r in 0..bounds.row_count() {
                 let row = (s, r);
-                let rate = self.bounds.dot(row, d);
+                let rate = bounds.dot(row, d);
                 if rate <= tiny || (skip_work && self.work.contains(&row)) {
                     continue;
                 }
-                let room = self.bounds.slack(self.kappa, row) - self.bounds.dot(row, from);
+                let room = bounds.slack(self.at, row) - bounds.dot(row, from);
                 let t = room.max(0.0) / rate;
                 if t < best.0 {
                     best = (t, Some(row));
@@ -262,9 +310,10 @@ mod tests {
             n_elements: 4,
             ..Robot::default()
         };
-        let bounds = Bounds::new(&robot);
+        let bounds = Bounds::muscles(&robot);
         let kappa = [[0.5, -0.2], [0.0, 0.8]];
         assert!(robot.within_bounds(&kappa));
+        let at = DVector::from_iterator(4, kappa.iter().flatten().copied());
         let j = DMatrix::from_row_slice(
             3,
             4,
@@ -272,13 +321,13 @@ mod tests {
         );
         let r = DVector::zeros(4);
         let small = DVector::from_column_slice(&[0.1, 0.0, -0.1]);
-        let free = bounds.step(&kappa, &j, &small, &r, 1e-14).unwrap();
+        let free = bounds.step(&at, &j, &small, &r, 1e-14).unwrap();
         assert_eq!(free.blocking, 0);
         assert!((&j * &free.step - &small).norm() < 1e-9);
         // Far beyond what the range allows: the step stops on its boundary and
         // still lowers the miss.
         let large = small * 200.0;
-        let held = bounds.step(&kappa, &j, &large, &r, 1e-14).unwrap();
+        let held = bounds.step(&at, &j, &large, &r, 1e-14).unwrap();
         assert!(held.blocking > 0);
         assert!(within(&robot, &kappa, &held.step));
         assert!((&j * &held.step - &large).norm() < large.norm());

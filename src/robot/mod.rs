@@ -15,17 +15,17 @@
 //! mode) does not bend the backbone; it is chosen to centre the lengths in the
 //! muscles' range, which leaves the most room for the next move.
 
-mod actuated;
 mod batch;
 mod bounds;
 mod calibrate;
 mod ik;
 pub mod trajectory;
 
-pub use actuated::{ActuatedInverseSolver, ActuationSpace};
 pub use batch::{IkSample, WARM_TURN};
 pub use calibrate::{Calibration, CalibrationSettings};
-pub use ik::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, Strategy};
+pub use ik::{
+    ActuationSpace, IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, Strategy,
+};
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;

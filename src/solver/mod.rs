@@ -67,6 +67,7 @@ pub struct Solver {
     /// the tensions do not change it), kept for the IK in tension space; and
     /// in each equal section's rest curvature, for the IK of a pneumatic robot.
     tension_tangents: Vec<crate::disc::Loading>,
+    field_tangents: Vec<crate::disc::Loading>,
     curvature_tangents: Vec<crate::disc::Loading>,
 }
 
@@ -112,6 +113,7 @@ impl Solver {
             reach_limit,
             scene: scene.clone(),
             tension_tangents: Vec::new(),
+            field_tangents: Vec::new(),
             curvature_tangents: Vec::new(),
         })
     }
@@ -241,6 +243,7 @@ impl Solver {
         self.model = RodModel::new(&scene, self.model.n()).with_scheme(self.model.scheme());
         self.work.interior.forget();
         self.tension_tangents.clear();
+        self.field_tangents.clear();
         self.curvature_tangents.clear();
         self.scene = scene;
         Ok(())

@@ -61,20 +61,26 @@ impl Solver {
     pub fn tension_sensitivity(&mut self) -> Result<TipSensitivity> {
         let tendons = self.scene.tendons.len();
         if self.tension_tangents.len() != tendons {
-            let model = &self.model;
-            self.tension_tangents = (0..tendons)
-                .map(|j| {
-                    let name = format!("tendons[{j}].tension");
-                    model
-                        .terms()
-                        .derivative(&name, model.mesh())?
-                        .ok_or_else(|| Error::argument(name, "no such tendon"))
-                })
-                .collect::<Result<_>>()?;
+            let names = (0..tendons).map(|j| format!("tendons[{j}].tension"));
+            self.tension_tangents = term_tangents(&self.model, names)?;
         }
         let tangents = std::mem::take(&mut self.tension_tangents);
         let out = self.tip_sensitivity_with(&tangents);
         self.tension_tangents = tangents;
+        out
+    }
+
+    /// Sensitivity of the tip of the last (converged, free-tip) equilibrium
+    /// to the uniform field's three components, world frame. The field
+    /// enters the equations linearly, so its tangents are drawn once.
+    pub fn field_sensitivity(&mut self) -> Result<TipSensitivity> {
+        if self.field_tangents.len() != 3 {
+            let names = (0..3).map(|j| format!("magnetic_field[{j}]"));
+            self.field_tangents = term_tangents(&self.model, names)?;
+        }
+        let tangents = std::mem::take(&mut self.field_tangents);
+        let out = self.tip_sensitivity_with(&tangents);
+        self.field_tangents = tangents;
         out
     }
 
@@ -833,4 +839,16 @@ impl Solver {
         }
         Ok(out)
     }
+}
+
+/// The loading's derivatives in the named parameters, each from its term.
+fn term_tangents(model: &RodModel, names: impl Iterator<Item = String>) -> Result<Vec<Loading>> {
+    names
+        .map(|name| {
+            model
+                .terms()
+                .derivative(&name, model.mesh())?
+                .ok_or_else(|| Error::argument(name, "no such parameter"))
+        })
+        .collect()
 }

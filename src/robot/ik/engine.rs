@@ -1,0 +1,997 @@
+//! The descent of the inverse kinematics, the same for every drive.
+//!
+//! Each iteration solves the forward statics (warm), takes the tip's
+//! sensitivity to the drive from the factored equilibrium Jacobian (O(n) a
+//! column) and steps by the minimum-norm Gauss-Newton rule
+//! `d = r + J^T (J J^T)^{-1} (e - J r)`, `r = x_ref - x`, held within the
+//! drive's admissible set (`Drive::step`), with a backtracking line search on
+//! the tip error. Only stable equilibria are accepted. At a solution,
+//! `x - x_ref` is orthogonal to the directions that keep the tip in place
+//! (within the active limits): the first-order condition of the minimum-norm
+//! choice. A stalled descent ends in Levenberg-Marquardt on the tip error
+//! alone, which finds the closest tip.
+//!
+//! The first descent starts at the reference when one is given (along a
+//! path: the last answer), else at the last answer. When it misses, the
+//! target is tried again from starts that do not depend on the reference:
+//! continuation in the target from the reference's tip, then the drive's
+//! starts (`Drive::starts`), each with the same iteration budget, until one
+//! reaches it; an answer found away from the reference then slides toward it.
+//!
+//! Endings are true: `out_of_reach` when the target is farther than the
+//! robot is long, or the closest tip is a local minimum of the miss with no
+//! limit active; `bounds_active` when the undamped step toward the target
+//! runs into a limit there.
+
+use super::drive::{ActuationSpace, Drive};
+use super::goal::{tool_point, Goal};
+use super::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, Strategy};
+use crate::error::{Error, Result};
+use crate::quat::Quat;
+use crate::robot::{Actuation, Robot};
+use crate::solver::{Settings, Solution, Solver};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// Relative accuracy to which the actuation is the one closest to the reference.
+const MIN_NORM_ACCURACY: f64 = 1e-6;
+
+/// Shortest line-search step before the descent counts as stalled.
+const MIN_ALPHA: f64 = 1e-4;
+
+/// A descent counts as stalled after `SLOW_STEPS` steps running that each
+/// shrink the miss by less than `SLOW_GAIN` of itself.
+const SLOW_GAIN: f64 = 0.01;
+const SLOW_STEPS: usize = 4;
+
+/// Damping of a step after a full step failed (relative to the mean
+/// diagonal of `J^T J`), the smallest kept before it returns to zero, and
+/// where the descent gives up.
+const LM_START: f64 = 1e-3;
+const LM_SMALLEST: f64 = 1e-9;
+const LM_GIVE_UP: f64 = 1e10;
+
+/// Miss [relative to L] within which a step's pull toward the reference is
+/// kept whole (backtracked on a merit); farther off a refused step is damped.
+const NEAR: f64 = 1e-3;
+
+/// Tip miss allowed while a restart's answer slides toward the reference [relative to L].
+const POLISH_SLACK: f64 = 1e-2;
+
+/// What a step is pulled toward besides the target.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pull {
+    /// The reference: the minimum-norm choice.
+    Reference,
+    /// Nothing: the smallest change of the actuation (the reach phase of a restart).
+    Free,
+}
+
+/// An accepted point of a descent: always a converged, stable equilibrium,
+/// except the start of a failed attempt.
+#[derive(Debug, Clone)]
+struct State {
+    x: DVector<f64>,
+    sol: Solution,
+    e: DVector<f64>,
+}
+
+impl State {
+    /// Whether its equilibrium may serve as an answer and a warm start.
+    fn usable(&self) -> bool {
+        usable(&self.sol)
+    }
+
+    /// How far the aimed point is from the target [m].
+    fn miss(&self) -> f64 {
+        self.e.rows(0, 3).norm()
+    }
+}
+
+/// How a descent phase ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PhaseEnd {
+    /// Converged (the target reached, or the closest tip settled).
+    Done,
+    /// No acceptable step; `unusable` if the last trials found no stable equilibrium.
+    Stalled { unusable: bool },
+    /// The iteration budget ran out.
+    Budget,
+}
+
+/// One descent toward the target from one start.
+#[derive(Debug, Clone)]
+struct Attempt {
+    state: State,
+    /// How its last phase ended.
+    phase: PhaseEnd,
+}
+
+impl Attempt {
+    fn reached(&self, goal: &Goal) -> bool {
+        self.state.usable() && goal.reached(&self.state.e)
+    }
+
+    /// Reached first, then any stable equilibrium, then the smaller miss.
+    fn rank(&self, goal: &Goal) -> (u8, f64) {
+        let tier = if self.reached(goal) {
+            0
+        } else if self.state.usable() {
+            1
+        } else {
+            2
+        };
+        (tier, self.state.e.norm())
+    }
+}
+
+/// An equilibrium the IK may stand on: converged and stable.
+fn usable(sol: &Solution) -> bool {
+    sol.converged() && sol.stable
+}
+
+/// Inverse kinematics of one robot under one tip mass, whatever drives it,
+/// reusing its forward solver and the last answer as the warm start of the
+/// next (trajectories).
+pub struct InverseSolver {
+    robot: Robot,
+    drive: Drive,
+    solver: Solver,
+    /// The last answer's drive and equilibrium.
+    last: DVector<f64>,
+    q: Option<Vec<Quat>>,
+    /// Iterations of the current solve, all starts included.
+    iterations: usize,
+    /// The warm start the current solve was given (the last answer's equilibrium).
+    given_warm: Option<Vec<Quat>>,
+}
+
+impl InverseSolver {
+    /// The solver of `robot`'s own drive ([`Robot::actuation_space`]).
+    pub fn new(robot: &Robot, tip_mass: f64) -> Result<Self> {
+        let drive = Drive::of(robot);
+        let scene = robot.actuated_scene(&Actuation::default(), tip_mass)?;
+        let settings = Settings {
+            n_elements: Some(robot.n_elements),
+            residual_tol: 1e-12,
+            ..Settings::default()
+        };
+        Ok(InverseSolver {
+            robot: robot.clone(),
+            last: DVector::zeros(drive.dimension()),
+            drive,
+            solver: Solver::new(&scene, settings)?,
+            q: None,
+            iterations: 0,
+            given_warm: None,
+        })
+    }
+
+    /// The robot it inverts.
+    pub fn robot(&self) -> &Robot {
+        &self.robot
+    }
+
+    /// The space it searches.
+    pub fn space(&self) -> ActuationSpace {
+        self.drive.space()
+    }
+
+    /// Whether a path's reference is its last answer (muscles), see `drive.rs`.
+    pub fn follows_path(&self) -> bool {
+        self.drive.follows_path()
+    }
+
+    /// The last answer in the drive's coordinates (zero before the first).
+    pub fn last_answer(&self) -> &[f64] {
+        self.last.as_slice()
+    }
+
+    /// Start the next solve from an earlier answer's equilibrium and actuation.
+    pub fn warm_start(&mut self, start: &IkStart) -> Result<()> {
+        if let Some(x) = self.drive.warm(&self.robot, start)? {
+            self.last = x;
+        }
+        self.q = Some(start.quaternions.clone());
+        Ok(())
+    }
+
+    /// The reference of `options` in the drive's coordinates, checked (the
+    /// muscles' `reference`, the tendons' `pretension`).
+    pub fn reference_of(&self, options: &IkOptions) -> Result<Option<Vec<f64>>> {
+        let space = self.drive.space();
+        if options.settings.strategy != Strategy::Equilibrium && space != ActuationSpace::Curvature
+        {
+            return Err(Error::argument(
+                "strategy",
+                format!(
+                    "the geometric strategy fits muscle curvatures; this robot's actuation is its {}",
+                    space.name()
+                ),
+            ));
+        }
+        self.drive.reference(
+            &self.robot,
+            options.reference.as_deref(),
+            options.pretension.as_deref(),
+        )
+    }
+
+    /// Forward statics at `x`, warm from the last accepted state.
+    fn forward(&mut self, x: &DVector<f64>) -> Result<Solution> {
+        self.drive.apply(&mut self.solver, x)?;
+        self.solver.solve_warm_or_cold(self.q.as_deref())
+    }
+
+    /// Put the forward solver back at an accepted state (its Jacobian is the
+    /// one the next step needs).
+    fn restore(&mut self, st: &State) -> Result<()> {
+        self.q = Some(st.sol.quaternions.clone());
+        self.forward(&st.x).map(|_| ())
+    }
+
+    /// The goal's rows differentiated in the drive at the forward solver's
+    /// state (`None` at a bifurcation).
+    fn jacobian(&mut self, goal: &Goal, sol: &Solution) -> Option<DMatrix<f64>> {
+        let (position, rotation) = self.drive.tip_jacobian(&mut self.solver)?;
+        Some(goal.jacobian(sol, &position, &rotation))
+    }
+
+    /// The actuation whose loaded equilibrium puts the tip at `target` (and
+    /// along `direction`), closest to `reference` (in the drive's
+    /// coordinates, see [`IkResult::drive`]; default zero).
+    pub fn solve(
+        &mut self,
+        target: Vector3<f64>,
+        direction: Option<Vector3<f64>>,
+        reference: Option<&[f64]>,
+        tol: f64,
+        max_iterations: usize,
+    ) -> Result<IkResult> {
+        let started = std::time::Instant::now();
+        let goal = self.goal(target, direction, reference, tol)?;
+        self.iterations = 0;
+        self.given_warm = self.q.clone();
+        // At the reference the Gauss-Newton path to the nearest solution is
+        // short; sliding along the solution set from elsewhere converges only
+        // linearly (along a path the reference is the last answer).
+        let start = match reference {
+            Some(_) => goal.reference.clone(),
+            None => self.last.clone(),
+        };
+        let first = self.reach(&goal, start, Pull::Reference, max_iterations)?;
+        let (mut best, starts) = if first.reached(&goal) || goal.beyond_length(self.base()) {
+            (first, 1)
+        } else {
+            self.retry(&goal, first, max_iterations)?
+        };
+        let ending = self.settle(&goal, &mut best, max_iterations)?;
+        let mut result = self.conclude(&goal, best.state, ending, starts);
+        result.seconds = started.elapsed().as_secs_f64();
+        Ok(result)
+    }
+
+    /// [`InverseSolver::solve`] with the direction, reference (or
+    /// pretension) and settings of `options`. An inverse solver finds the
+    /// equilibrium of the load it was built for: the geometric strategy is
+    /// [`Robot::track`]'s.
+    pub fn solve_with(&mut self, target: Vector3<f64>, options: &IkOptions) -> Result<IkResult> {
+        let settings: &IkSettings = &options.settings;
+        settings.validate()?;
+        if settings.strategy != Strategy::Equilibrium {
+            return Err(Error::argument(
+                "strategy",
+                "an InverseSolver finds the loaded equilibrium; the geometric strategy is \
+                 Robot::inverse's and Robot::track's",
+            ));
+        }
+        let reference = self.reference_of(options)?;
+        self.solve(
+            target,
+            options.direction,
+            reference.as_deref(),
+            settings.tol,
+            settings.max_iterations,
+        )
+    }
+
+    fn base(&self) -> Vector3<f64> {
+        self.robot.base_position
+    }
+
+    fn goal(
+        &self,
+        target: Vector3<f64>,
+        direction: Option<Vector3<f64>>,
+        reference: Option<&[f64]>,
+        tol: f64,
+    ) -> Result<Goal> {
+        if target.iter().any(|x| !x.is_finite()) {
+            return Err(Error::argument("target", "must be finite"));
+        }
+        // 1e-12 L is what double precision leaves of a tip; 1e-2 L is a miss.
+        let length = self.robot.length;
+        crate::read::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
+        let direction = match direction {
+            Some(d) if d.iter().all(|x| x.is_finite()) && d.norm() > 0.0 => Some(d.normalize()),
+            Some(_) => {
+                return Err(Error::argument(
+                    "direction",
+                    "must be a finite non-zero vector",
+                ))
+            }
+            None => None,
+        };
+        let k = self.drive.dimension();
+        let reference = match reference {
+            Some(r) if r.len() != k => {
+                return Err(Error::argument(
+                    "reference",
+                    format!("expected {k} values, got {}", r.len()),
+                ))
+            }
+            Some(r) if r.iter().any(|x| !x.is_finite()) => {
+                return Err(Error::argument("reference", "must be finite"))
+            }
+            Some(r) => DVector::from_column_slice(r),
+            None => DVector::zeros(k),
+        };
+        Ok(Goal {
+            target,
+            direction,
+            reference,
+            tol,
+            length,
+            offset: self.robot.tool_offset,
+        })
+    }
+
+    /// One descent from `start` by minimum-norm Gauss-Newton within range, in
+    /// at most `budget` iterations (a restart's answer then slides toward the reference).
+    fn reach(
+        &mut self,
+        goal: &Goal,
+        start: DVector<f64>,
+        pull: Pull,
+        budget: usize,
+    ) -> Result<Attempt> {
+        let end = self.iterations + budget;
+        let mut st = match self.begin_usable(goal, start)? {
+            Ok(st) => st,
+            Err(stalled) => return Ok(stalled),
+        };
+        let mut phase = self.min_norm(goal, &mut st, pull, end)?;
+        if phase == (PhaseEnd::Stalled { unusable: false }) && !goal.reached(&st.e) {
+            // Gauss-Newton creeps (a drive nearly rank-deficient at the start,
+            // as a field along a magnet): Levenberg-Marquardt on the miss
+            // alone, then the minimum-norm steps again if it gets there.
+            phase = self.closest_tip(goal, &mut st, end)?;
+            if goal.reached(&st.e) {
+                phase = self.min_norm(goal, &mut st, pull, end)?;
+            }
+        }
+        if pull == Pull::Free && goal.reached(&st.e) {
+            self.polish(goal, &mut st, end)?;
+        }
+        Ok(Attempt { state: st, phase })
+    }
+
+    /// The equilibrium at a starting actuation (brought within range), or
+    /// the stalled attempt when it is unusable (not converged or unstable).
+    fn begin_usable(
+        &mut self,
+        goal: &Goal,
+        mut start: DVector<f64>,
+    ) -> Result<std::result::Result<State, Attempt>> {
+        self.drive.clamp(&self.robot, &mut start);
+        let sol = self.forward(&start)?;
+        let st = State {
+            e: goal.error(&sol),
+            x: start,
+            sol,
+        };
+        if st.usable() {
+            self.q = Some(st.sol.quaternions.clone());
+            return Ok(Ok(st));
+        }
+        let phase = PhaseEnd::Stalled { unusable: true };
+        Ok(Err(Attempt { state: st, phase }))
+    }
+
+    /// No start reached the target: the closest tip from the best attempt
+    /// (Levenberg-Marquardt on the miss alone, `budget` iterations), and why it misses.
+    fn settle(&mut self, goal: &Goal, best: &mut Attempt, budget: usize) -> Result<IkEnding> {
+        if best.reached(goal) {
+            return Ok(IkEnding::Reached);
+        }
+        if !best.state.usable() {
+            return Ok(IkEnding::SolverFailure);
+        }
+        let end = self.iterations + budget;
+        self.restore(&best.state)?;
+        best.phase = self.closest_tip(goal, &mut best.state, end)?;
+        if goal.reached(&best.state.e) {
+            self.polish(goal, &mut best.state, end)?;
+            return Ok(IkEnding::Reached);
+        }
+        self.classify(goal, &mut best.state, best.phase)
+    }
+
+    /// Minimum-norm Gauss-Newton steps within range, damped where a full
+    /// step fails (see [`InverseSolver::damped_step`]).
+    fn min_norm(
+        &mut self,
+        goal: &Goal,
+        st: &mut State,
+        pull: Pull,
+        end: usize,
+    ) -> Result<PhaseEnd> {
+        let mut slow = 0;
+        let mut mu = 0.0;
+        // The accepted state's Jacobian; a refused trial leaves the forward
+        // solver at the trial (`away`), and the Jacobian is kept.
+        let mut jac: Option<DMatrix<f64>> = None;
+        let mut away = false;
+        let mut near = false;
+        let ended = loop {
+            if self.iterations >= end {
+                break PhaseEnd::Budget;
+            }
+            self.iterations += 1;
+            if jac.is_none() {
+                jac = self.jacobian(goal, &st.sol);
+            }
+            let Some(j) = jac.as_ref() else {
+                break PhaseEnd::Stalled { unusable: false };
+            };
+            // Once near, the merit steps go on, undamped (else the two
+            // acceptances can take turns undoing each other, a cycle).
+            near |= st.e.norm() <= NEAR * goal.length;
+            if near {
+                mu = 0.0;
+            }
+            let Some(step) = self.damped_step(goal, st, j, pull, mu) else {
+                break PhaseEnd::Stalled { unusable: false };
+            };
+            let (norm, size) = (step.norm(), self.drive.size(&st.x));
+            let was_reached = goal.reached(&st.e);
+            if was_reached && mu == 0.0 && norm <= 1e-12 * size {
+                break PhaseEnd::Done;
+            }
+            let before = st.e.norm();
+            if near {
+                // Near the target: the minimum-norm step, backtracked on a
+                // merit that may trade some miss for a smaller distance to the
+                // reference (a curved solution set, as of tendons, refuses a
+                // slide that must keep the tip within tol).
+                if away {
+                    self.restore(st)?;
+                    away = false;
+                }
+                match self.merit_search(goal, st, j, &step, pull)? {
+                    Search::Accepted(alpha) => {
+                        jac = None;
+                        if alpha == 1.0 && goal.reached(&st.e) && norm <= MIN_NORM_ACCURACY * size {
+                            break PhaseEnd::Done;
+                        }
+                        // At the closest tip short of the target the miss stops falling.
+                        slow = if !goal.reached(&st.e) && st.e.norm() > (1.0 - SLOW_GAIN) * before {
+                            slow + 1
+                        } else {
+                            0
+                        };
+                        if slow >= SLOW_STEPS {
+                            break PhaseEnd::Stalled { unusable: false };
+                        }
+                    }
+                    Search::Stalled { unusable } => break PhaseEnd::Stalled { unusable },
+                }
+                continue;
+            }
+            let accept =
+                |old: &DVector<f64>, new: &DVector<f64>| new.norm() < (1.0 - 1e-4) * old.norm();
+            // The miss the linearisation predicts.
+            let predicted = (&st.e - j * &step).norm();
+            match self.trial(goal, st, &step, accept)? {
+                Trial::Accepted => {
+                    let full = mu == 0.0;
+                    (jac, away) = (None, false);
+                    // Trust the linearisation again as far as it was right:
+                    // undamped after a step that gained at least 3/4 of the
+                    // predicted decrease.
+                    let gained = before * before - st.e.norm_squared();
+                    let promised = before * before - predicted * predicted;
+                    mu = if mu <= LM_SMALLEST || gained >= 0.75 * promised {
+                        0.0
+                    } else {
+                        mu / 3.0
+                    };
+                    // Creeping: Gauss-Newton toward a reachable target gains
+                    // fast; slow gains several steps running mean a limit the
+                    // closest-tip phase handles.
+                    slow = if st.e.norm() > (1.0 - SLOW_GAIN) * before {
+                        slow + 1
+                    } else {
+                        0
+                    };
+                    if slow >= SLOW_STEPS {
+                        break PhaseEnd::Stalled { unusable: false };
+                    }
+                    // The tip is on target and the last full step, which moves
+                    // along the solution set toward the reference, changed the
+                    // actuation by less than MIN_NORM_ACCURACY of its size: the
+                    // minimum-norm choice is settled to that accuracy
+                    // (Gauss-Newton converges only linearly along the set; the
+                    // tip itself converges quadratically and is at tol).
+                    if full && goal.reached(&st.e) && norm <= MIN_NORM_ACCURACY * size {
+                        break PhaseEnd::Done;
+                    }
+                }
+                refused => {
+                    away = true;
+                    mu = if mu == 0.0 { LM_START } else { 4.0 * mu };
+                    if mu > LM_GIVE_UP {
+                        break PhaseEnd::Stalled {
+                            unusable: refused == Trial::Unusable,
+                        };
+                    }
+                }
+            }
+        };
+        if away {
+            self.restore(st)?;
+        }
+        Ok(ended)
+    }
+
+    /// Backtrack along the minimum-norm step `d` on the merit
+    /// `|x - x_ref|^2 / 2 + rho |e|`, `rho` twice the step's multiplier
+    /// (`d - r = J^T y`): the merit falls along `d` to first order, so some
+    /// miss may be traded for a smaller distance, which the next steps
+    /// restore. Only stable equilibria are accepted; the solver is left at
+    /// the accepted state (or back at `st`).
+    fn merit_search(
+        &mut self,
+        goal: &Goal,
+        st: &mut State,
+        j: &DMatrix<f64>,
+        d: &DVector<f64>,
+        pull: Pull,
+    ) -> Result<Search> {
+        let reference = match pull {
+            Pull::Reference => goal.reference.clone(),
+            Pull::Free => st.x.clone(),
+        };
+        let r = &reference - &st.x;
+        // The multiplier from the coordinates the step leaves off the limits
+        // (at a limit its row's own multiplier takes up the rest).
+        let free = self.drive.free(&(&st.x + d));
+        let jf = DMatrix::from_fn(
+            j.nrows(),
+            j.ncols(),
+            |i, k| if free[k] { j[(i, k)] } else { 0.0 },
+        );
+        let rows = j.nrows();
+        let c = 1e-14 * j.norm_squared().max(f64::MIN_POSITIVE);
+        let y = (&jf * jf.transpose() + DMatrix::identity(rows, rows) * c)
+            .cholesky()
+            .map(|g| g.solve(&(&jf * (d - &r))))
+            .unwrap_or_else(|| DVector::zeros(rows));
+        let rho = 2.0 * y.norm() + f64::MIN_POSITIVE;
+        let merit = |x: &DVector<f64>, e: &DVector<f64>| {
+            0.5 * (x - &reference).norm_squared() + rho * e.norm()
+        };
+        let miss = st.e.norm();
+        let phi = merit(&st.x, &st.e);
+        let slope = (&st.x - &reference).dot(d) - rho * miss;
+        let mut alpha = 1.0;
+        let mut last = Trial::Rejected;
+        while alpha >= MIN_ALPHA {
+            let mut x = &st.x + d * alpha;
+            self.drive.clamp(&self.robot, &mut x);
+            let sol = self.forward(&x)?;
+            last = Trial::Unusable;
+            if usable(&sol) {
+                last = Trial::Rejected;
+                let e = goal.error(&sol);
+                let new_miss = e.norm();
+                if merit(&x, &e) <= phi + 1e-4 * alpha * slope.min(0.0)
+                    && (new_miss < miss || goal.reached(&e) || slope < 0.0)
+                {
+                    self.q = Some(sol.quaternions.clone());
+                    *st = State { x, sol, e };
+                    return Ok(Search::Accepted(alpha));
+                }
+            }
+            alpha *= 0.5;
+        }
+        self.restore(st)?;
+        Ok(Search::Stalled {
+            unusable: last == Trial::Unusable,
+        })
+    }
+
+    /// The step from `st` toward the target, pulled toward the reference
+    /// (`Pull::Reference`), damped by `mu` (relative to the mean diagonal of
+    /// `J^T J`): the minimiser of
+    /// `|J d - e|^2 + mu' |d|^2 + c |d - r|^2` within range, `c` at round-off.
+    /// Undamped it is the minimum-norm Gauss-Newton step; damped, a
+    /// Levenberg-Marquardt step whose pull fades as `c / (c + mu')`, so a
+    /// poor linearisation (a field along a magnet, far from the target)
+    /// gives a short step, not a long one toward the reference.
+    fn damped_step(
+        &self,
+        goal: &Goal,
+        st: &State,
+        j: &DMatrix<f64>,
+        pull: Pull,
+        mu: f64,
+    ) -> Option<DVector<f64>> {
+        let r = match pull {
+            Pull::Reference => &goal.reference - &st.x,
+            Pull::Free => DVector::zeros(j.ncols()),
+        };
+        let squared = j.norm_squared().max(f64::MIN_POSITIVE);
+        let c = 1e-14 * squared;
+        let damping = mu * squared / j.ncols() as f64;
+        let pulled = r * (c / (c + damping));
+        let step = self.drive.step(&st.x, j, &st.e, &pulled, c + damping)?;
+        Some(step.step)
+    }
+
+    /// The descent stalled: the closest tip, by Levenberg-Marquardt on the
+    /// error alone within range.
+    fn closest_tip(&mut self, goal: &Goal, st: &mut State, end: usize) -> Result<PhaseEnd> {
+        let mut mu = 1e-6;
+        let mut unusable = false;
+        while self.iterations < end {
+            self.iterations += 1;
+            let Some(j) = self.jacobian(goal, &st.sol) else {
+                return Ok(PhaseEnd::Stalled { unusable });
+            };
+            let scale = j.norm_squared() / j.ncols() as f64;
+            let zero = DVector::zeros(j.ncols());
+            let Some(step) = self.drive.step(&st.x, &j, &st.e, &zero, mu * scale) else {
+                return Ok(PhaseEnd::Stalled { unusable });
+            };
+            let before = st.e.norm();
+            match self.trial(goal, st, &step.step, |old, new| new.norm() < old.norm())? {
+                Trial::Accepted => {
+                    mu = (mu / 3.0).max(1e-12);
+                    // Settled: the miss shrinks by less than a millionth a step.
+                    if before - st.e.norm() <= 1e-6 * before || goal.reached(&st.e) {
+                        return Ok(PhaseEnd::Done);
+                    }
+                }
+                rejected => {
+                    unusable = rejected == Trial::Unusable;
+                    self.restore(st)?;
+                    mu *= 4.0;
+                    if mu > 1e8 {
+                        return Ok(PhaseEnd::Stalled { unusable });
+                    }
+                }
+            }
+        }
+        Ok(PhaseEnd::Budget)
+    }
+
+    /// Why a descent that did not reach the target ended.
+    fn classify(&mut self, goal: &Goal, st: &mut State, phase: PhaseEnd) -> Result<IkEnding> {
+        if goal.beyond_length(self.base()) {
+            return Ok(IkEnding::OutOfReach);
+        }
+        match phase {
+            PhaseEnd::Budget => return Ok(IkEnding::IterationLimit),
+            PhaseEnd::Stalled { unusable: true } => return Ok(IkEnding::SolverFailure),
+            _ => {}
+        }
+        // A limit holds the tip back if the undamped step toward the target
+        // runs into it.
+        self.restore(st)?;
+        let Some(j) = self.jacobian(goal, &st.sol) else {
+            return Ok(IkEnding::OutOfReach);
+        };
+        let zero = DVector::zeros(j.ncols());
+        let c = 1e-10 * j.norm_squared() / j.ncols() as f64;
+        let blocked = self
+            .drive
+            .step(&st.x, &j, &st.e, &zero, c)
+            .is_some_and(|s| s.blocking > 0);
+        Ok(if blocked {
+            IkEnding::BoundsActive
+        } else {
+            IkEnding::OutOfReach
+        })
+    }
+
+    /// Backtrack along `step` from `first` of it until `accept(old error, new error, alpha)`.
+    fn line_search(
+        &mut self,
+        goal: &Goal,
+        st: &mut State,
+        step: &DVector<f64>,
+        first: f64,
+        accept: impl Fn(&DVector<f64>, &DVector<f64>, f64) -> bool,
+    ) -> Result<Search> {
+        let mut alpha = first;
+        let mut last = Trial::Rejected;
+        while alpha > MIN_ALPHA {
+            last = self.trial(goal, st, &(step * alpha), |old, new| {
+                accept(old, new, alpha)
+            })?;
+            if last == Trial::Accepted {
+                return Ok(Search::Accepted(alpha));
+            }
+            alpha *= 0.5;
+        }
+        self.restore(st)?;
+        Ok(Search::Stalled {
+            unusable: last == Trial::Unusable,
+        })
+    }
+
+    /// Solve at `st.x + step` and move there if `accept(old error, new error)`.
+    fn trial(
+        &mut self,
+        goal: &Goal,
+        st: &mut State,
+        step: &DVector<f64>,
+        accept: impl Fn(&DVector<f64>, &DVector<f64>) -> bool,
+    ) -> Result<Trial> {
+        let mut x = &st.x + step;
+        // Rounding only: the bounded step stays within range.
+        self.drive.clamp(&self.robot, &mut x);
+        let sol = self.forward(&x)?;
+        if !usable(&sol) {
+            return Ok(Trial::Unusable);
+        }
+        let e = goal.error(&sol);
+        if !accept(&st.e, &e) {
+            return Ok(Trial::Rejected);
+        }
+        self.q = Some(sol.quaternions.clone());
+        *st = State { x, sol, e };
+        Ok(Trial::Accepted)
+    }
+
+    /// The first descent missed: try the other starts, each with `budget`
+    /// iterations, until one reaches the target. Returns the best attempt and
+    /// the number of starts tried.
+    fn retry(&mut self, goal: &Goal, first: Attempt, budget: usize) -> Result<(Attempt, usize)> {
+        let mut best = first;
+        let mut starts = 1;
+        let mut others = self.drive.starts(&goal.target, &self.last);
+        others.retain(|x| x != &goal.reference);
+        others.dedup();
+        let others = others.into_iter().map(Start::Actuation);
+        for start in std::iter::once(Start::Continuation).chain(others) {
+            let attempt = match start {
+                Start::Continuation => {
+                    // From the reference's equilibrium, on the branch the first descent started on.
+                    self.q = self.given_warm.clone();
+                    self.continuation(goal, goal.reference.clone(), budget)?
+                }
+                Start::Actuation(x) => {
+                    // Cold: the start's own equilibrium, not the last one's branch.
+                    self.q = None;
+                    self.reach(goal, x, Pull::Free, budget)?
+                }
+            };
+            starts += 1;
+            if attempt.rank(goal) < best.rank(goal) {
+                best = attempt;
+            }
+            if best.reached(goal) {
+                break;
+            }
+        }
+        Ok((best, starts))
+    }
+
+    /// Continuation in the target: from the tip at `start` toward the target in
+    /// straight steps (halved when one fails), each reached loosely, the last exactly.
+    fn continuation(&mut self, goal: &Goal, start: DVector<f64>, budget: usize) -> Result<Attempt> {
+        let end = self.iterations + budget;
+        let mut st = match self.begin_usable(goal, start)? {
+            Ok(st) => st,
+            Err(stalled) => return Ok(stalled),
+        };
+        let origin = st.sol.clone();
+        let (mut done, mut h) = (0.0f64, 0.25f64);
+        let mut phase = PhaseEnd::Stalled { unusable: false };
+        while done < 1.0 && self.iterations < end && h >= 1.0 / 64.0 {
+            let t = (done + h).min(1.0);
+            let sub = goal.partway(&origin, t);
+            let saved = st.clone();
+            st.e = sub.error(&st.sol);
+            let before = self.iterations;
+            phase = self.min_norm(&sub, &mut st, Pull::Free, end)?;
+            if sub.reached(&st.e) {
+                done = t;
+                if self.iterations - before <= 4 {
+                    h *= 2.0;
+                }
+            } else {
+                st = saved;
+                self.restore(&st)?;
+                h *= 0.5;
+            }
+        }
+        st.e = goal.error(&st.sol);
+        if goal.reached(&st.e) {
+            self.polish(goal, &mut st, end)?;
+        }
+        Ok(Attempt { state: st, phase })
+    }
+
+    /// A restart reached the target away from the reference: slide along the
+    /// solution set toward it (the tip may stray by `POLISH_SLACK` L on the
+    /// way), then settle the tip again; keep the reached state if that fails.
+    fn polish(&mut self, goal: &Goal, st: &mut State, end: usize) -> Result<()> {
+        let reached = st.clone();
+        let slack = POLISH_SLACK * goal.length;
+        let distance = |x: &DVector<f64>| (&goal.reference - x).norm();
+        while self.iterations < end {
+            self.iterations += 1;
+            let Some(j) = self.jacobian(goal, &st.sol) else {
+                break;
+            };
+            let r = &goal.reference - &st.x;
+            let c = 1e-14 * j.norm_squared().max(f64::MIN_POSITIVE);
+            let Some(step) = self.drive.step(&st.x, &j, &st.e, &r, c) else {
+                break;
+            };
+            // Close enough for the strict minimum-norm phase to finish.
+            if step.step.norm() <= 1e-2 * self.drive.size(&st.x) {
+                break;
+            }
+            let d0 = distance(&st.x);
+            let accept = |old: &DVector<f64>, new: &DVector<f64>, _alpha: f64| {
+                new.norm() <= slack.max(old.norm())
+            };
+            let search = self.line_search(goal, st, &step.step, 1.0, accept)?;
+            if matches!(search, Search::Stalled { .. }) || distance(&st.x) >= d0 {
+                break;
+            }
+        }
+        self.min_norm(goal, st, Pull::Reference, end)?;
+        if !goal.reached(&st.e) {
+            *st = reached;
+            self.restore(st)?;
+        }
+        Ok(())
+    }
+
+    /// The answer, its state kept as the warm start of the next solve.
+    fn conclude(&mut self, goal: &Goal, state: State, ending: IkEnding, starts: usize) -> IkResult {
+        if state.usable() {
+            self.last = state.x.clone();
+            self.q = Some(state.sol.quaternions.clone());
+        } else {
+            self.q = None;
+        }
+        let miss = state.miss();
+        let message = self.message(goal, ending, miss, &state.x, starts);
+        let mut r = self.result(&state.x, state.sol, miss, ending, message);
+        r.iterations = self.iterations;
+        r.starts = starts;
+        r
+    }
+
+    fn message(
+        &self,
+        goal: &Goal,
+        ending: IkEnding,
+        miss: f64,
+        x: &DVector<f64>,
+        starts: usize,
+    ) -> String {
+        let from = if starts > 1 {
+            format!(" (best of {starts} starts)")
+        } else {
+            String::new()
+        };
+        let length = self.robot.length;
+        match ending {
+            IkEnding::Reached => format!("reached{}", self.drive.describe(x)),
+            IkEnding::OutOfReach if goal.beyond_length(self.base()) => format!(
+                "not reached: the target is out of reach, {:.4} m from the base of a {length} m robot; the closest tip found misses by {miss:.3e} m",
+                (goal.target - self.base()).norm()
+            ),
+            IkEnding::OutOfReach => format!(
+                "not reached: the target is out of reach{from}; the closest tip found misses by {miss:.3e} m, a local minimum of the miss with no drive at a limit"
+            ),
+            IkEnding::BoundsActive => format!(
+                "not reached: {}{from}; the closest tip found misses by {miss:.3e} m",
+                self.drive.limit()
+            ),
+            IkEnding::SolverFailure => format!(
+                "not reached: the forward solver found no stable equilibrium where the descent had to go{from}; the closest tip found misses by {miss:.3e} m"
+            ),
+            IkEnding::LoadIgnored => "not reached: the geometric fit ignores the load".to_string(),
+            IkEnding::IterationLimit => format!(
+                "not reached after {} iterations{from}: the tip misses by {miss:.3e} m and was still closing in (raise max_iterations)",
+                self.iterations
+            ),
+        }
+    }
+
+    /// The seed's way: the weightless robot's answer applied to this (loaded) robot.
+    pub(super) fn apply_geometric_fit(
+        &mut self,
+        fit: IkResult,
+        target: Vector3<f64>,
+        tol: f64,
+    ) -> Result<IkResult> {
+        let started = std::time::Instant::now();
+        let x = DVector::from_vec(fit.drive(self.drive.space()));
+        let sol = self.forward(&x)?;
+        self.q = usable(&sol).then(|| sol.quaternions.clone());
+        let miss = (tool_point(&sol, self.robot.tool_offset) - target).norm();
+        let ending = if miss <= tol && usable(&sol) {
+            IkEnding::Reached
+        } else {
+            IkEnding::LoadIgnored
+        };
+        let message =
+            format!("geometric fit (load ignored): the loaded tip misses by {miss:.3e} m");
+        let mut r = self.result(&x, sol, miss, ending, message);
+        r.iterations = fit.iterations;
+        r.starts = fit.starts;
+        r.seconds = fit.seconds + started.elapsed().as_secs_f64();
+        Ok(r)
+    }
+
+    fn result(
+        &self,
+        x: &DVector<f64>,
+        sol: Solution,
+        miss: f64,
+        ending: IkEnding,
+        message: String,
+    ) -> IkResult {
+        let (rest_curvature, tensions, field) = self.drive.actuation(x);
+        let lengths = self.robot.muscle_lengths(&rest_curvature);
+        IkResult {
+            inflation_times: self.robot.inflation_times(&lengths),
+            muscle_lengths: lengths,
+            rest_curvature,
+            tensions,
+            field,
+            tip_position: tool_point(&sol, self.robot.tool_offset),
+            solution: sol,
+            tip_miss: miss,
+            reached: ending == IkEnding::Reached,
+            ending,
+            message,
+            iterations: 0,
+            starts: 1,
+            seconds: 0.0,
+        }
+    }
+}
+
+/// Where an inverse solve may start after the first descent missed.
+enum Start {
+    /// Continuation in the target from the reference's tip.
+    Continuation,
+    Actuation(DVector<f64>),
+}
+
+/// The outcome of a line search.
+enum Search {
+    Accepted(f64),
+    /// No step length was accepted; `unusable` if the last trial found no stable equilibrium.
+    Stalled {
+        unusable: bool,
+    },
+}
+
+/// The outcome of one trial step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Trial {
+    Accepted,
+    Rejected,
+    /// The forward solve found no stable equilibrium there.
+    Unusable,
+}

@@ -31,7 +31,7 @@ fn robot() -> Scene {
             [1.5 * phi.cos(), 1.5 * phi.sin()]
         })
         .collect();
-    robot.scene(&kappa, 0.03).unwrap()
+    robot.scene(&kappa, &softspine::Load::from(0.03)).unwrap()
 }
 
 fn settings(n: usize, method: Method, scheme: Scheme) -> Settings {

@@ -27,7 +27,12 @@ fn batch(c: &mut Criterion) {
             ..BatchSettings::default()
         };
         let out = robot
-            .forward_batch(&actuations, 0.03, &settings, &BatchControl::default())
+            .forward_batch(
+                &actuations,
+                &softspine::Load::from(0.03),
+                &settings,
+                &BatchControl::default(),
+            )
             .unwrap();
         let converged = out.iter().filter(|s| s.converged() && s.stable).count();
         eprintln!("{label}: {converged} of {SAMPLES} converged and stable");
@@ -35,7 +40,12 @@ fn batch(c: &mut Criterion) {
             b.iter(|| {
                 black_box(
                     robot
-                        .forward_batch(&actuations, 0.03, &settings, &BatchControl::default())
+                        .forward_batch(
+                            &actuations,
+                            &softspine::Load::from(0.03),
+                            &settings,
+                            &BatchControl::default(),
+                        )
                         .unwrap(),
                 )
             })
@@ -63,7 +73,12 @@ fn batch(c: &mut Criterion) {
             b.iter(|| {
                 black_box(
                     robot
-                        .forward_batch(&path, 0.03, &settings, &BatchControl::default())
+                        .forward_batch(
+                            &path,
+                            &softspine::Load::from(0.03),
+                            &settings,
+                            &BatchControl::default(),
+                        )
                         .unwrap(),
                 )
             })

@@ -20,7 +20,7 @@ fn ik(c: &mut Criterion) {
             let mass = grams as f64 * 1e-3;
             // One point, warm, as in tracking: from the answer at the previous
             // point, with that answer as the reference (the timed solve only).
-            let mut solver = InverseSolver::new(&robot, mass).unwrap();
+            let mut solver = InverseSolver::new(&robot, &softspine::Load::from(mass)).unwrap();
             let (a, b) = (points[10], points[11]);
             group.bench_function(
                 BenchmarkId::new(format!("point_warm/{name}"), grams),
@@ -42,7 +42,7 @@ fn ik(c: &mut Criterion) {
                 },
             );
             let options = IkOptions {
-                tip_mass: mass,
+                load: mass.into(),
                 ..IkOptions::default()
             };
             group.bench_function(
@@ -64,7 +64,9 @@ fn actuated(c: &mut Criterion) {
     let pneumatic = Robot::default();
     let mut group = c.benchmark_group("actuated");
     let forward = |robot: &Robot, actuation: Actuation, mass: f64| {
-        let scene = robot.actuated_scene(&actuation, mass).unwrap();
+        let scene = robot
+            .actuated_scene(&actuation, &softspine::Load::from(mass))
+            .unwrap();
         let settings = Settings {
             n_elements: Some(robot.n_elements),
             ..Settings::default()
@@ -112,7 +114,7 @@ fn actuated(c: &mut Criterion) {
         });
     }
     let options = IkOptions {
-        tip_mass: 0.02,
+        load: 0.02.into(),
         ..IkOptions::default()
     };
     let circle = trajectory::placed(&trajectory::circle(60), &tendon);

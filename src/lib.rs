@@ -62,7 +62,7 @@ pub use model::{RodModel, Scheme};
 pub use quat::Quat;
 pub use robot::{
     Actuation, ActuationSpace, Calibration, CalibrationSettings, IkEnding, IkOptions, IkResult,
-    IkSample, IkSettings, InverseSolver, Robot, SectionSpec, Strategy, TendonRoute,
+    IkSample, IkSettings, InverseSolver, Load, Robot, SectionSpec, Strategy, TendonRoute,
 };
 pub use scene::{
     Gravity, Guide, PointLoad, Scene, SectionProperties, Stiffness, Tendon, TipCondition,

@@ -531,7 +531,7 @@ impl Scene {
         };
         let point_loads = match top.get("point_loads") {
             None => Vec::new(),
-            Some(v) => point_loads(v)?,
+            Some(v) => point_loads(v, "point_loads")?,
         };
         let section_starts: Vec<f64> = {
             let count = rest_curvature.len().max(sections.len()).max(1);
@@ -1575,8 +1575,9 @@ fn located_vectors(v: &Value, key: &str, vector_key: &str) -> Result<Vec<(f64, V
 }
 
 /// Point loads: each a force, a moment or both at an arc length.
-fn point_loads(v: &Value) -> Result<Vec<PointLoad>> {
-    table_list(v, "point_loads", &["s", "force", "moment"], "", |t| {
+/// Point loads from a list of `{s, force, moment}` tables at `key`.
+pub(crate) fn point_loads(v: &Value, key: &str) -> Result<Vec<PointLoad>> {
+    table_list(v, key, &["s", "force", "moment"], "", |t| {
         let vector = |key: &str| {
             t.get(key)
                 .map_or(Ok(Vector3::zeros()), |x| vec3(x, &t.key(key)))

@@ -42,7 +42,9 @@ fn catheter(max_field: f64) -> Robot {
 }
 
 fn tip_of(robot: &Robot, actuation: &Actuation, mass: f64) -> Vector3<f64> {
-    let scene = robot.actuated_scene(actuation, mass).unwrap();
+    let scene = robot
+        .actuated_scene(actuation, &softspine::Load::from(mass))
+        .unwrap();
     let settings = softspine::Settings {
         n_elements: Some(robot.n_elements),
         ..Default::default()
@@ -54,7 +56,7 @@ fn tip_of(robot: &Robot, actuation: &Actuation, mass: f64) -> Vector3<f64> {
 
 fn options(mass: f64) -> IkOptions {
     IkOptions {
-        tip_mass: mass,
+        load: mass.into(),
         ..IkOptions::default()
     }
 }
@@ -68,7 +70,12 @@ fn assert_minimum_norm(robot: &Robot, tensions: &[f64], pull: &[f64], mass: f64)
         ..Actuation::default()
     };
     let (_, sens) = robot
-        .sensitivity(&actuation, mass, &["tensions"], None)
+        .sensitivity(
+            &actuation,
+            &softspine::Load::from(mass),
+            &["tensions"],
+            None,
+        )
         .unwrap();
     let free: Vec<usize> = (0..tensions.len())
         .filter(|&i| tensions[i] > 1e-8)
@@ -260,7 +267,7 @@ fn actuation_the_drives_cannot_apply_is_refused_by_name() {
                     tensions,
                     ..Actuation::default()
                 },
-                0.0,
+                &softspine::Load::from(0.0),
             )
             .unwrap_err()
             .to_string()
@@ -279,7 +286,7 @@ fn actuation_the_drives_cannot_apply_is_refused_by_name() {
                 field: Vector3::new(0.1, 0.0, 0.0),
                 ..Actuation::default()
             },
-            0.0,
+            &softspine::Load::from(0.0),
         )
         .unwrap_err()
         .to_string();
@@ -306,7 +313,9 @@ fn the_tension_sensitivity_is_the_implicit_function_theorems_in_either_scheme() 
             tensions: tensions.clone(),
             ..Actuation::default()
         };
-        let scene = robot.actuated_scene(&actuation, 0.02).unwrap();
+        let scene = robot
+            .actuated_scene(&actuation, &softspine::Load::from(0.02))
+            .unwrap();
         let settings = softspine::Settings {
             n_elements: Some(robot.n_elements),
             scheme: Some(scheme),
@@ -334,7 +343,9 @@ fn the_tension_sensitivity_is_the_implicit_function_theorems_in_either_scheme() 
                 tensions: moved,
                 ..Actuation::default()
             };
-            let scene = robot.actuated_scene(&moved, 0.02).unwrap();
+            let scene = robot
+                .actuated_scene(&moved, &softspine::Load::from(0.02))
+                .unwrap();
             let sol = softspine::solve(&scene, settings.clone(), None).unwrap();
             assert!(sol.converged());
             sol.tip_position()
@@ -356,7 +367,9 @@ fn tensions_reach_a_tip_position_and_direction_together() {
         tensions: vec![5.0, 0.0, 2.0, 0.0, 3.0, 0.0, 1.0, 0.0, 4.0],
         ..Actuation::default()
     };
-    let scene = robot.actuated_scene(&actuation, 0.01).unwrap();
+    let scene = robot
+        .actuated_scene(&actuation, &softspine::Load::from(0.01))
+        .unwrap();
     let settings = softspine::Settings {
         n_elements: Some(robot.n_elements),
         ..Default::default()

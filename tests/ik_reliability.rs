@@ -35,7 +35,7 @@ fn in_range_actuations(robot: &Robot, count: usize, seed: u64) -> Vec<Vec<[f64; 
 }
 
 fn forward(robot: &Robot, kappa: &[[f64; 2]], load: f64) -> softspine::Solution {
-    let scene = robot.scene(kappa, load).unwrap();
+    let scene = robot.scene(kappa, &softspine::Load::from(load)).unwrap();
     let settings = Settings {
         n_elements: Some(robot.n_elements),
         ..Settings::default()
@@ -70,7 +70,7 @@ fn upright() -> Robot {
 /// equilibrium within range at the tolerance.
 fn reach_fraction(name: &str, robot: &Robot, load: f64, count: usize, seed: u64) -> (usize, usize) {
     let options = IkOptions {
-        tip_mass: load,
+        load: load.into(),
         ..IkOptions::default()
     };
     let (mut reached, mut total) = (0, 0);
@@ -131,7 +131,7 @@ fn upright_robot_past_buckling_answers_only_with_stable_equilibria() {
 fn tracking_needs_no_restarts() {
     let robot = Robot::default();
     let options = IkOptions {
-        tip_mass: 0.06,
+        load: 0.06.into(),
         ..IkOptions::default()
     };
     let results = robot.track(&trajectory::spiral(60), &options).unwrap();
@@ -157,7 +157,7 @@ fn a_target_beyond_the_muscles_range_says_the_bounds_limit_it() {
         ..Robot::default()
     };
     let options = IkOptions {
-        tip_mass: 0.03,
+        load: 0.03.into(),
         ..IkOptions::default()
     };
     let r = robot
@@ -171,7 +171,7 @@ fn a_target_beyond_the_muscles_range_says_the_bounds_limit_it() {
 #[test]
 fn running_out_of_iterations_says_so() {
     let options = IkOptions {
-        tip_mass: 0.08,
+        load: 0.08.into(),
         settings: IkSettings {
             max_iterations: 1,
             ..IkSettings::default()

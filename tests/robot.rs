@@ -30,7 +30,7 @@ fn tracking_reaches_every_point_of_the_circle_with_30_g() {
     let robot = Robot::default();
     let points = trajectory::circle(60);
     let options = IkOptions {
-        tip_mass: 0.03,
+        load: 0.03.into(),
         ..IkOptions::default()
     };
     let t0 = std::time::Instant::now();
@@ -41,7 +41,9 @@ fn tracking_reaches_every_point_of_the_circle_with_30_g() {
         assert!(r.tip_miss < 1e-9);
         assert!(robot.within_bounds(&r.rest_curvature));
         // A true equilibrium: a fresh solve from the straight rod lands on the same tip.
-        let scene = robot.scene(&r.rest_curvature, 0.03).unwrap();
+        let scene = robot
+            .scene(&r.rest_curvature, &softspine::Load::from(0.03))
+            .unwrap();
         let fresh = solve(
             &scene,
             Settings {
@@ -66,7 +68,7 @@ fn geometric_strategy_misses_under_load() {
     let robot = Robot::default();
     let target = Vector3::new(0.2, 0.0, -0.88);
     let options = IkOptions {
-        tip_mass: 0.06,
+        load: 0.06.into(),
         settings: IkSettings {
             strategy: Strategy::Geometric,
             ..IkSettings::default()

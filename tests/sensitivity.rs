@@ -172,7 +172,7 @@ fn the_robot_sensitivity_matches_differences_of_forward_solves() {
                 rest_curvature: kappa.clone(),
                 ..Default::default()
             },
-            0.03,
+            &softspine::Load::from(0.03),
             &names,
             None,
         )
@@ -196,7 +196,7 @@ fn the_robot_sensitivity_matches_differences_of_forward_solves() {
                     r = Robot::from_value(&v).unwrap();
                 }
             }
-            let scene = r.scene(&k, mass).unwrap();
+            let scene = r.scene(&k, &softspine::Load::from(mass)).unwrap();
             let settings = Settings {
                 n_elements: Some(robot.n_elements),
                 residual_tol: 1e-13,
@@ -234,7 +234,7 @@ fn calibration_recovers_known_parameters_within_their_uncertainty() {
     let exact: Vec<Vector3<f64>> = actuations
         .chunks(truth.sections)
         .map(|k| {
-            let scene = truth.scene(k, 0.03).unwrap();
+            let scene = truth.scene(k, &softspine::Load::from(0.03)).unwrap();
             softspine::solve(&scene, settings.clone(), None)
                 .unwrap()
                 .tip_position()
@@ -255,7 +255,7 @@ fn calibration_recovers_known_parameters_within_their_uncertainty() {
         .calibrate(
             &actuations,
             &exact,
-            0.03,
+            &softspine::Load::from(0.03),
             &fields,
             &CalibrationSettings::default(),
         )
@@ -279,7 +279,7 @@ fn calibration_recovers_known_parameters_within_their_uncertainty() {
         .calibrate(
             &actuations,
             &noisy,
-            0.03,
+            &softspine::Load::from(0.03),
             &fields,
             &CalibrationSettings::default(),
         )

@@ -192,8 +192,8 @@ ZERO = np.zeros((10, 2))
     "call,message",
     [
         (lambda r: r.inverse(TARGET, load=HUGE), "load: integer too large"),
-        (lambda r: r.inverse(TARGET, load=None), "load: expected a number, got NoneType"),
-        (lambda r: r.inverse(TARGET, load="heavy"), "load: expected a number, got str"),
+        (lambda r: r.inverse(TARGET, load=[0.03]), "load: expected a mass [kg] or a dict"),
+        (lambda r: r.inverse(TARGET, load="heavy"), "load: expected a mass [kg] or a dict"),
         (lambda r: r.forward(ZERO, load=HUGE), "load: integer too large"),
         (lambda r: r.scene(ZERO, load=math.inf), "load: must be finite, got inf"),
         (lambda r: r.inverse_solver(load=HUGE), "load: integer too large"),

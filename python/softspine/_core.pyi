@@ -15,6 +15,10 @@ from .batch import BatchResult, IkBatchResult
 from .sensitivity import Calibration, Sensitivity
 from .status import IkEnding, Scheme, Status
 
+# What a robot carries: a payload mass [kg], or a dict of mass, tip_force
+# [N], tip_moment [N m] (world frame) and point_loads [{s, force, moment}].
+_Load: TypeAlias = float | dict[str, Any] | None
+
 __version__: str
 __all__ = [
     "Accuracy",
@@ -243,7 +247,7 @@ class Robot:
     def scene(
         self,
         rest_curvature: npt.ArrayLike | None = None,
-        load: float = 0.0,
+        load: _Load = None,
         *,
         tensions: npt.ArrayLike | None = None,
         field: npt.ArrayLike | None = None,
@@ -259,7 +263,7 @@ class Robot:
     def forward(
         self,
         rest_curvature: npt.ArrayLike | None = None,
-        load: float = 0.0,
+        load: _Load = None,
         initial: Solution | npt.ArrayLike | None = None,
         *,
         tensions: npt.ArrayLike | None = None,
@@ -274,7 +278,7 @@ class Robot:
     def sensitivity(
         self,
         rest_curvature: npt.ArrayLike | None = None,
-        load: float = 0.0,
+        load: _Load = None,
         parameters: str | Sequence[str] | None = None,
         initial: Solution | npt.ArrayLike | None = None,
         *,
@@ -291,7 +295,7 @@ class Robot:
     def forward_batch(
         self,
         actuations: npt.ArrayLike | None = None,
-        load: float = 0.0,
+        load: _Load = None,
         *,
         tensions: npt.ArrayLike | None = None,
         field: npt.ArrayLike | None = None,
@@ -325,7 +329,7 @@ class Robot:
     def workspace(
         self,
         samples: int,
-        load: float = 0.0,
+        load: _Load = None,
         *,
         seed: int = 0,
         first: int = 0,
@@ -346,7 +350,7 @@ class Robot:
     def inverse_batch(
         self,
         targets: npt.ArrayLike,
-        load: float = 0.0,
+        load: _Load = None,
         reference: npt.ArrayLike | None = None,
         direction: npt.ArrayLike | None = None,
         settings: IkSettings | dict[str, Any] | None = None,
@@ -362,11 +366,11 @@ class Robot:
         its own (as ``inverse``), on every core; a tendon-driven or magnetic
         robot's in its tensions (closest to ``pretension``) or field, kept in
         the result's ``tensions`` or ``field``. Keywords as ``forward_batch``."""
-    def inverse_solver(self, load: float = 0.0) -> InverseSolver: ...
+    def inverse_solver(self, load: _Load = None) -> InverseSolver: ...
     def inverse(
         self,
         target: npt.ArrayLike,
-        load: float = 0.0,
+        load: _Load = None,
         reference: npt.ArrayLike | None = None,
         direction: npt.ArrayLike | None = None,
         settings: IkSettings | dict[str, Any] | None = None,
@@ -389,7 +393,7 @@ class Robot:
     def track(
         self,
         points: npt.ArrayLike,
-        load: float = 0.0,
+        load: _Load = None,
         reference: npt.ArrayLike | None = None,
         direction: npt.ArrayLike | None = None,
         settings: IkSettings | dict[str, Any] | None = None,
@@ -576,7 +580,7 @@ def calibrate(
     actuations: npt.ArrayLike,
     measured_tips: npt.ArrayLike,
     parameters: str | Sequence[str],
-    load: float = 0.0,
+    load: _Load = None,
     *,
     max_iterations: int | None = None,
     threads: int | None = None,

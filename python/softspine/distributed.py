@@ -118,19 +118,19 @@ def _cuts(count: int, part: int) -> list[tuple[int, int]]:
 
 
 def _forward_task(
-    robot: Robot, actuations: Any, load: float, options: dict[str, Any]
+    robot: Robot, actuations: Any, load: Any, options: dict[str, Any]
 ) -> BatchResult:
     return robot.forward_batch(actuations, load, progress=False, **options)
 
 
 def _workspace_task(
-    robot: Robot, count: int, load: float, first: int, options: dict[str, Any]
+    robot: Robot, count: int, load: Any, first: int, options: dict[str, Any]
 ) -> BatchResult:
     return robot.workspace(count, load, first=first, progress=False, **options)
 
 
 def _inverse_task(
-    robot: Robot, targets: Any, load: float, options: dict[str, Any]
+    robot: Robot, targets: Any, load: Any, options: dict[str, Any]
 ) -> IkBatchResult:
     return robot.inverse_batch(targets, load, progress=False, **options)
 
@@ -148,7 +148,7 @@ def _options(**values: Any) -> dict[str, Any]:
 def forward_batch(
     robot: Robot,
     actuations: npt.ArrayLike | None = None,
-    load: float = 0.0,
+    load: float | dict[str, Any] | None = None,
     *,
     executor: Any,
     tensions: npt.ArrayLike | None = None,
@@ -194,7 +194,7 @@ def forward_batch(
 def workspace(
     robot: Robot,
     samples: int,
-    load: float = 0.0,
+    load: float | dict[str, Any] | None = None,
     *,
     executor: Any,
     seed: int = 0,
@@ -220,7 +220,7 @@ def workspace(
 def inverse_batch(
     robot: Robot,
     targets: npt.ArrayLike,
-    load: float = 0.0,
+    load: float | dict[str, Any] | None = None,
     *,
     executor: Any,
     reference: npt.ArrayLike | None = None,

@@ -602,8 +602,22 @@ pub(super) fn floats_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64
 }
 
 // `#[pyo3(from_py_with = ...)]` takes a function path: one converter a name.
-pub(super) fn load_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
-    float_arg("load", obj)
+/// What a robot carries: a payload mass [kg], or a dict of
+/// `crate::robot::Load::KEYS` (read by the core).
+pub(super) fn load_arg(obj: &Bound<'_, PyAny>) -> PyResult<Option<crate::robot::Load>> {
+    let path = Path::argument("load");
+    if obj.is_none() {
+        return Ok(None);
+    }
+    match to_value(obj, &path)? {
+        Value::Number(x) if !x.is_finite() => Err(path.error(format!("must be finite, got {x}"))),
+        v @ (Value::Number(_) | Value::Map(_)) => Ok(Some(crate::robot::Load::from_value(&v)?)),
+        _ => Err(path.error(format!(
+            "expected a mass [kg] or a dict of {{{}}}, got {}",
+            crate::robot::Load::KEYS.join(", "),
+            type_name(obj)
+        ))),
+    }
 }
 
 pub(super) fn points_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {

@@ -74,7 +74,7 @@ pub(super) fn sensitivity_result<'py>(
 
 /// Fit robot fields to measured tips. See ``softspine.calibrate``.
 #[pyfunction]
-#[pyo3(signature = (robot, actuations, measured_tips, parameters, load=0.0, *, max_iterations=None, threads=None))]
+#[pyo3(signature = (robot, actuations, measured_tips, parameters, load=None, *, max_iterations=None, threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn calibrate<'py>(
     py: Python<'py>,
@@ -82,11 +82,12 @@ pub(super) fn calibrate<'py>(
     actuations: &Bound<'py, PyAny>,
     measured_tips: &Bound<'py, PyAny>,
     parameters: &Bound<'py, PyAny>,
-    #[pyo3(from_py_with = load_arg)] load: f64,
+    #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
     max_iterations: Option<&Bound<'py, PyAny>>,
     threads: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    warn_user(py, &robot.load_warnings(load))?;
+    let load = load.unwrap_or_default();
+    warn_user(py, &robot.load_warnings(&load))?;
     let k = samples_arg::<2>("actuations", actuations, robot.sections)?;
     let measured: Vec<Vector3<f64>> = rows_of::<3>("measured_tips", measured_tips)?
         .into_iter()
@@ -102,7 +103,7 @@ pub(super) fn calibrate<'py>(
     }
     let fit = super::detach::detach_interruptible(py, move || {
         let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
-        robot.calibrate(&k, &measured, load, &names, &settings)
+        robot.calibrate(&k, &measured, &load, &names, &settings)
     })?;
     let count = fit.parameters.len();
     let d = PyDict::new(py);

@@ -249,7 +249,7 @@ impl PyInverseSolver {
         let r = detach_solve(py, self.long_passes, move || match inner.lock() {
             Ok(mut solver) => {
                 let options = IkOptions {
-                    tip_mass: 0.0,
+                    load: crate::robot::Load::default(),
                     reference,
                     direction,
                     settings,
@@ -369,19 +369,20 @@ impl PyRobot {
     /// The Scene of this robot with an actuation and a tip mass (kg):
     /// rest curvature (m, 2) 1/m (default straight), tendon ``tensions`` (N)
     /// and an external ``field`` (T, world frame).
-    #[pyo3(signature = (rest_curvature=None, load=0.0, *, tensions=None, field=None))]
+    #[pyo3(signature = (rest_curvature=None, load=None, *, tensions=None, field=None))]
     fn scene(
         &self,
         py: Python<'_>,
         rest_curvature: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         tensions: Option<&Bound<'_, PyAny>>,
         field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyScene> {
-        warn_user(py, &self.inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &self.inner.load_warnings(&load))?;
         let a = actuation_arg(rest_curvature, tensions, field)?;
         Ok(PyScene {
-            inner: self.inner.actuated_scene(&a, load)?,
+            inner: self.inner.actuated_scene(&a, &load)?,
         })
     }
 
@@ -439,19 +440,20 @@ impl PyRobot {
     /// Forward statics: the loaded equilibrium of an actuation, from the
     /// straight rod or from ``initial`` (a Solution of this robot, or its
     /// quaternions (n + 1, 4)): a warm start.
-    #[pyo3(signature = (rest_curvature=None, load=0.0, initial=None, *, tensions=None, field=None))]
+    #[pyo3(signature = (rest_curvature=None, load=None, initial=None, *, tensions=None, field=None))]
     fn forward(
         &self,
         py: Python<'_>,
         rest_curvature: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         initial: Option<&Bound<'_, PyAny>>,
         tensions: Option<&Bound<'_, PyAny>>,
         field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PySolution> {
-        warn_user(py, &self.inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &self.inner.load_warnings(&load))?;
         let a = actuation_arg(rest_curvature, tensions, field)?;
-        let scene = self.inner.actuated_scene(&a, load)?;
+        let scene = self.inner.actuated_scene(&a, &load)?;
         let settings = Settings {
             n_elements: Some(self.inner.n_elements),
             ..Settings::default()
@@ -469,19 +471,20 @@ impl PyRobot {
     /// The loaded equilibrium of an actuation and its tip's sensitivity to
     /// the named parameters (see the Python documentation of
     /// ``Robot.sensitivity``).
-    #[pyo3(signature = (rest_curvature=None, load=0.0, parameters=None, initial=None, *, tensions=None, field=None))]
+    #[pyo3(signature = (rest_curvature=None, load=None, parameters=None, initial=None, *, tensions=None, field=None))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity<'py>(
         &self,
         py: Python<'py>,
         rest_curvature: Option<&Bound<'py, PyAny>>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         parameters: Option<&Bound<'py, PyAny>>,
         initial: Option<&Bound<'py, PyAny>>,
         tensions: Option<&Bound<'py, PyAny>>,
         field: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        warn_user(py, &self.inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &self.inner.load_warnings(&load))?;
         let k = actuation_arg(rest_curvature, tensions, field)?;
         let names = match given(parameters) {
             Some(p) => super::fitting::parameter_names(&p)?,
@@ -497,7 +500,7 @@ impl PyRobot {
         let robot = self.inner.clone();
         let (sol, sens) = detach_solve(py, self.inner.has_long_passes(), move || {
             let names: Vec<&str> = names.iter().map(|s| s.as_str()).collect();
-            robot.sensitivity(&k, load, &names, initial.as_deref())
+            robot.sensitivity(&k, &load, &names, initial.as_deref())
         })?;
         super::fitting::sensitivity_result(py, &sens, Some(sol))
     }
@@ -505,13 +508,13 @@ impl PyRobot {
     /// Forward statics of many actuations (samples, m, 2), tendon tensions
     /// (samples, tendons) or fields (samples, 3) under one tip mass, on
     /// every core. See the Python documentation of ``Robot.forward_batch``.
-    #[pyo3(signature = (actuations=None, load=0.0, *, tensions=None, field=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    #[pyo3(signature = (actuations=None, load=None, *, tensions=None, field=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn forward_batch<'py>(
         slf: &Bound<'py, Self>,
         py: Python<'py>,
         actuations: Option<&Bound<'py, PyAny>>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         tensions: Option<&Bound<'py, PyAny>>,
         field: Option<&Bound<'py, PyAny>>,
         shapes: Option<&Bound<'py, PyAny>>,
@@ -522,7 +525,8 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        warn_user(py, &slf.get().inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &slf.get().inner.load_warnings(&load))?;
         let this = slf.get();
         let robot = &this.inner;
         let m = robot.sections;
@@ -550,7 +554,7 @@ impl PyRobot {
                 py,
                 "forward_batch",
                 cluster,
-                (slf, actuations, load),
+                (slf, actuations, from_value(py, &load.to_value())?),
                 &[
                     ("tensions", tensions),
                     ("field", field),
@@ -565,7 +569,7 @@ impl PyRobot {
         if muscles_only {
             let k = k.expect("checked above");
             let samples = run_batch(py, k.len() / m, progress, |control| {
-                robot.forward_batch(&k, load, &settings, control)
+                robot.forward_batch(&k, &load, &settings, control)
             })?;
             return batch_result(py, &samples, Some((&k, m)));
         }
@@ -597,7 +601,7 @@ impl PyRobot {
             })
             .collect();
         let samples = run_batch(py, count, progress, |control| {
-            robot.actuated_batch(&drives, load, &settings, control)
+            robot.actuated_batch(&drives, &load, &settings, control)
         })?;
         let mut columns: Vec<(&str, &[Vec<f64>])> = Vec::new();
         if let Some(t) = &t {
@@ -616,13 +620,13 @@ impl PyRobot {
 
     /// The equilibria of ``samples`` random actuations (muscle lengths
     /// uniform over their range, seeded) under one tip mass, on every core.
-    #[pyo3(signature = (samples, load=0.0, *, seed=0, first=0, shapes=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    #[pyo3(signature = (samples, load=None, *, seed=0, first=0, shapes=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn workspace<'py>(
         slf: &Bound<'py, Self>,
         py: Python<'py>,
         #[pyo3(from_py_with = samples_count)] samples: usize,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         #[pyo3(from_py_with = seed_arg)] seed: u64,
         #[pyo3(from_py_with = first_arg)] first: u64,
         shapes: Option<&Bound<'py, PyAny>>,
@@ -632,7 +636,8 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        warn_user(py, &slf.get().inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &slf.get().inner.load_warnings(&load))?;
         let settings = batch_settings(threads, chunk, None, shapes)?;
         let robot = &slf.get().inner;
         // Before a cluster's parts are cut too.
@@ -643,7 +648,7 @@ impl PyRobot {
                 py,
                 "workspace",
                 cluster,
-                (slf, samples, load),
+                (slf, samples, from_value(py, &load.to_value())?),
                 &[
                     ("seed", Some(seed.as_any())),
                     ("first", Some(first.as_any())),
@@ -657,7 +662,7 @@ impl PyRobot {
         let space = robot.actuation_space();
         if space != crate::robot::ActuationSpace::Curvature {
             let (drives, out) = run_batch(py, samples, progress, |control| {
-                robot.actuated_workspace(samples, first, load, seed, &settings, control)
+                robot.actuated_workspace(samples, first, &load, seed, &settings, control)
             })?;
             let rows: Vec<Vec<f64>> = drives
                 .iter()
@@ -669,20 +674,20 @@ impl PyRobot {
             return batch_result_with(py, &out, None, &[(space.name(), &rows)]);
         }
         let (k, out) = run_batch(py, samples, progress, |control| {
-            robot.workspace(samples, first, load, seed, &settings, control)
+            robot.workspace(samples, first, &load, seed, &settings, control)
         })?;
         batch_result(py, &out, Some((&k, robot.sections)))
     }
 
     /// Load-aware inverse kinematics of many targets (samples, 3), each on
     /// its own, on every core. See ``Robot.inverse_batch``.
-    #[pyo3(signature = (targets, load=0.0, reference=None, direction=None, settings=None, *, pretension=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    #[pyo3(signature = (targets, load=None, reference=None, direction=None, settings=None, *, pretension=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse_batch<'py>(
         slf: &Bound<'py, Self>,
         py: Python<'py>,
         targets: &Bound<'py, PyAny>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         reference: Option<&Bound<'py, PyAny>>,
         direction: Option<&Bound<'py, PyAny>>,
         settings: Option<&Bound<'py, PyAny>>,
@@ -693,7 +698,8 @@ impl PyRobot {
         executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        warn_user(py, &slf.get().inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &slf.get().inner.load_warnings(&load))?;
         let this = slf.get();
         let given_targets = targets;
         let targets: Vec<Vector3<f64>> = rows_of::<3>("targets", targets)?
@@ -701,7 +707,7 @@ impl PyRobot {
             .map(Vector3::from)
             .collect();
         let options = IkOptions {
-            tip_mass: load,
+            load: load.clone(),
             reference: given(reference)
                 .map(|r| rows_arg::<2>("reference", &r))
                 .transpose()?,
@@ -720,7 +726,7 @@ impl PyRobot {
                 py,
                 "inverse_batch",
                 cluster,
-                (slf, given_targets, load),
+                (slf, given_targets, from_value(py, &load.to_value())?),
                 &[
                     ("reference", reference),
                     ("direction", direction),
@@ -740,14 +746,15 @@ impl PyRobot {
     }
 
     /// A reusable inverse solver for one tip mass (warm starts between calls).
-    #[pyo3(signature = (load=0.0))]
+    #[pyo3(signature = (load=None))]
     fn inverse_solver(
         &self,
         py: Python<'_>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
     ) -> PyResult<PyInverseSolver> {
-        warn_user(py, &self.inner.load_warnings(load))?;
-        let solver = InverseSolver::new(&self.inner, load)?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &self.inner.load_warnings(&load))?;
+        let solver = InverseSolver::new(&self.inner, &load)?;
         Ok(PyInverseSolver {
             inner: Arc::new(Mutex::new(solver)),
             long_passes: self.inner.has_long_passes(),
@@ -760,13 +767,13 @@ impl PyRobot {
     /// optionally with the tip along ``direction``. ``settings`` an
     /// ``IkSettings`` or a dict; ``strategy``, ``tol`` and ``max_iterations``
     /// override its fields.
-    #[pyo3(signature = (target, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None, pretension=None))]
+    #[pyo3(signature = (target, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None, pretension=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse(
         &self,
         py: Python<'_>,
         target: &Bound<'_, PyAny>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
         settings: Option<&Bound<'_, PyAny>>,
@@ -776,14 +783,15 @@ impl PyRobot {
         initial: Option<&Bound<'_, PyAny>>,
         pretension: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
-        warn_user(py, &self.inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &self.inner.load_warnings(&load))?;
         let target = vec3_arg("target", target)?;
         let keywords = [
             ("strategy", strategy),
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let mut options = self.ik_options(load, reference, direction, settings, &keywords)?;
+        let mut options = self.ik_options(&load, reference, direction, settings, &keywords)?;
         options.initial = given(initial).map(|x| ik_start(&x)).transpose()?;
         options.pretension = given(pretension)
             .map(|p| floats_arg("pretension", &p))
@@ -796,13 +804,13 @@ impl PyRobot {
 
     /// Inverse kinematics of a sequence of targets (N, 3), each warm from the
     /// previous one and closest to its actuation (see ``inverse``).
-    #[pyo3(signature = (points, load=0.0, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, pretension=None))]
+    #[pyo3(signature = (points, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, pretension=None))]
     #[allow(clippy::too_many_arguments)]
     fn track(
         &self,
         py: Python<'_>,
         points: &Bound<'_, PyAny>,
-        #[pyo3(from_py_with = load_arg)] load: f64,
+        #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
         settings: Option<&Bound<'_, PyAny>>,
@@ -811,7 +819,8 @@ impl PyRobot {
         max_iterations: Option<&Bound<'_, PyAny>>,
         pretension: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyIkResult>> {
-        warn_user(py, &self.inner.load_warnings(load))?;
+        let load = load.unwrap_or_default();
+        warn_user(py, &self.inner.load_warnings(&load))?;
         let pts: Vec<Vector3<f64>> = rows_arg::<3>("points", points)?
             .into_iter()
             .map(Vector3::from)
@@ -821,7 +830,7 @@ impl PyRobot {
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let mut options = self.ik_options(load, reference, direction, settings, &keywords)?;
+        let mut options = self.ik_options(&load, reference, direction, settings, &keywords)?;
         options.pretension = given(pretension)
             .map(|p| floats_arg("pretension", &p))
             .transpose()?;
@@ -913,14 +922,14 @@ impl PyRobot {
 
     fn ik_options(
         &self,
-        load: f64,
+        load: &crate::robot::Load,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
         settings: Option<&Bound<'_, PyAny>>,
         keywords: &[(&str, Option<&Bound<'_, PyAny>>)],
     ) -> PyResult<IkOptions> {
         Ok(IkOptions {
-            tip_mass: load,
+            load: load.clone(),
             reference: reference
                 .map(|r| rows_arg::<2>("reference", r))
                 .transpose()?,

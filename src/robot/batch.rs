@@ -3,7 +3,7 @@
 //! of [`crate::batch`] (see there for chunking, warm starts and threads).
 
 use super::{
-    Actuation, ActuationSpace, IkEnding, IkOptions, IkResult, InverseSolver, Robot, Strategy,
+    Actuation, ActuationSpace, IkEnding, IkOptions, IkResult, InverseSolver, Load, Robot, Strategy,
 };
 use crate::batch::{check_batch_size, run_chunks, BatchControl, BatchSettings, ResultSize, Sample};
 use crate::error::{Error, Result};
@@ -95,11 +95,12 @@ type ChunkState = (Solver, Last);
 
 impl Robot {
     /// What makes a chunk's state: a forward solver of this robot (its
-    /// default discretisation) under `tip_mass`.
-    fn chunk_solver(&self, tip_mass: f64) -> Result<impl Fn() -> Result<ChunkState> + Sync + '_> {
+    /// default discretisation) under `load`.
+    fn chunk_solver(&self, load: &Load) -> Result<impl Fn() -> Result<ChunkState> + Sync + '_> {
         let zero = vec![[0.0; 2]; self.sections];
-        self.scene(&zero, tip_mass)?;
-        Ok(move || Ok((self.forward_solver(&zero, tip_mass)?, Last::default())))
+        self.scene(&zero, load)?;
+        let load = load.clone();
+        Ok(move || Ok((self.forward_solver(&zero, &load)?, Last::default())))
     }
 
     /// One forward sample of a chunk.
@@ -126,7 +127,7 @@ impl Robot {
     pub fn forward_batch(
         &self,
         actuations: &[[f64; 2]],
-        tip_mass: f64,
+        load: &Load,
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<Vec<Sample>> {
@@ -149,7 +150,7 @@ impl Robot {
                 format!("must be finite (sample {})", row.unwrap_or(0) / m),
             ));
         }
-        let start = self.chunk_solver(tip_mass)?;
+        let start = self.chunk_solver(load)?;
         run_chunks(
             actuations.len() / m,
             self.result_size("actuations", settings),
@@ -182,14 +183,14 @@ impl Robot {
         }
         let ik = &options.settings;
         // Checked once, before any chunk runs.
-        let reference = InverseSolver::new(self, options.tip_mass)?.reference_of(options)?;
+        let reference = InverseSolver::new(self, &options.load)?.reference_of(options)?;
         run_chunks(
             targets.len(),
             self.result_size("targets", settings),
             settings,
             control,
             || match ik.strategy {
-                Strategy::Equilibrium => Ok(Some(InverseSolver::new(self, options.tip_mass)?)),
+                Strategy::Equilibrium => Ok(Some(InverseSolver::new(self, &options.load)?)),
                 Strategy::Geometric => Ok(None),
             },
             |solver, i| {
@@ -263,7 +264,7 @@ impl Robot {
     pub fn actuated_batch(
         &self,
         actuations: &[Actuation],
-        tip_mass: f64,
+        load: &Load,
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<Vec<Sample>> {
@@ -281,7 +282,7 @@ impl Robot {
         };
         let actuations: Vec<Actuation> = actuations.iter().map(whole).collect();
         // The robot and the load once, each sample's drives (named).
-        let (start, stiffness) = self.actuated_chunk(tip_mass)?;
+        let (start, stiffness) = self.actuated_chunk(load)?;
         for (i, a) in actuations.iter().enumerate() {
             self.check_sample_drives(&a.rest_curvature, &a.tensions, a.field)
                 .map_err(|e| match e {
@@ -302,24 +303,20 @@ impl Robot {
     }
 
     /// What makes a chunk's state for whole actuations (a forward solver
-    /// of this robot under `tip_mass`), and the softest stiffness (the
+    /// of this robot under `load`), and the softest stiffness (the
     /// warm starts' scale).
     fn actuated_chunk(
         &self,
-        tip_mass: f64,
+        load: &Load,
     ) -> Result<(impl Fn() -> Result<ActuatedChunk> + Sync + '_, f64)> {
         let rest = Actuation {
             rest_curvature: vec![[0.0; 2]; self.sections],
             tensions: vec![0.0; self.tendons.len()],
             field: Vector3::zeros(),
         };
-        let stiffness = self.actuated_scene(&rest, tip_mass)?.stiffness().min();
-        let start = move || {
-            Ok((
-                self.actuated_solver(&rest, tip_mass)?,
-                LastActuated::default(),
-            ))
-        };
+        let stiffness = self.actuated_scene(&rest, load)?.stiffness().min();
+        let load = load.clone();
+        let start = move || Ok((self.actuated_solver(&rest, &load)?, LastActuated::default()));
         Ok((start, stiffness))
     }
 
@@ -402,7 +399,7 @@ impl Robot {
         &self,
         samples: usize,
         first: u64,
-        tip_mass: f64,
+        load: &Load,
         seed: u64,
         settings: &BatchSettings,
         control: &BatchControl,
@@ -410,7 +407,7 @@ impl Robot {
         self.validate()?;
         self.random_drives(seed, first)?;
         self.check_workspace(samples, first, settings)?;
-        let (start, stiffness) = self.actuated_chunk(tip_mass)?;
+        let (start, stiffness) = self.actuated_chunk(load)?;
         let out = self.drawn_samples(
             (samples, first),
             (settings, control),
@@ -534,7 +531,7 @@ impl Robot {
         &self,
         samples: usize,
         first: u64,
-        tip_mass: f64,
+        load: &Load,
         seed: u64,
         settings: &BatchSettings,
         control: &BatchControl,
@@ -550,7 +547,7 @@ impl Robot {
             ));
         }
         self.check_workspace(samples, first, settings)?;
-        let start = self.chunk_solver(tip_mass)?;
+        let start = self.chunk_solver(load)?;
         let out = self.drawn_samples(
             (samples, first),
             (settings, control),
@@ -600,10 +597,15 @@ mod tests {
             ..BatchSettings::default()
         };
         let batch = robot
-            .forward_batch(&k, 0.03, &cold, &BatchControl::default())
+            .forward_batch(
+                &k,
+                &crate::robot::Load::from(0.03),
+                &cold,
+                &BatchControl::default(),
+            )
             .unwrap();
         for (sample, kappa) in batch.iter().zip(k.chunks(robot.sections)) {
-            let scene = robot.scene(kappa, 0.03).unwrap();
+            let scene = robot.scene(kappa, &crate::robot::Load::from(0.03)).unwrap();
             let settings = Settings {
                 n_elements: Some(robot.n_elements),
                 ..Settings::default()
@@ -616,7 +618,7 @@ mod tests {
         let warm = robot
             .forward_batch(
                 &k,
-                0.03,
+                &crate::robot::Load::from(0.03),
                 &BatchSettings::default(),
                 &BatchControl::default(),
             )
@@ -632,12 +634,26 @@ mod tests {
         let settings = BatchSettings::default();
         let control = BatchControl::default();
         for samples in [1usize << 40, usize::MAX] {
-            match robot.workspace(samples, 0, 0.0, 0, &settings, &control) {
+            match robot.workspace(
+                samples,
+                0,
+                &crate::robot::Load::from(0.0),
+                0,
+                &settings,
+                &control,
+            ) {
                 Err(Error::InvalidArgument { name, .. }) => assert_eq!(name, "samples"),
                 other => panic!("{samples}: {:?}", other.map(|r| r.1.len())),
             }
         }
-        match robot.workspace(4, u64::MAX - 1, 0.0, 0, &settings, &control) {
+        match robot.workspace(
+            4,
+            u64::MAX - 1,
+            &crate::robot::Load::from(0.0),
+            0,
+            &settings,
+            &control,
+        ) {
             Err(Error::InvalidArgument { name, .. }) => assert_eq!(name, "first"),
             other => panic!("{:?}", other.map(|r| r.1.len())),
         }
@@ -667,7 +683,12 @@ mod tests {
                 ..BatchSettings::default()
             };
             robot
-                .forward_batch(&k, 0.0, &settings, &BatchControl::default())
+                .forward_batch(
+                    &k,
+                    &crate::robot::Load::from(0.0),
+                    &settings,
+                    &BatchControl::default(),
+                )
                 .unwrap()
         };
         assert_eq!(run(1), run(2));
@@ -679,19 +700,34 @@ mod tests {
         let control = BatchControl::default();
         let mut k = actuations(&robot, 2);
         let e = robot
-            .forward_batch(&k[1..], 0.0, &BatchSettings::default(), &control)
+            .forward_batch(
+                &k[1..],
+                &crate::robot::Load::from(0.0),
+                &BatchSettings::default(),
+                &control,
+            )
             .unwrap_err();
         assert!(e.to_string().contains("actuations"), "{e}");
         k[robot.sections + 1][0] = f64::NAN;
         let e = robot
-            .forward_batch(&k, 0.0, &BatchSettings::default(), &control)
+            .forward_batch(
+                &k,
+                &crate::robot::Load::from(0.0),
+                &BatchSettings::default(),
+                &control,
+            )
             .unwrap_err();
         assert!(e.to_string().contains("sample 1"), "{e}");
         let zero = BatchSettings {
             chunk: 0,
             ..BatchSettings::default()
         };
-        let e = robot.forward_batch(&k[..robot.sections], 0.0, &zero, &control);
+        let e = robot.forward_batch(
+            &k[..robot.sections],
+            &crate::robot::Load::from(0.0),
+            &zero,
+            &control,
+        );
         assert!(e.unwrap_err().to_string().contains("chunk"));
     }
 
@@ -714,14 +750,18 @@ mod tests {
         };
         let control = BatchControl::default();
         let batch = robot
-            .actuated_batch(&drives, 0.02, &cold, &control)
+            .actuated_batch(&drives, &crate::robot::Load::from(0.02), &cold, &control)
             .unwrap();
         let warm = BatchSettings::default();
         let warmed = robot
-            .actuated_batch(&drives, 0.02, &warm, &control)
+            .actuated_batch(&drives, &crate::robot::Load::from(0.02), &warm, &control)
             .unwrap();
         for ((sample, again), a) in batch.iter().zip(&warmed).zip(&drives) {
-            let one = robot.actuated_solver(a, 0.02).unwrap().solve(None).unwrap();
+            let one = robot
+                .actuated_solver(a, &crate::robot::Load::from(0.02))
+                .unwrap()
+                .solve(None)
+                .unwrap();
             assert!(sample.converged() && sample.stable);
             assert_eq!(sample.tip_position, one.tip_position());
             assert!((again.tip_position - one.tip_position()).norm() < 1e-9);
@@ -730,7 +770,7 @@ mod tests {
         let mut over = drives.clone();
         over[4].tensions[2] = 100.0;
         let e = robot
-            .actuated_batch(&over, 0.02, &cold, &control)
+            .actuated_batch(&over, &crate::robot::Load::from(0.02), &cold, &control)
             .unwrap_err();
         assert!(e.to_string().contains("tensions[2]") && e.to_string().contains("sample 4"));
     }
@@ -741,7 +781,12 @@ mod tests {
         let k = actuations(&robot, 20);
         let control = BatchControl::default();
         control.stop.store(true, Ordering::Relaxed);
-        let e = robot.forward_batch(&k, 0.0, &BatchSettings::default(), &control);
+        let e = robot.forward_batch(
+            &k,
+            &crate::robot::Load::from(0.0),
+            &BatchSettings::default(),
+            &control,
+        );
         assert!(matches!(e, Err(Error::Interrupted)));
     }
 }

@@ -1,7 +1,7 @@
 //! The robot's sensitivities to its actuation, load and fields, and the
 //! calibration of its fields to measured tip positions.
 
-use super::{Actuation, Robot};
+use super::{Actuation, Load, Robot};
 use crate::batch::BatchSettings;
 use crate::error::{Error, Result};
 use crate::quat::Quat;
@@ -112,12 +112,12 @@ impl Robot {
     }
 
     /// The value of a parameter at an actuation and a tip mass.
-    fn parameter_value(&self, p: &Parameter, a: &Actuation, tip_mass: f64) -> Result<f64> {
+    fn parameter_value(&self, p: &Parameter, a: &Actuation, load: &Load) -> Result<f64> {
         let kappa = &a.rest_curvature;
         Ok(match p {
             Parameter::Curvature(s, c) => kappa.get(*s).map_or(0.0, |k| k[*c]),
             Parameter::Length(s, c) => self.muscle_lengths(&self.curvature_of(a))[*s][*c],
-            Parameter::Load => tip_mass,
+            Parameter::Load => load.mass,
             Parameter::Tension(i) => a.tensions.get(*i).copied().unwrap_or(0.0),
             Parameter::MagneticField(c) => a.field[*c],
             Parameter::Field(path) => *self.to_value().number_at_mut(path)?,
@@ -134,13 +134,7 @@ impl Robot {
     }
 
     /// The scene with a parameter moved by `delta`.
-    fn scene_moved(
-        &self,
-        p: &Parameter,
-        a: &Actuation,
-        tip_mass: f64,
-        delta: f64,
-    ) -> Result<Scene> {
+    fn scene_moved(&self, p: &Parameter, a: &Actuation, load: &Load, delta: f64) -> Result<Scene> {
         let mut moved = Actuation {
             rest_curvature: self.curvature_of(a),
             ..a.clone()
@@ -156,7 +150,7 @@ impl Robot {
                 // The tip mass enters only as the tip force `(m + tool) g`,
                 // linearly: a difference through zero (no payload) is as
                 // exact as any, past the check that a mass is not negative.
-                let mut scene = self.actuated_scene(a, tip_mass)?;
+                let mut scene = self.actuated_scene(a, load)?;
                 scene.tip_force += delta * self.gravity;
                 return Ok(scene);
             }
@@ -166,7 +160,7 @@ impl Robot {
                 // built without the non-negativity check.
                 let tension = moved.tensions.get(*i).copied().unwrap_or(0.0);
                 moved.tensions = Vec::new();
-                let mut scene = self.actuated_scene(&moved, tip_mass)?;
+                let mut scene = self.actuated_scene(&moved, load)?;
                 for (k, t) in scene.tendons.iter_mut().enumerate() {
                     t.tension = a.tensions.get(k).copied().unwrap_or(0.0);
                 }
@@ -177,7 +171,7 @@ impl Robot {
                 // Past max_field by a difference step: built as the scene.
                 let field = moved.field;
                 moved.field = Vector3::zeros();
-                let mut scene = self.actuated_scene(&moved, tip_mass)?;
+                let mut scene = self.actuated_scene(&moved, load)?;
                 scene.magnetic_field = field;
                 scene.magnetic_field[*c] += delta;
                 return Ok(scene);
@@ -185,30 +179,30 @@ impl Robot {
             Parameter::Field(path) => {
                 let mut v = self.to_value();
                 *v.number_at_mut(path)? += delta;
-                return Robot::from_value(&v)?.actuated_scene(a, tip_mass);
+                return Robot::from_value(&v)?.actuated_scene(a, load);
             }
         }
-        self.actuated_scene(&moved, tip_mass)
+        self.actuated_scene(&moved, load)
     }
 
     /// The forward solver of this robot (its default discretisation).
-    pub(crate) fn forward_solver(&self, kappa: &[[f64; 2]], tip_mass: f64) -> Result<Solver> {
+    pub(crate) fn forward_solver(&self, kappa: &[[f64; 2]], load: &Load) -> Result<Solver> {
         self.actuated_solver(
             &Actuation {
                 rest_curvature: kappa.to_vec(),
                 ..Actuation::default()
             },
-            tip_mass,
+            load,
         )
     }
 
     /// The forward solver of this robot under a whole actuation.
-    pub(crate) fn actuated_solver(&self, a: &Actuation, tip_mass: f64) -> Result<Solver> {
+    pub(crate) fn actuated_solver(&self, a: &Actuation, load: &Load) -> Result<Solver> {
         let settings = Settings {
             n_elements: Some(self.n_elements),
             ..Settings::default()
         };
-        Solver::new(&self.actuated_scene(a, tip_mass)?, settings)
+        Solver::new(&self.actuated_scene(a, load)?, settings)
     }
 
     /// The loaded equilibrium of an actuation and its tip's sensitivity to
@@ -221,12 +215,12 @@ impl Robot {
     pub fn sensitivity(
         &self,
         actuation: &Actuation,
-        tip_mass: f64,
+        load: &Load,
         names: &[&str],
         initial: Option<&[Quat]>,
     ) -> Result<(Solution, Sensitivity)> {
         let parameters = self.parameters(names)?;
-        let mut solver = self.actuated_solver(actuation, tip_mass)?;
+        let mut solver = self.actuated_solver(actuation, load)?;
         let sol = solver.solve_warm_or_cold(initial)?;
         if !sol.converged() {
             return Err(Error::NotConverged {
@@ -238,11 +232,11 @@ impl Robot {
         }
         let values = parameters
             .iter()
-            .map(|(_, p)| self.parameter_value(p, actuation, tip_mass))
+            .map(|(_, p)| self.parameter_value(p, actuation, load))
             .collect::<Result<Vec<_>>>()?;
         let names = parameters.iter().map(|(n, _)| n.clone()).collect();
         let sens = solver.sensitivity_with(names, &values, |j, delta| {
-            self.scene_moved(&parameters[j].1, actuation, tip_mass, delta)
+            self.scene_moved(&parameters[j].1, actuation, load, delta)
         })?;
         Ok((sol, sens))
     }
@@ -333,7 +327,7 @@ impl Robot {
         &self,
         actuations: &[[f64; 2]],
         measured_tips: &[Vector3<f64>],
-        tip_mass: f64,
+        load: &Load,
         names: &[&str],
         settings: &CalibrationSettings,
     ) -> Result<Calibration> {
@@ -393,13 +387,13 @@ impl Robot {
                     rest_curvature: actuations[..m].to_vec(),
                     ..Actuation::default()
                 };
-                self.parameter_value(p, &first, tip_mass)
+                self.parameter_value(p, &first, load)
             })
             .collect::<Result<_>>()?;
         let scale: Vec<f64> = start.iter().map(|x| x.abs().max(1e-12)).collect();
         // The robot and tip mass of a parameter vector.
-        let split = |p: &[f64]| -> Result<(Robot, f64)> {
-            let mut mass = tip_mass;
+        let split = |p: &[f64]| -> Result<(Robot, Load)> {
+            let mut mass = load.mass;
             let mut field_names = Vec::new();
             let mut field_values = Vec::new();
             for ((name, kind), x) in parameters.iter().zip(p) {
@@ -411,7 +405,10 @@ impl Robot {
                     }
                 }
             }
-            Ok((self.with_fields(&field_names, &field_values)?, mass))
+            Ok((
+                self.with_fields(&field_names, &field_values)?,
+                load.with_mass(mass),
+            ))
         };
         let samples: Vec<&[[f64; 2]]> = actuations.chunks(m).collect();
         // Built once: the evaluations of every iteration and line search share it.
@@ -422,7 +419,7 @@ impl Robot {
                         warm: &mut Vec<Option<Vec<Quat>>>,
                         jacobian: bool|
          -> Result<(DVector<f64>, Option<DMatrix<f64>>)> {
-            let (robot, mass) = split(p)?;
+            let (robot, carried) = split(p)?;
             let names: Vec<&str> = fields.iter().map(|s| s.as_str()).collect();
             let work = |warm: &mut Vec<Option<Vec<Quat>>>| {
                 samples
@@ -436,13 +433,13 @@ impl Robot {
                                         rest_curvature: kappa.to_vec(),
                                         ..Actuation::default()
                                     },
-                                    mass,
+                                    &carried,
                                     &names,
                                     q.as_deref(),
                                 )?;
                                 (sol, Some(sens))
                             } else {
-                                let mut solver = robot.forward_solver(kappa, mass)?;
+                                let mut solver = robot.forward_solver(kappa, &carried)?;
                                 (solver.solve_warm_or_cold(q.as_deref())?, None)
                             };
                             if !sol.converged() {

@@ -19,6 +19,7 @@ mod batch;
 mod bounds;
 mod calibrate;
 mod ik;
+mod load;
 pub mod trajectory;
 
 pub use batch::{IkSample, WARM_TURN};
@@ -26,6 +27,7 @@ pub use calibrate::{Calibration, CalibrationSettings};
 pub use ik::{
     ActuationSpace, IkEnding, IkOptions, IkResult, IkSettings, IkStart, InverseSolver, Strategy,
 };
+pub use load::Load;
 
 use crate::error::{Error, Result};
 use crate::quat::Quat;
@@ -341,25 +343,25 @@ impl Robot {
         forward.has_long_passes() || self.sections >= LONG_IK_PASS_SECTIONS
     }
 
-    /// The scene of the robot with the given muscle actuation and a tip mass
-    /// [kg] (tendons slack, no field): own weight, the disks as point loads at
-    /// the section ends, the tip mass's weight.
-    pub fn scene(&self, rest_curvature: &[[f64; 2]], tip_mass: f64) -> Result<Scene> {
-        self.scene_of(rest_curvature, &[], Vector3::zeros(), tip_mass)
+    /// The scene of the robot with the given muscle actuation under `load`
+    /// (tendons slack, no field): own weight, the disks as point loads at the
+    /// section ends, the payload's weight and the load's wrenches.
+    pub fn scene(&self, rest_curvature: &[[f64; 2]], load: &Load) -> Result<Scene> {
+        self.scene_of(rest_curvature, &[], Vector3::zeros(), load)
     }
 
     /// The scene of the robot under a whole actuation (muscles, tendons and
-    /// field) and a tip mass [kg].
-    pub fn actuated_scene(&self, actuation: &Actuation, tip_mass: f64) -> Result<Scene> {
+    /// field) and `load`.
+    pub fn actuated_scene(&self, actuation: &Actuation, load: &Load) -> Result<Scene> {
         if actuation.rest_curvature.is_empty() {
             let straight = vec![[0.0; 2]; self.sections];
-            self.scene_of(&straight, &actuation.tensions, actuation.field, tip_mass)
+            self.scene_of(&straight, &actuation.tensions, actuation.field, load)
         } else {
             self.scene_of(
                 &actuation.rest_curvature,
                 &actuation.tensions,
                 actuation.field,
-                tip_mass,
+                load,
             )
         }
     }
@@ -417,30 +419,50 @@ impl Robot {
         rest_curvature: &[[f64; 2]],
         tensions: &[f64],
         field: Vector3<f64>,
-        tip_mass: f64,
+        load: &Load,
     ) -> Result<Scene> {
         self.validate()?;
         self.check_sample_drives(rest_curvature, tensions, field)?;
-        if !(tip_mass.is_finite() && tip_mass >= 0.0) {
-            return Err(Error::argument(
-                "load",
-                format!("must be a mass >= 0 kg, got {tip_mass}"),
-            ));
-        }
-        // The payload's weight is the scene's tip force: refused as the
-        // argument the caller gave, not as the scene's key.
-        let weight = tip_mass * self.gravity.norm();
+        load.validate()?;
+        let tip_mass = load.mass;
+        // The payload's weight and the wrenches are the scene's loads: refused
+        // as the argument the caller gave, not as the scene's keys.
         let softest = self.stiffness.diagonal().min();
-        let parameter = weight * self.length * self.length / softest;
-        if parameter > crate::scene::MAX_LOAD_PARAMETER {
-            return Err(Error::argument(
-                "load",
-                format!(
-                    "{tip_mass} kg weighs {parameter:.1e} times what bends the robot by a \
-                     radian ({:.1e} N): beyond what any solve resolves (the load is a mass in kg)",
-                    softest / (self.length * self.length)
-                ),
-            ));
+        let radian = softest / (self.length * self.length);
+        let weight = tip_mass * self.gravity.norm();
+        let wrenches = [
+            ("load", weight, format!("{tip_mass} kg weighs")),
+            (
+                "load.tip_force",
+                load.tip_force.norm(),
+                "the tip force is".into(),
+            ),
+            (
+                "load.tip_moment",
+                load.tip_moment.norm() / self.length,
+                "the tip moment is".into(),
+            ),
+        ];
+        for (name, force, what) in wrenches {
+            let parameter = force / radian;
+            if parameter > crate::scene::MAX_LOAD_PARAMETER {
+                return Err(Error::argument(
+                    if name == "load" && !load.is_mass_only() {
+                        "load.mass"
+                    } else {
+                        name
+                    },
+                    format!(
+                        "{what} {parameter:.1e} times what bends the robot by a radian \
+                         ({radian:.1e} N): beyond what any solve resolves{}",
+                        if name == "load" {
+                            " (the load is a mass in kg)"
+                        } else {
+                            ""
+                        }
+                    ),
+                ));
+            }
         }
         let mut s = Scene::new(self.length, 1.0, 1.0, 1.0);
         s.name = Some(format!(
@@ -456,7 +478,8 @@ impl Robot {
         });
         s.base_quaternion = self.base_quaternion;
         s.base_position = self.base_position;
-        s.tip_force = (tip_mass + self.tool_mass) * self.gravity;
+        s.tip_force = (tip_mass + self.tool_mass) * self.gravity + load.tip_force;
+        s.tip_moment = load.tip_moment;
         s.tip_force_offset = self.tool_offset;
         s.sections = self
             .section_properties
@@ -475,6 +498,7 @@ impl Robot {
                 moment: Vector3::zeros(),
             })
             .filter(|p| p.force.norm() > 0.0)
+            .chain(load.point_loads.iter().cloned())
             .collect();
         s.tendons = self
             .tendons
@@ -547,7 +571,8 @@ impl Robot {
     /// What a robot may carry but is more likely a unit mistake: a payload
     /// of [`PAYLOAD_WARNING`] times its own mass or more (30 given for 30 g).
     /// One message each; a caller shows them (Python: `UserWarning`).
-    pub fn load_warnings(&self, tip_mass: f64) -> Vec<String> {
+    pub fn load_warnings(&self, load: &Load) -> Vec<String> {
+        let tip_mass = load.mass;
         let own = self.own_mass();
         if own > 0.0 && tip_mass >= PAYLOAD_WARNING * own {
             vec![format!(
@@ -564,7 +589,7 @@ impl Robot {
     /// slender it is, its tendons), see [`Scene::warnings`].
     pub fn warnings(&self) -> Vec<String> {
         let straight = vec![[0.0; 2]; self.sections];
-        self.scene(&straight, 0.0)
+        self.scene(&straight, &Load::default())
             .map(|s| s.warnings())
             .unwrap_or_default()
     }

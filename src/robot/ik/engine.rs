@@ -28,7 +28,7 @@ use super::goal::{tool_point, Goal};
 use super::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, Strategy};
 use crate::error::{Error, Result};
 use crate::quat::Quat;
-use crate::robot::{Actuation, Robot};
+use crate::robot::{Actuation, Load, Robot};
 use crate::solver::{Settings, Solution, Solver};
 use nalgebra::{DMatrix, DVector, Vector3};
 
@@ -129,7 +129,7 @@ fn usable(sol: &Solution) -> bool {
     sol.converged() && sol.stable
 }
 
-/// Inverse kinematics of one robot under one tip mass, whatever drives it,
+/// Inverse kinematics of one robot under one load, whatever drives it,
 /// reusing its forward solver and the last answer as the warm start of the
 /// next (trajectories).
 pub struct InverseSolver {
@@ -147,9 +147,9 @@ pub struct InverseSolver {
 
 impl InverseSolver {
     /// The solver of `robot`'s own drive ([`Robot::actuation_space`]).
-    pub fn new(robot: &Robot, tip_mass: f64) -> Result<Self> {
+    pub fn new(robot: &Robot, load: &Load) -> Result<Self> {
         let drive = Drive::of(robot);
-        let scene = robot.actuated_scene(&Actuation::default(), tip_mass)?;
+        let scene = robot.actuated_scene(&Actuation::default(), load)?;
         let settings = Settings {
             n_elements: Some(robot.n_elements),
             residual_tol: 1e-12,
@@ -449,12 +449,19 @@ impl InverseSolver {
             if near {
                 mu = 0.0;
             }
-            let Some(step) = self.damped_step(goal, st, j, pull, mu) else {
+            // Far off, the steps close in on the target alone (the least
+            // change); near it they pull toward the reference.
+            let pulled = if near { pull } else { Pull::Free };
+            let Some(step) = self.damped_step(goal, st, j, pulled, mu) else {
                 break PhaseEnd::Stalled { unusable: false };
             };
             let (norm, size) = (step.norm(), self.drive.size(&st.x));
             let was_reached = goal.reached(&st.e);
-            if was_reached && mu == 0.0 && norm <= 1e-12 * size {
+            // On target, and the minimum-norm step (the rest of the way to the
+            // linearised problem's answer) moves the actuation by less than
+            // MIN_NORM_ACCURACY of its size: the choice is settled to that
+            // accuracy (the step itself may drown in the tip's round-off).
+            if was_reached && mu == 0.0 && norm <= MIN_NORM_ACCURACY * size {
                 break PhaseEnd::Done;
             }
             let before = st.e.norm();
@@ -467,7 +474,8 @@ impl InverseSolver {
                     self.restore(st)?;
                     away = false;
                 }
-                match self.merit_search(goal, st, j, &step, pull)? {
+                let m = self.merit_search(goal, st, j, &step, pull)?;
+                match m {
                     Search::Accepted(alpha) => {
                         jac = None;
                         if alpha == 1.0 && goal.reached(&st.e) && norm <= MIN_NORM_ACCURACY * size {
@@ -495,16 +503,17 @@ impl InverseSolver {
                 Trial::Accepted => {
                     let full = mu == 0.0;
                     (jac, away) = (None, false);
-                    // Trust the linearisation again as far as it was right:
-                    // undamped after a step that gained at least 3/4 of the
-                    // predicted decrease.
+                    // Trust the linearisation again as far as it was right: a
+                    // tenth of the damping after a step that gained at least
+                    // 3/4 of the predicted decrease (a third otherwise), none
+                    // below LM_SMALLEST. (Undamped at once, a nearly singular
+                    // drive, a field along a magnet, throws a long step again.)
                     let gained = before * before - st.e.norm_squared();
                     let promised = before * before - predicted * predicted;
-                    mu = if mu <= LM_SMALLEST || gained >= 0.75 * promised {
-                        0.0
-                    } else {
-                        mu / 3.0
-                    };
+                    mu /= if gained >= 0.75 * promised { 10.0 } else { 3.0 };
+                    if mu <= LM_SMALLEST {
+                        mu = 0.0;
+                    }
                     // Creeping: Gauss-Newton toward a reachable target gains
                     // fast; slow gains several steps running mean a limit the
                     // closest-tip phase handles.

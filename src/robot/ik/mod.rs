@@ -22,7 +22,7 @@ mod goal;
 pub use drive::ActuationSpace;
 pub use engine::InverseSolver;
 
-use super::Robot;
+use super::{Load, Robot};
 use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::read::{as_argument, count, finite, string, Table};
@@ -73,8 +73,8 @@ pub struct IkSettings {
     /// direction's tolerance is tol / L.
     pub tol: f64,
     /// Iteration limit of one descent (default 60). A missed target is retried
-    /// from at most 6 other starts and then settled on its closest tip, each
-    /// with this limit: at most 8 times it in all.
+    /// by a continuation and from at most 12 other starts (see `engine.rs`),
+    /// then settled on its closest tip, each with this limit.
     pub max_iterations: usize,
 }
 
@@ -159,8 +159,8 @@ impl IkSettings {
 /// settings of the solver.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct IkOptions {
-    /// Tip mass [kg] (default 0).
-    pub tip_mass: f64,
+    /// What the robot carries (default nothing): a payload mass, wrenches.
+    pub load: Load,
     /// Actuation to stay closest to (default: zero curvature).
     pub reference: Option<Vec<[f64; 2]>>,
     /// Also reach this tip direction (unit vector, world frame).
@@ -389,7 +389,7 @@ impl Robot {
     /// the pretension), a field the smallest.
     pub fn track(&self, targets: &[Vector3<f64>], options: &IkOptions) -> Result<Vec<IkResult>> {
         options.settings.validate()?;
-        let mut loaded = InverseSolver::new(self, options.tip_mass)?;
+        let mut loaded = InverseSolver::new(self, &options.load)?;
         let mut reference = loaded.reference_of(options)?;
         if let Some(start) = &options.initial {
             check_initial(start, self.n_elements)?;
@@ -400,7 +400,7 @@ impl Robot {
         }
         let mut weightless = match options.settings.strategy {
             Strategy::Equilibrium => None,
-            Strategy::Geometric => Some(InverseSolver::new(&self.weightless(), 0.0)?),
+            Strategy::Geometric => Some(InverseSolver::new(&self.weightless(), &Load::default())?),
         };
         let (tol, budget) = (options.settings.tol, options.settings.max_iterations);
         let mut out = Vec::with_capacity(targets.len());

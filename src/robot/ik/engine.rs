@@ -35,8 +35,10 @@ use nalgebra::{DMatrix, DVector, Vector3};
 /// Relative accuracy to which the actuation is the one closest to the reference.
 const MIN_NORM_ACCURACY: f64 = 1e-6;
 
-/// Shortest line-search step before the descent counts as stalled.
+/// Shortest line-search step before the descent counts as stalled; on
+/// target, before the slide toward the reference counts as settled.
 const MIN_ALPHA: f64 = 1e-4;
+const SETTLED_ALPHA: f64 = 0.1;
 
 /// A descent counts as stalled after `SLOW_STEPS` steps running that each
 /// shrink the miss by less than `SLOW_GAIN` of itself.
@@ -474,8 +476,7 @@ impl InverseSolver {
                     self.restore(st)?;
                     away = false;
                 }
-                let m = self.merit_search(goal, st, j, &step, pull)?;
-                match m {
+                match self.merit_search(goal, st, j, &step, pull)? {
                     Search::Accepted(alpha) => {
                         jac = None;
                         if alpha == 1.0 && goal.reached(&st.e) && norm <= MIN_NORM_ACCURACY * size {
@@ -589,34 +590,23 @@ impl InverseSolver {
         let merit = |x: &DVector<f64>, e: &DVector<f64>| {
             0.5 * (x - &reference).norm_squared() + rho * e.norm()
         };
-        let miss = st.e.norm();
-        let phi = merit(&st.x, &st.e);
-        let slope = (&st.x - &reference).dot(d) - rho * miss;
-        let mut alpha = 1.0;
-        let mut last = Trial::Rejected;
-        while alpha >= MIN_ALPHA {
-            let mut x = &st.x + d * alpha;
-            self.drive.clamp(&self.robot, &mut x);
-            let sol = self.forward(&x)?;
-            last = Trial::Unusable;
-            if usable(&sol) {
-                last = Trial::Rejected;
-                let e = goal.error(&sol);
-                let new_miss = e.norm();
-                if merit(&x, &e) <= phi + 1e-4 * alpha * slope.min(0.0)
-                    && (new_miss < miss || goal.reached(&e) || slope < 0.0)
-                {
-                    self.q = Some(sol.quaternions.clone());
-                    *st = State { x, sol, e };
-                    return Ok(Search::Accepted(alpha));
-                }
-            }
-            alpha *= 0.5;
-        }
-        self.restore(st)?;
-        Ok(Search::Stalled {
-            unusable: last == Trial::Unusable,
-        })
+        let (x0, miss) = (st.x.clone(), st.e.norm());
+        let phi = merit(&x0, &st.e);
+        let slope = (&x0 - &reference).dot(d) - rho * miss;
+        let accept = |_: &DVector<f64>, e: &DVector<f64>, alpha: f64| {
+            // The step's point at `alpha` (the drive's clamp is rounding only).
+            merit(&(&x0 + d * alpha), e) <= phi + 1e-4 * alpha * slope.min(0.0)
+                && (e.norm() < miss || goal.reached(e) || slope < 0.0)
+        };
+        // On target the merit's fall drowns in `rho |e|` at the tip's
+        // round-off once the step is below about `sqrt(rho |e|)`: a few
+        // halvings tell, not the full search (each is a forward solve).
+        let shortest = if goal.reached(&st.e) {
+            SETTLED_ALPHA
+        } else {
+            MIN_ALPHA
+        };
+        self.line_search(goal, st, d, 1.0, shortest, accept)
     }
 
     /// The step from `st` toward the target, pulled toward the reference
@@ -713,18 +703,20 @@ impl InverseSolver {
         })
     }
 
-    /// Backtrack along `step` from `first` of it until `accept(old error, new error, alpha)`.
+    /// Backtrack along `step` from `first` of it, down to `shortest`, until
+    /// `accept(old error, new error, alpha)`.
     fn line_search(
         &mut self,
         goal: &Goal,
         st: &mut State,
         step: &DVector<f64>,
         first: f64,
+        shortest: f64,
         accept: impl Fn(&DVector<f64>, &DVector<f64>, f64) -> bool,
     ) -> Result<Search> {
         let mut alpha = first;
         let mut last = Trial::Rejected;
-        while alpha > MIN_ALPHA {
+        while alpha > shortest {
             last = self.trial(goal, st, &(step * alpha), |old, new| {
                 accept(old, new, alpha)
             })?;
@@ -858,7 +850,7 @@ impl InverseSolver {
             let accept = |old: &DVector<f64>, new: &DVector<f64>, _alpha: f64| {
                 new.norm() <= slack.max(old.norm())
             };
-            let search = self.line_search(goal, st, &step.step, 1.0, accept)?;
+            let search = self.line_search(goal, st, &step.step, 1.0, MIN_ALPHA, accept)?;
             if matches!(search, Search::Stalled { .. }) || distance(&st.x) >= d0 {
                 break;
             }

@@ -428,7 +428,10 @@ impl InverseSolver {
         end: usize,
     ) -> Result<PhaseEnd> {
         let mut slow = 0;
-        let mut mu = 0.0;
+        // Far off, the first step is damped: a nearly singular drive (a field
+        // along a magnet) throws an undamped step far, where the forward
+        // solve is costly and the step refused; a good step cuts it by ten.
+        let mut mu = LM_START;
         // The accepted state's Jacobian; a refused trial leaves the forward
         // solver at the trial (`away`), and the Jacobian is kept.
         let mut jac: Option<DMatrix<f64>> = None;

@@ -202,7 +202,7 @@ impl PyIkResult {
     }
 }
 
-/// Inverse kinematics of one robot under one tip mass, warm from its last answer.
+/// Inverse kinematics of one robot under one load, warm from its last answer.
 ///
 /// Safe to share between threads: one solve runs at a time (the warm start is
 /// shared state), and a thread waiting for its turn does not hold the GIL.
@@ -366,7 +366,8 @@ impl PyRobot {
         Ok(d)
     }
 
-    /// The Scene of this robot with an actuation and a tip mass (kg):
+    /// The Scene of this robot with an actuation and a load (a payload mass
+    /// in kg, or a dict of mass, tip_force, tip_moment, point_loads):
     /// rest curvature (m, 2) 1/m (default straight), tendon ``tensions`` (N)
     /// and an external ``field`` (T, world frame).
     #[pyo3(signature = (rest_curvature=None, load=None, *, tensions=None, field=None))]
@@ -506,7 +507,7 @@ impl PyRobot {
     }
 
     /// Forward statics of many actuations (samples, m, 2), tendon tensions
-    /// (samples, tendons) or fields (samples, 3) under one tip mass, on
+    /// (samples, tendons) or fields (samples, 3) under one load, on
     /// every core. See the Python documentation of ``Robot.forward_batch``.
     #[pyo3(signature = (actuations=None, load=None, *, tensions=None, field=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
@@ -619,7 +620,7 @@ impl PyRobot {
     }
 
     /// The equilibria of ``samples`` random actuations (muscle lengths
-    /// uniform over their range, seeded) under one tip mass, on every core.
+    /// uniform over their range, seeded) under one load, on every core.
     #[pyo3(signature = (samples, load=None, *, seed=0, first=0, shapes=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
     #[allow(clippy::too_many_arguments)]
     fn workspace<'py>(
@@ -745,7 +746,7 @@ impl PyRobot {
         ik_batch_result(py, &samples, robot.sections, robot.actuation_space())
     }
 
-    /// A reusable inverse solver for one tip mass (warm starts between calls).
+    /// A reusable inverse solver for one load (warm starts between calls).
     #[pyo3(signature = (load=None))]
     fn inverse_solver(
         &self,
@@ -762,9 +763,11 @@ impl PyRobot {
     }
 
     /// Load-aware inverse kinematics of one target: the actuation whose
-    /// equilibrium under ``load`` (tip mass, kg) puts the tip on ``target``
-    /// (m), closest to ``reference`` (rest curvature (m, 2), default zero),
-    /// optionally with the tip along ``direction``. ``settings`` an
+    /// equilibrium under ``load`` (a payload mass in kg, or a dict of
+    /// ``mass``, ``tip_force``, ``tip_moment``, ``point_loads``, world frame)
+    /// puts the tip on ``target`` (m), closest to ``reference`` (rest
+    /// curvature (m, 2), default zero), optionally with the tip along
+    /// ``direction`` (within ``tol / L`` rad, whatever drives the robot). ``settings`` an
     /// ``IkSettings`` or a dict; ``strategy``, ``tol`` and ``max_iterations``
     /// override its fields.
     #[pyo3(signature = (target, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None, pretension=None))]

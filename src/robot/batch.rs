@@ -183,7 +183,7 @@ impl Robot {
         }
         let ik = &options.settings;
         // Checked once, before any chunk runs.
-        let reference = InverseSolver::new(self, &options.load)?.reference_of(options)?;
+        let reference = self.ik_reference(options)?;
         run_chunks(
             targets.len(),
             self.result_size("targets", settings),

@@ -431,21 +431,18 @@ impl Robot {
         let radian = softest / (self.length * self.length);
         let weight = tip_mass * self.gravity.norm();
         let wrenches = [
-            ("load", weight, format!("{tip_mass} kg weighs")),
-            (
-                "load.tip_force",
-                load.tip_force.norm(),
-                "the tip force is".into(),
-            ),
-            (
-                "load.tip_moment",
-                load.tip_moment.norm() / self.length,
-                "the tip moment is".into(),
-            ),
+            ("load", weight),
+            ("load.tip_force", load.tip_force.norm()),
+            ("load.tip_moment", load.tip_moment.norm() / self.length),
         ];
-        for (name, force, what) in wrenches {
+        for (name, force) in wrenches {
             let parameter = force / radian;
             if parameter > crate::scene::MAX_LOAD_PARAMETER {
+                let what = match name {
+                    "load" => format!("{tip_mass} kg weighs"),
+                    "load.tip_force" => "the tip force is".into(),
+                    _ => "the tip moment is".into(),
+                };
                 return Err(Error::argument(
                     if name == "load" && !load.is_mass_only() {
                         "load.mass"

@@ -341,13 +341,7 @@ pub fn density(
     let mut value = 0.0;
     let mut moment = Vector3::zeros();
     let mut hessian = Matrix3::zeros();
-    for t in tendons {
-        let tension = scale * t.tension;
-        if tension == 0.0 {
-            continue;
-        }
-        let (rho, drho) = t.routing(s);
-        let v = Vector3::z() + omega.cross(&rho) + drho;
+    for (tension, rho, v) in paths(tendons, scale, s, omega) {
         let length = v.norm();
         let unit = v / length;
         value += tension * length;
@@ -363,17 +357,28 @@ pub fn density(
 /// [`density`]'s moment alone: `sum tension rho x v / |v|`.
 #[inline]
 pub fn moment(tendons: &[Tendon], scale: f64, s: f64, omega: &Vector3<f64>) -> Vector3<f64> {
-    let mut moment = Vector3::zeros();
-    for t in tendons {
+    paths(tendons, scale, s, omega).fold(Vector3::zeros(), |moment, (tension, rho, v)| {
+        moment + tension * rho.cross(&(v / v.norm()))
+    })
+}
+
+/// Each pulled tendon's tension, offset `rho` and path tangent
+/// `v = e3 + omega x rho + rho'` at `s` (the slack ones skipped).
+#[inline]
+fn paths<'a>(
+    tendons: &'a [Tendon],
+    scale: f64,
+    s: f64,
+    omega: &'a Vector3<f64>,
+) -> impl Iterator<Item = (f64, Vector3<f64>, Vector3<f64>)> + 'a {
+    tendons.iter().filter_map(move |t| {
         let tension = scale * t.tension;
         if tension == 0.0 {
-            continue;
+            return None;
         }
         let (rho, drho) = t.routing(s);
-        let v = Vector3::z() + omega.cross(&rho) + drho;
-        moment += tension * rho.cross(&(v / v.norm()));
-    }
-    moment
+        Some((tension, rho, Vector3::z() + omega.cross(&rho) + drho))
+    })
 }
 
 #[cfg(test)]

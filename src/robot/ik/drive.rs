@@ -66,8 +66,8 @@ pub(super) struct Drive {
     /// The scale below which a coordinate's change does not count (the
     /// floor of [`Drive::size`]).
     floor: f64,
-    /// Draws of the random starts: the range of a curvature component, the
-    /// largest tension, the field's radius.
+    /// The drive's scale: the range of a curvature component's random
+    /// draws; `max_tension`; `max_field` (0: no limit, no random draws).
     reach: f64,
     /// Robot facts the curvature starts need.
     sections: usize,

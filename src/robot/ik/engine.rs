@@ -200,22 +200,7 @@ impl InverseSolver {
     /// The reference of `options` in the drive's coordinates, checked (the
     /// muscles' `reference`, the tendons' `pretension`).
     pub fn reference_of(&self, options: &IkOptions) -> Result<Option<Vec<f64>>> {
-        let space = self.drive.space();
-        if options.settings.strategy != Strategy::Equilibrium && space != ActuationSpace::Curvature
-        {
-            return Err(Error::argument(
-                "strategy",
-                format!(
-                    "the geometric strategy fits muscle curvatures; this robot's actuation is its {}",
-                    space.name()
-                ),
-            ));
-        }
-        self.drive.reference(
-            &self.robot,
-            options.reference.as_deref(),
-            options.pretension.as_deref(),
-        )
+        reference_of(&self.robot, &self.drive, options)
     }
 
     /// Forward statics at `x`, warm from the last accepted state.
@@ -973,6 +958,30 @@ impl InverseSolver {
             seconds: 0.0,
         }
     }
+}
+
+/// The reference of `options` in `drive`'s coordinates, checked (the
+/// muscles' `reference`, the tendons' `pretension`); no solver needed.
+pub(crate) fn reference_of(
+    robot: &Robot,
+    drive: &Drive,
+    options: &IkOptions,
+) -> Result<Option<Vec<f64>>> {
+    let space = drive.space();
+    if options.settings.strategy != Strategy::Equilibrium && space != ActuationSpace::Curvature {
+        return Err(Error::argument(
+            "strategy",
+            format!(
+                "the geometric strategy fits muscle curvatures; this robot's actuation is its {}",
+                space.name()
+            ),
+        ));
+    }
+    drive.reference(
+        robot,
+        options.reference.as_deref(),
+        options.pretension.as_deref(),
+    )
 }
 
 /// Where an inverse solve may start after the first descent missed.

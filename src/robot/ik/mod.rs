@@ -378,6 +378,12 @@ fn check_initial(start: &IkStart, n_elements: usize) -> Result<()> {
 }
 
 impl Robot {
+    /// The reference (or pretension) of `options` in this robot's drive
+    /// coordinates, checked, as [`InverseSolver::solve`] takes it.
+    pub(crate) fn ik_reference(&self, options: &IkOptions) -> Result<Option<Vec<f64>>> {
+        engine::reference_of(self, &drive::Drive::of(self), options)
+    }
+
     /// Load-aware inverse kinematics of one target (see [`IkOptions`]).
     pub fn inverse(&self, target: Vector3<f64>, options: &IkOptions) -> Result<IkResult> {
         Ok(self.track(&[target], options)?.remove(0))

@@ -22,16 +22,19 @@ import numpy.typing as npt
 from . import trajectories
 from ._core import (
     Accuracy,
+    IkEnding,
     IkResult,
     IkSettings,
     InverseSolver,
     PaperSettings,
     Robot,
     Scene,
+    Scheme,
     Settings,
     Solution,
     Solver,
     SolverError,
+    Status,
     __version__,
     calibrate,
     solve_batch,
@@ -40,7 +43,6 @@ from ._core import solve as _solve
 from .batch import BatchResult, IkBatchResult
 from .scenes import load_scene
 from .sensitivity import Calibration, Sensitivity
-from .status import IkEnding, Scheme, Status
 
 __all__ = [
     "Accuracy",

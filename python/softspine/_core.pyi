@@ -5,6 +5,7 @@ Checked against the built module by ``python -m mypy.stubtest softspine._core``
 """
 
 from collections.abc import Callable, Sequence
+from enum import Enum
 from os import PathLike
 from typing import Any, TypeAlias, final
 
@@ -13,7 +14,6 @@ import numpy.typing as npt
 
 from .batch import BatchResult, IkBatchResult
 from .sensitivity import Calibration, Sensitivity
-from .status import IkEnding, Scheme, Status
 
 # What a robot carries: a payload mass [kg], or a dict of mass, tip_force
 # [N], tip_moment [N m] (world frame) and point_loads [{s, force, moment}].
@@ -22,19 +22,19 @@ _Load: TypeAlias = float | dict[str, Any] | None
 __version__: str
 __all__ = [
     "Accuracy",
+    "IkEnding",
     "IkResult",
     "IkSettings",
     "InverseSolver",
     "PaperSettings",
     "Robot",
     "Scene",
+    "Scheme",
     "Settings",
     "Solution",
     "Solver",
     "SolverError",
-    "_IK_ENDING_NAMES",
-    "_SCHEME_NAMES",
-    "_STATUS_NAMES",
+    "Status",
     "__version__",
     "calibrate",
     "jacobian",
@@ -43,9 +43,38 @@ __all__ = [
     "solve_batch",
     "trajectory_points",
 ]
-_STATUS_NAMES: list[str]
-_IK_ENDING_NAMES: list[str]
-_SCHEME_NAMES: list[str]
+# The core's named enums, generated from it at import (members and docs): a
+# member is a str equal to its name and prints as it.
+class Status(str, Enum):
+    """How a solve ended."""
+
+    def __new__(cls, value: str) -> Status: ...
+    CONVERGED = "converged"
+    NOT_CONVERGED = "not_converged"
+    ITERATION_LIMIT = "iteration_limit"
+    TOLERANCE_NOT_MET = "tolerance_not_met"
+    UNDERRESOLVED = "underresolved"
+    NUMERICAL_ERROR = "numerical_error"
+    INDETERMINATE = "indeterminate"
+
+class IkEnding(str, Enum):
+    """Why an inverse solve ended."""
+
+    def __new__(cls, value: str) -> IkEnding: ...
+    REACHED = "reached"
+    OUT_OF_REACH = "out_of_reach"
+    BOUNDS_ACTIVE = "bounds_active"
+    SOLVER_FAILURE = "solver_failure"
+    ITERATION_LIMIT = "iteration_limit"
+    LOAD_IGNORED = "load_ignored"
+
+class Scheme(str, Enum):
+    """How a solution's nodes were computed."""
+
+    def __new__(cls, value: str) -> Scheme: ...
+    FD2 = "fd2"
+    FE4 = "fe4"
+    RK4 = "rk4"
 
 _Array: TypeAlias = npt.NDArray[np.float64]
 

@@ -32,35 +32,32 @@ use crate::mesh::Mesh;
 use crate::quat::Quat;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
-/// The discretisation of a solution's nodes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Scheme {
-    /// The seed's finite differences: one rotation a node, the curvature of
-    /// each element from its two nodes, the exact mean tangent. Second order.
-    #[default]
-    Fd2,
-    /// Quadratic elements of the rotation (an internal node at each element's
-    /// middle, condensed out), the elastic energy by two-point Gauss
-    /// quadrature and the loads by Simpson: fourth order at the nodes.
-    Fe4,
-    /// Shooting's integrator (classic Runge-Kutta on the rod's equations,
-    /// `method = "shooting"`): the scheme of its solutions, not a setting.
-    Rk4,
+crate::status::named_enum! {
+    /// How a solution's nodes were computed: its discretisation.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum Scheme {
+        /// The seed's finite differences: one rotation a node, the curvature
+        /// of each element from its two nodes, the exact mean tangent. Second
+        /// order.
+        Fd2 => "fd2",
+        /// Quadratic elements of the rotation (an internal node at each
+        /// element's middle, condensed out), the elastic energy by two-point
+        /// Gauss quadrature and the loads by Simpson: fourth order at the nodes.
+        Fe4 => "fe4",
+        /// Shooting's integrator (classic Runge-Kutta on the rod's equations,
+        /// `method = "shooting"`): the scheme of its solutions, not a setting.
+        Rk4 => "rk4",
+    }
+}
+
+impl Default for Scheme {
+    /// The seed's finite differences.
+    fn default() -> Self {
+        Scheme::Fd2
+    }
 }
 
 impl Scheme {
-    /// Every scheme, in the order of the declaration.
-    pub const ALL: [Scheme; 3] = [Scheme::Fd2, Scheme::Fe4, Scheme::Rk4];
-
-    /// The name [`Scheme::from_str`](std::str::FromStr) reads.
-    pub fn name(self) -> &'static str {
-        match self {
-            Scheme::Fd2 => "fd2",
-            Scheme::Fe4 => "fe4",
-            Scheme::Rk4 => "rk4",
-        }
-    }
-
     /// The order of convergence of the node positions as `n` grows.
     pub fn order(self) -> i32 {
         match self {

@@ -413,18 +413,6 @@ pub(super) fn python_bool(b: bool) -> &'static str {
     }
 }
 
-/// The member `name` of the string enum `class` of `softspine.status`
-/// (`Status`, `IkEnding`), which mirrors the core's endings.
-pub(super) fn status_member<'py>(
-    py: Python<'py>,
-    class: &str,
-    name: &str,
-) -> PyResult<Bound<'py, PyAny>> {
-    static MODULE: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
-    let module = MODULE.get_or_try_init(py, || py.import("softspine.status").map(Bound::unbind))?;
-    module.bind(py).getattr(class)?.call1((name,))
-}
-
 /// The fields of a dict that stores a result (`Solution.to_dict()`), read by
 /// name: a missing key is refused as `owner.key`.
 pub(super) struct Fields<'py> {

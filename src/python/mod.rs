@@ -9,6 +9,7 @@
 mod batch;
 mod convert;
 mod detach;
+mod enums;
 mod fitting;
 mod robot;
 mod scene;
@@ -59,18 +60,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve::jacobian, m)?)?;
     m.add("SolverError", m.py().get_type::<SolverError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    // The core's endings, which `softspine.status` mirrors (a test compares).
-    m.add(
-        "_STATUS_NAMES",
-        crate::Status::ALL.map(|s| s.name()).to_vec(),
-    )?;
-    m.add(
-        "_SCHEME_NAMES",
-        crate::disc::Scheme::ALL.map(|s| s.name()).to_vec(),
-    )?;
-    m.add(
-        "_IK_ENDING_NAMES",
-        crate::IkEnding::ALL.map(|e| e.name()).to_vec(),
-    )?;
+    enums::add_enums(m)?;
     Ok(())
 }

@@ -92,7 +92,7 @@ impl PyIkResult {
     /// it equals its name, e.g. ``"reached"``).
     #[getter]
     fn ending<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        status_member(py, "IkEnding", self.inner.ending.name())
+        super::enums::ik_ending(py, self.inner.ending)
     }
     /// Starting actuations tried (1: the fast path sufficed).
     #[getter]

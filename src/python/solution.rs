@@ -30,7 +30,7 @@ impl PySolution {
     /// ``"fd2"`` or ``"fe4"``, or ``"rk4"`` for shooting's integrator).
     #[getter]
     fn scheme<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        status_member(py, "Scheme", self.inner.scheme.name())
+        super::enums::scheme(py, self.inner.scheme)
     }
     /// Length of the rod, m.
     #[getter]
@@ -162,7 +162,7 @@ impl PySolution {
     /// its name, e.g. ``"converged"``); ``message`` says more.
     #[getter]
     fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        status_member(py, "Status", self.inner.status.name())
+        super::enums::status(py, self.inner.status)
     }
     /// Newton or LM iterations, every continuation step included.
     #[getter]

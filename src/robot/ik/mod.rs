@@ -186,48 +186,27 @@ pub struct IkStart {
     pub actuation: Option<Vec<f64>>,
 }
 
-/// Why an inverse solve ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum IkEnding {
-    /// The tip (and direction) is within the tolerance, on a stable equilibrium.
-    Reached,
-    /// The closest tip found is limited by the robot, not by its muscles:
-    /// farther than the robot is long, or a local minimum of the miss with no
-    /// muscle at a length limit holding it back.
-    OutOfReach,
-    /// Drives at their limits hold the closest tip found back: muscles at
-    /// their length limits, tendons slack or at `max_tension`, the field at
-    /// `max_field`.
-    BoundsActive,
-    /// No stable equilibrium was found where the descent had to go.
-    SolverFailure,
-    /// The iteration budget ran out while the miss was still shrinking.
-    IterationLimit,
-    /// The geometric strategy's fit, applied to the loaded robot, misses.
-    LoadIgnored,
-}
-
-impl IkEnding {
-    /// Every ending, in the order of the declaration.
-    pub const ALL: [IkEnding; 6] = [
-        IkEnding::Reached,
-        IkEnding::OutOfReach,
-        IkEnding::BoundsActive,
-        IkEnding::SolverFailure,
-        IkEnding::IterationLimit,
-        IkEnding::LoadIgnored,
-    ];
-
-    /// The snake_case name used by the Python API.
-    pub fn name(self) -> &'static str {
-        match self {
-            IkEnding::Reached => "reached",
-            IkEnding::OutOfReach => "out_of_reach",
-            IkEnding::BoundsActive => "bounds_active",
-            IkEnding::SolverFailure => "solver_failure",
-            IkEnding::IterationLimit => "iteration_limit",
-            IkEnding::LoadIgnored => "load_ignored",
-        }
+crate::status::named_enum! {
+    /// Why an inverse solve ended.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum IkEnding {
+        /// The tip (and direction) is within the tolerance, on a stable
+        /// equilibrium.
+        Reached => "reached",
+        /// The closest tip found is limited by the robot, not by its drives'
+        /// limits: farther than the robot is long, or a local minimum of the
+        /// miss with no drive at a limit holding it back.
+        OutOfReach => "out_of_reach",
+        /// Drives at their limits hold the closest tip found back: muscles at
+        /// their length limits, tendons slack or at `max_tension`, the field at
+        /// `max_field`.
+        BoundsActive => "bounds_active",
+        /// No stable equilibrium was found where the descent had to go.
+        SolverFailure => "solver_failure",
+        /// The iteration budget ran out while the miss was still shrinking.
+        IterationLimit => "iteration_limit",
+        /// The geometric strategy's fit, applied to the loaded robot, misses.
+        LoadIgnored => "load_ignored",
     }
 }
 

@@ -50,6 +50,11 @@ impl Default for BatchSettings {
     }
 }
 
+/// Chunks a task on a cluster takes by default: a few thousand samples of the
+/// robot, about 0.1 s of work, large against a task's overhead on Ray or Dask
+/// (milliseconds).
+pub const PART_CHUNKS: usize = 32;
+
 /// Samples a worker takes at a time: large enough that a chunk's set-up (a
 /// solver, its workspace) is amortised and warm starts have a run, small
 /// enough that two cores share a batch of a few hundred evenly.
@@ -80,10 +85,12 @@ impl BatchSettings {
         Ok(())
     }
 
-    /// Refuse a cluster's task size `part` that is not a positive multiple
-    /// of `chunk`: only then is every part solved as the same samples of a
-    /// local batch (the same answers, to the bit).
-    pub fn check_part(&self, part: usize) -> Result<()> {
+    /// The samples of one task when a batch is cut into tasks (on a
+    /// cluster): `part`, or [`PART_CHUNKS`] chunks by default. Refused unless
+    /// a positive multiple of `chunk`: only then is every part solved as the
+    /// same samples of a local batch (the same answers, to the bit).
+    pub fn part(&self, part: Option<usize>) -> Result<usize> {
+        let part = part.unwrap_or(PART_CHUNKS * self.chunk);
         if part == 0 || part % self.chunk != 0 {
             return Err(Error::argument(
                 "part",
@@ -94,7 +101,7 @@ impl BatchSettings {
                 ),
             ));
         }
-        Ok(())
+        Ok(part)
     }
 
     /// Bytes one sample's result holds while a batch returns it (the core's

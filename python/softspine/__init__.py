@@ -36,13 +36,11 @@ from ._core import (
     SolverError,
     Status,
     __version__,
-    calibrate,
-    solve_batch,
 )
 from ._core import solve as _solve
-from .batch import BatchResult, IkBatchResult
+from .batch import BatchResult, IkBatchResult, solve_batch
 from .scenes import load_scene
-from .sensitivity import Calibration, Sensitivity
+from .sensitivity import Calibration, Sensitivity, calibrate
 
 __all__ = [
     "Accuracy",

@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .batch import BatchResult, IkBatchResult
-from .sensitivity import Calibration, Sensitivity
+from .sensitivity import Sensitivity
 
 # What a robot carries: a payload mass [kg], or a dict of mass, tip_force
 # [N], tip_moment [N m] (world frame) and point_loads [{s, force, moment}].
@@ -36,11 +36,11 @@ __all__ = [
     "SolverError",
     "Status",
     "__version__",
-    "calibrate",
+    "_calibrate",
+    "_solve_batch",
     "jacobian",
     "residual",
     "solve",
-    "solve_batch",
     "trajectory_points",
 ]
 # The core's named enums, generated from it at import (members and docs): a
@@ -395,6 +395,64 @@ class Robot:
         its own (as ``inverse``), on every core; a tendon-driven or magnetic
         robot's in its tensions (closest to ``pretension``) or field, kept in
         the result's ``tensions`` or ``field``. Keywords as ``forward_batch``."""
+    # The raw batches and sensitivity, each the fields of its result (the
+    # methods above, written in softspine.batch and softspine.sensitivity);
+    # with plan=True a batch only reads its arguments and returns (chunk,
+    # part), the cut of a cluster's batch.
+    def _forward_batch(
+        self,
+        actuations: npt.ArrayLike | None = None,
+        load: _Load = None,
+        *,
+        tensions: npt.ArrayLike | None = None,
+        field: npt.ArrayLike | None = None,
+        shapes: bool | None = None,
+        warm_start: bool | None = None,
+        threads: int | None = None,
+        chunk: int | None = None,
+        progress: Callable[[int, int], object] | None = None,
+        part: int | None = None,
+        plan: bool | None = None,
+    ) -> Any: ...
+    def _workspace(
+        self,
+        samples: int,
+        load: _Load = None,
+        *,
+        seed: int = 0,
+        first: int = 0,
+        shapes: bool | None = None,
+        threads: int | None = None,
+        chunk: int | None = None,
+        progress: Callable[[int, int], object] | None = None,
+        part: int | None = None,
+        plan: bool | None = None,
+    ) -> Any: ...
+    def _inverse_batch(
+        self,
+        targets: npt.ArrayLike,
+        load: _Load = None,
+        reference: npt.ArrayLike | None = None,
+        direction: npt.ArrayLike | None = None,
+        settings: IkSettings | dict[str, Any] | None = None,
+        *,
+        pretension: npt.ArrayLike | None = None,
+        threads: int | None = None,
+        chunk: int | None = None,
+        progress: Callable[[int, int], object] | None = None,
+        part: int | None = None,
+        plan: bool | None = None,
+    ) -> Any: ...
+    def _sensitivity(
+        self,
+        rest_curvature: npt.ArrayLike | None = None,
+        load: _Load = None,
+        parameters: str | Sequence[str] | None = None,
+        initial: Solution | npt.ArrayLike | None = None,
+        *,
+        tensions: npt.ArrayLike | None = None,
+        field: npt.ArrayLike | None = None,
+    ) -> dict[str, Any]: ...
     def inverse_solver(self, load: _Load = None) -> InverseSolver: ...
     def inverse(
         self,
@@ -492,6 +550,7 @@ class Solver:
         ``"tip_wrench"`` (the tip force and moment: the 6x6 tip compliance is
         ``.pose``). Free, pinned and clamped tips; by the implicit function
         theorem on the factored equilibrium system."""
+    def _sensitivity(self, parameters: str | Sequence[str]) -> dict[str, Any]: ...
     def reset(self) -> None:
         """Forget the last equilibrium (the next solve starts straight) and
         which thread changed the scene last."""
@@ -585,7 +644,10 @@ def solve(
     check: bool = False,
     paper: PaperSettings | dict[str, Any] | None = None,
 ) -> Solution: ...
-def solve_batch(
+# The raw batch and fit: the fields of a BatchResult (or with plan=True the
+# cut of a cluster's batch) and of a Calibration (``softspine.solve_batch``
+# and ``softspine.calibrate`` build them).
+def _solve_batch(
     scenes: Sequence[Scene | dict[str, Any]],
     settings: Settings | dict[str, Any] | None = None,
     *,
@@ -597,14 +659,11 @@ def solve_batch(
     shapes: bool | None = None,
     threads: int | None = None,
     chunk: int | None = None,
-    progress: bool | Callable[[int, int], object] | None = None,
-    executor: Any = None,
+    progress: Callable[[int, int], object] | None = None,
     part: int | None = None,
-) -> BatchResult:
-    """Solve many scenes (cold, each with ``settings``) in Rust on every core.
-    Keywords as ``Robot.forward_batch``; ``shapes`` only when every scene has
-    the same number of nodes."""
-def calibrate(
+    plan: bool | None = None,
+) -> Any: ...
+def _calibrate(
     robot: Robot,
     actuations: npt.ArrayLike,
     measured_tips: npt.ArrayLike,
@@ -613,12 +672,7 @@ def calibrate(
     *,
     max_iterations: int | None = None,
     threads: int | None = None,
-) -> Calibration:
-    """Fit numeric fields of ``robot`` (``"stiffness.E"``, ``"linear_density"``,
-    ``"disk_mass"``, ``"muscle_radius"``, ...; ``"load"`` the tip mass) to tip
-    positions (N, 3) measured at known actuations (N, m, 2), by Gauss-Newton
-    with the sensitivities of every sample (on every core). Returns the
-    estimates, their standard errors and the residuals."""
+) -> dict[str, Any]: ...
 def residual(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def jacobian(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def trajectory_points(name: str, points: int = 60, robot: Robot | None = None) -> _Array: ...

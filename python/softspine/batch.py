@@ -1,21 +1,45 @@
-"""Results of many solves at once, as arrays (see ``Robot.forward_batch``,
-``Robot.inverse_batch``, ``Robot.workspace`` and ``softspine.solve_batch``).
+"""Many solves at once: ``Robot.forward_batch``, ``Robot.workspace``,
+``Robot.inverse_batch`` and ``softspine.solve_batch``, and their results as
+arrays, one row per sample, in the order of the input.
 
-The solves run in the Rust core on every core; these classes only hold what
-they return, one row per sample, in the order of the input.
+The solves run in the Rust core on every core (the extension's
+``_forward_batch`` and its kin return the results' fields). What is Python's
+is here: the progress bar, the dispatch to a cluster (``executor=``, see
+``softspine.distributed``) and the result dataclasses.
 """
 
 from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["BatchResult", "IkBatchResult", "TextProgress", "concatenate"]
+from . import _core
+from ._core import Robot
+
+if TYPE_CHECKING:
+    from ._core import IkSettings, Scene, Settings, _Load
+
+__all__ = [
+    "BatchResult",
+    "IkBatchResult",
+    "TextProgress",
+    "concatenate",
+    "forward_batch",
+    "inverse_batch",
+    "progress_callback",
+    "solve_batch",
+    "workspace",
+]
+
+#: What ``progress=`` takes: None (a bar on a terminal once a batch has run
+#: 2 s), True (a bar from the start), False (none) or ``progress(done, total)``.
+Progress = bool | Callable[[int, int], object] | None
 
 
 def _dict(result: Any) -> dict[str, Any]:
@@ -146,3 +170,215 @@ class TextProgress:
         if done >= total:
             sys.stderr.write("\n")
         sys.stderr.flush()
+
+
+def progress_callback(progress: Progress) -> Callable[[int, int], object] | None:
+    """The callable ``progress=`` asks for (see ``Progress``), or None."""
+    if progress is None:
+        return TextProgress()
+    if progress is True:
+        return TextProgress(after=0.0, always=True)
+    if progress is False:
+        return None
+    if callable(progress):
+        return progress
+    raise ValueError(
+        f"progress: expected None, a bool or a callable, got {type(progress).__name__}"
+    )
+
+
+def forward_batch(
+    self: Robot,
+    actuations: npt.ArrayLike | None = None,
+    load: _Load = None,
+    *,
+    tensions: npt.ArrayLike | None = None,
+    field: npt.ArrayLike | None = None,
+    shapes: bool | None = None,
+    warm_start: bool | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Progress = None,
+    executor: Any = None,
+    part: int | None = None,
+) -> BatchResult:
+    """Forward statics of many actuations under one load, in Rust on every
+    core without the GIL.
+
+    Parameters
+    ----------
+    actuations
+        The muscles' rest curvature of each sample, (samples, m, 2), 1/m.
+        Optional for a tendon-driven or magnetic robot (straight muscles).
+    load
+        What the robot carries: a payload mass [kg] or a dict of ``mass``,
+        ``tip_force`` [N], ``tip_moment`` [N m] (world frame) and
+        ``point_loads``, the same for every sample.
+    tensions
+        A tendon-driven robot's tensions, (samples, tendons), N: each within
+        ``[0, max_tension]``.
+    field
+        A magnetic robot's uniform field, (samples, 3), T, world frame: each
+        within ``max_field``.
+    shapes
+        Keep every node's position and quaternion (default False).
+    warm_start
+        Start a solve from the last equilibrium of its chunk where the
+        actuation is near (default True; random samples are solved cold).
+    threads
+        Worker threads (default every core; at most 4 a core).
+    chunk
+        Samples a worker solves in order (default 64). The answers depend on
+        it, never on the thread count.
+    progress
+        None (a bar on a terminal once the batch has run 2 s), True (a bar
+        from the start), False (none) or a callable ``progress(done, total)``.
+    executor
+        A Dask ``Client``, the ``ray`` module (after ``ray.init``) or a
+        ``concurrent.futures`` executor: the batch runs in tasks of ``part``
+        samples, with the results of a local run (``softspine.distributed``).
+    part
+        Samples a task on ``executor`` (a multiple of ``chunk``; default 32
+        chunks).
+
+    Returns
+    -------
+    BatchResult
+        One row a sample; the drives given are kept (``actuations``,
+        ``tensions``, ``field``). Ctrl-C stops the batch (KeyboardInterrupt).
+    """
+    if executor is not None:
+        from . import distributed
+
+        return distributed.forward_batch(
+            self, actuations, load, executor=executor, tensions=tensions, field=field,
+            shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk,
+            progress=progress, part=part,
+        )  # fmt: skip
+    fields_ = self._forward_batch(
+        actuations, load, tensions=tensions, field=field, shapes=shapes,
+        warm_start=warm_start, threads=threads, chunk=chunk,
+        progress=progress_callback(progress), part=part,
+    )  # fmt: skip
+    return BatchResult(**fields_)
+
+
+def workspace(
+    self: Robot,
+    samples: int,
+    load: _Load = None,
+    *,
+    seed: int = 0,
+    first: int = 0,
+    shapes: bool | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Progress = None,
+    executor: Any = None,
+    part: int | None = None,
+) -> BatchResult:
+    """The equilibria of ``samples`` random drives under one load, on every
+    core: each muscle's length uniform over its range (``actuations``), a
+    tendon-driven robot's tensions each over ``[0, max_tension]``
+    (``tensions``), a magnetic robot's field uniform in the ball
+    ``|B| <= max_field`` (``field``).
+
+    Sample ``i`` is drawn from ``seed`` and ``first + i``, so a part of a
+    larger workspace draws what the whole would. The other keywords are
+    ``forward_batch``'s.
+    """
+    if executor is not None:
+        from . import distributed
+
+        return distributed.workspace(
+            self, samples, load, executor=executor, seed=seed, first=first, shapes=shapes,
+            threads=threads, chunk=chunk, progress=progress, part=part,
+        )  # fmt: skip
+    fields_ = self._workspace(
+        samples, load, seed=seed, first=first, shapes=shapes, threads=threads, chunk=chunk,
+        progress=progress_callback(progress), part=part,
+    )  # fmt: skip
+    return BatchResult(**fields_)
+
+
+def inverse_batch(
+    self: Robot,
+    targets: npt.ArrayLike,
+    load: _Load = None,
+    reference: npt.ArrayLike | None = None,
+    direction: npt.ArrayLike | None = None,
+    settings: IkSettings | dict[str, Any] | None = None,
+    *,
+    pretension: npt.ArrayLike | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Progress = None,
+    executor: Any = None,
+    part: int | None = None,
+) -> IkBatchResult:
+    """Load-aware inverse kinematics of many targets (samples, 3), m, each on
+    its own as ``Robot.inverse`` (the same ``reference``, ``direction``,
+    ``settings`` and ``pretension`` for all), on every core.
+
+    A chunk's solver starts each target from its last answer. The answers'
+    drives are kept: ``rest_curvature`` always, ``tensions`` or ``field`` for
+    a tendon-driven or magnetic robot. The other keywords are
+    ``forward_batch``'s.
+    """
+    if executor is not None:
+        from . import distributed
+
+        return distributed.inverse_batch(
+            self, targets, load, executor=executor, reference=reference, direction=direction,
+            settings=settings, pretension=pretension, threads=threads, chunk=chunk,
+            progress=progress, part=part,
+        )  # fmt: skip
+    fields_ = self._inverse_batch(
+        targets, load, reference, direction, settings, pretension=pretension,
+        threads=threads, chunk=chunk, progress=progress_callback(progress), part=part,
+    )  # fmt: skip
+    return IkBatchResult(**fields_)
+
+
+def solve_batch(
+    scenes: Sequence[Scene | dict[str, Any]],
+    settings: Settings | dict[str, Any] | None = None,
+    *,
+    n_elements: int | None = None,
+    method: str | None = None,
+    scheme: str | None = None,
+    residual_tol: float | None = None,
+    max_iterations: int | None = None,
+    shapes: bool | None = None,
+    threads: int | None = None,
+    chunk: int | None = None,
+    progress: Progress = None,
+    executor: Any = None,
+    part: int | None = None,
+) -> BatchResult:
+    """Solve many scenes, each cold with ``settings``, in Rust on every core.
+
+    ``shapes`` keeps the shapes only when every scene has the same number of
+    nodes. The batch keywords are ``Robot.forward_batch``'s.
+    """
+    if executor is not None:
+        from . import distributed
+
+        return distributed.solve_batch(
+            scenes, settings, executor=executor, n_elements=n_elements, method=method,
+            scheme=scheme, residual_tol=residual_tol, max_iterations=max_iterations,
+            shapes=shapes, threads=threads, chunk=chunk, progress=progress, part=part,
+        )  # fmt: skip
+    fields_ = _core._solve_batch(
+        scenes, settings, n_elements=n_elements, method=method, scheme=scheme,
+        residual_tol=residual_tol, max_iterations=max_iterations, shapes=shapes,
+        threads=threads, chunk=chunk, progress=progress_callback(progress), part=part,
+    )  # fmt: skip
+    return BatchResult(**fields_)
+
+
+# The native Robot's batch methods are these: the core solves, Python
+# dispatches to a cluster and builds the result.
+Robot.forward_batch = forward_batch  # type: ignore[method-assign]
+Robot.workspace = workspace  # type: ignore[method-assign]
+Robot.inverse_batch = inverse_batch  # type: ignore[method-assign]

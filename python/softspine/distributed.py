@@ -23,32 +23,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ._core import Robot, Scene
-from .batch import BatchResult, IkBatchResult, TextProgress, concatenate
+from ._core import Robot, Scene, _solve_batch
+from .batch import BatchResult, IkBatchResult, concatenate, progress_callback
 
 __all__ = ["forward_batch", "inverse_batch", "solve_batch", "workspace"]
-
-#: Chunks a task takes by default: a few thousand samples of the robot, about
-#: 0.1 s of work, large against a task's overhead on Ray or Dask (milliseconds).
-PART_CHUNKS = 32
-#: The local batch's chunk (the core's default).
-CHUNK = 64
-
-
-def _part_size(chunk: int | None, part: int | None) -> tuple[int, int]:
-    chunk = CHUNK if chunk is None else int(chunk)
-    if chunk < 1:
-        raise ValueError(f"chunk: must be at least 1, got {chunk}")
-    if part is None:
-        return chunk, chunk * PART_CHUNKS
-    part = int(part)
-    if part < 1 or part % chunk:
-        raise ValueError(
-            f"part: must be a positive multiple of chunk ({chunk}) for the results "
-            f"to be those of a local batch, got {part}"
-        )
-    return chunk, part
-
 
 def _is_ray(executor: Any) -> bool:
     if getattr(executor, "__name__", None) == "ray":
@@ -66,7 +44,7 @@ def _run(
     """Run ``task(*call)`` for every call on the executor; the results in
     order, reporting the samples of the finished tasks to ``progress``."""
     total = sum(sizes)
-    report = _progress(progress)
+    report = progress_callback(progress)
     if _is_ray(executor):
         import ray
 
@@ -96,20 +74,6 @@ def _run(
     return [f.result() for f in futures]
 
 
-def _progress(progress: Any) -> Callable[[int, int], object] | None:
-    if progress is None:
-        return TextProgress()
-    if progress is True:
-        return TextProgress(after=0.0, always=True)
-    if progress is False:
-        return None
-    if callable(progress):
-        return progress
-    raise ValueError(
-        f"progress: expected None, a bool or a callable, got {type(progress).__name__}"
-    )
-
-
 def _cuts(count: int, part: int) -> list[tuple[int, int]]:
     return [(start, min(start + part, count)) for start in range(0, count, part)] or [(0, 0)]
 
@@ -136,9 +100,9 @@ def _inverse_task(
 
 
 def _solve_task(scenes: list[Scene], settings: Any, options: dict[str, Any]) -> BatchResult:
-    from ._core import solve_batch as local
+    from .batch import solve_batch
 
-    return local(scenes, settings, progress=False, **options)
+    return solve_batch(scenes, settings, progress=False, **options)
 
 
 def _options(**values: Any) -> dict[str, Any]:
@@ -161,25 +125,17 @@ def forward_batch(
     part: int | None = None,
 ) -> BatchResult:
     """``Robot.forward_batch`` on ``executor`` (see the module's documentation)."""
+    # The core reads every argument as a local batch would, and cuts it.
+    chunk, part = robot._forward_batch(
+        actuations, load, tensions=tensions, field=field, shapes=shapes,
+        warm_start=warm_start, threads=threads, chunk=chunk, part=part, plan=True,
+    )  # fmt: skip
     given = {
         name: np.asarray(a, dtype=np.float64)
         for name, a in (("actuations", actuations), ("tensions", tensions), ("field", field))
         if a is not None
     }
-    if "actuations" in given and given["actuations"].ndim != 3:
-        raise ValueError(
-            f"actuations: expected shape (samples, {robot.sections}, 2), "
-            f"got {given['actuations'].shape}"
-        )
-    if not given:
-        raise ValueError("actuations: missing (the rest curvature of each sample)")
-    counts = {name: len(x) for name, x in given.items()}
-    count = next(iter(counts.values()))
-    for name, other in counts.items():
-        if other != count:
-            first = next(iter(counts))
-            raise ValueError(f"{name}: {other} samples, but {first} has {count}")
-    chunk, part = _part_size(chunk, part)
+    count = len(next(iter(given.values())))
     options = _options(shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk)
     cuts = _cuts(count, part)
     calls = []
@@ -207,9 +163,10 @@ def workspace(
 ) -> BatchResult:
     """``Robot.workspace`` on ``executor``: each task draws its own samples
     (sample ``i`` from the seed and ``i``), the same as a local run's."""
-    if int(samples) < 0:
-        raise ValueError(f"samples: must be >= 0, got {samples}")
-    chunk, part = _part_size(chunk, part)
+    chunk, part = robot._workspace(
+        samples, load, seed=seed, first=first, shapes=shapes, threads=threads, chunk=chunk,
+        part=part, plan=True,
+    )  # fmt: skip
     options = _options(seed=seed, shapes=shapes, threads=threads, chunk=chunk)
     cuts = _cuts(int(samples), part)
     calls = [(robot, b - a, load, int(first) + a, options) for a, b in cuts]
@@ -233,10 +190,11 @@ def inverse_batch(
     part: int | None = None,
 ) -> IkBatchResult:
     """``Robot.inverse_batch`` on ``executor``."""
+    chunk, part = robot._inverse_batch(
+        targets, load, reference, direction, settings, pretension=pretension,
+        threads=threads, chunk=chunk, part=part, plan=True,
+    )  # fmt: skip
     t = np.asarray(targets, dtype=np.float64)
-    if t.ndim != 2 or t.shape[1] != 3:
-        raise ValueError(f"targets: expected shape (samples, 3), got {t.shape}")
-    chunk, part = _part_size(chunk, part)
     options = _options(
         reference=reference,
         direction=direction,
@@ -269,7 +227,11 @@ def solve_batch(
 ) -> BatchResult:
     """``softspine.solve_batch`` on ``executor``."""
     scenes = [s if isinstance(s, Scene) else Scene(s) for s in scenes]
-    chunk, part = _part_size(chunk, part)
+    chunk, part = _solve_batch(
+        scenes, settings, n_elements=n_elements, method=method, scheme=scheme,
+        residual_tol=residual_tol, max_iterations=max_iterations, shapes=shapes,
+        threads=threads, chunk=chunk, part=part, plan=True,
+    )  # fmt: skip
     options = _options(
         n_elements=n_elements,
         method=method,

@@ -1,20 +1,24 @@
-"""Sensitivities of an equilibrium and calibrated robot parameters, as
-returned by ``Solver.sensitivity``, ``Robot.sensitivity`` and
-``softspine.calibrate``. The work is done in the Rust core; these classes
-only hold its arrays."""
+"""Sensitivities of an equilibrium and calibrated robot parameters:
+``Solver.sensitivity``, ``Robot.sensitivity`` and ``softspine.calibrate``.
+The work is done in the Rust core (the extension's ``_sensitivity`` and
+``_calibrate`` return the results' fields); these classes hold its arrays."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-if TYPE_CHECKING:
-    from ._core import Robot, Solution
+from . import _core
+from ._core import Robot, Solver
 
-__all__ = ["Calibration", "Sensitivity"]
+if TYPE_CHECKING:
+    from ._core import Solution, _Load
+
+__all__ = ["Calibration", "Sensitivity", "calibrate"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,3 +78,81 @@ class Calibration:
             p: (float(e), float(s))
             for p, e, s in zip(self.parameters, self.estimates, self.standard_errors, strict=True)
         }
+
+
+def robot_sensitivity(
+    self: Robot,
+    rest_curvature: npt.ArrayLike | None = None,
+    load: _Load = None,
+    parameters: str | Sequence[str] | None = None,
+    initial: Solution | npt.ArrayLike | None = None,
+    *,
+    tensions: npt.ArrayLike | None = None,
+    field: npt.ArrayLike | None = None,
+) -> Sensitivity:
+    """The loaded equilibrium of an actuation (``.solution``) and its tip's
+    sensitivity to named parameters.
+
+    Parameters
+    ----------
+    rest_curvature, load, initial, tensions, field
+        The actuation, load and start, as ``Robot.forward``.
+    parameters
+        A name or a list of names: ``"rest_curvature"``, ``"muscle_lengths"``
+        (or one component, ``"muscle_lengths[2][0]"``), ``"tensions"`` (or
+        ``"tensions[i]"``), ``"field"`` (or ``"field[c]"``), ``"load"`` (the
+        payload mass) and any numeric field of ``Robot.to_dict()``
+        (``"stiffness.E"``, ``"linear_density"``, ``"disk_mass"``). Default:
+        the robot's drive (``Robot.actuation_space``).
+
+    Returns
+    -------
+    Sensitivity
+        One column a parameter, in its own units (m per unit of it).
+    """
+    fields = self._sensitivity(
+        rest_curvature, load, parameters, initial, tensions=tensions, field=field
+    )
+    return Sensitivity(**fields)
+
+
+def solver_sensitivity(self: Solver, parameters: str | Sequence[str]) -> Sensitivity:
+    """Sensitivity of the last solve's equilibrium (solve first) to named
+    parameters: paths in the scene's dict (``"tip_force[0]"``,
+    ``"stiffness.kx"``, ``"gravity.linear_density"``,
+    ``"rest_curvature[2][1]"``), ``"rest_curvature"`` (every section) or
+    ``"tip_wrench"`` (the tip force and moment: the 6x6 tip compliance is
+    ``.pose``). Free, pinned and clamped tips; by the implicit function
+    theorem on the factored equilibrium system."""
+    return Sensitivity(**self._sensitivity(parameters))
+
+
+def calibrate(
+    robot: Robot,
+    actuations: npt.ArrayLike,
+    measured_tips: npt.ArrayLike,
+    parameters: str | Sequence[str],
+    load: _Load = None,
+    *,
+    max_iterations: int | None = None,
+    threads: int | None = None,
+) -> Calibration:
+    """Fit numeric fields of ``robot`` (``"stiffness.E"``, ``"linear_density"``,
+    ``"disk_mass"``, ``"muscle_radius"``, ...; ``"load"`` the payload mass) to
+    tip positions (N, 3), m, measured at known actuations (N, m, 2), by
+    Gauss-Newton with the sensitivities of every sample (on every core).
+
+    Returns the estimates, their standard errors, the residuals and the
+    fitted robot.
+    """
+    fields = _core._calibrate(
+        robot, actuations, measured_tips, parameters, load,
+        max_iterations=max_iterations, threads=threads,
+    )  # fmt: skip
+    return Calibration(**fields)
+
+
+# The native classes' sensitivity methods are these: the core computes,
+# Python builds the result.
+Robot.sensitivity = robot_sensitivity  # type: ignore[method-assign]
+Solver.sensitivity = solver_sensitivity  # type: ignore[method-assign]

@@ -37,80 +37,42 @@ pub(super) fn batch_settings(
     Ok(s)
 }
 
-/// `progress`: None (a bar on a terminal once the batch has run 2 s), True
-/// (a bar from the start), False (none) or a callable `progress(done, total)`.
-pub(super) fn progress_arg<'py>(
-    py: Python<'py>,
-    progress: Option<&Bound<'py, PyAny>>,
-) -> PyResult<Option<Bound<'py, PyAny>>> {
-    let bar = || py.import("softspine.batch")?.getattr("TextProgress");
-    match progress {
-        None => Ok(Some(bar()?.call0()?)),
-        Some(p) if p.is_none() => Ok(Some(bar()?.call0()?)),
-        Some(p) if p.is_callable() => Ok(Some(p.clone())),
-        Some(p) => {
-            if bool_arg("progress", p)? {
-                let kwargs = PyDict::new(py);
-                kwargs.set_item("after", 0.0)?;
-                kwargs.set_item("always", true)?;
-                Ok(Some(bar()?.call((), Some(&kwargs))?))
-            } else {
-                Ok(None)
-            }
-        }
+/// `progress`: None or a callable `progress(done, total)`; `softspine.batch`
+/// turns the user's None, True or False into one before the call.
+fn progress_arg<'py>(progress: Option<&Bound<'py, PyAny>>) -> PyResult<Option<Bound<'py, PyAny>>> {
+    match given(progress) {
+        None => Ok(None),
+        Some(p) if p.is_callable() => Ok(Some(p)),
+        Some(p) => Err(Path::argument("progress").error(format!(
+            "expected a callable progress(done, total), got {}",
+            type_name(&p)
+        ))),
     }
 }
 
-/// A batch on a cluster: its executor and the samples of a task.
-pub(super) struct Cluster<'py> {
-    executor: Bound<'py, PyAny>,
-    part: Option<usize>,
-}
-
-/// The cluster of a batch, or None for a local batch, which has no parts
-/// (a `part` without an executor was ignored). Called once every other
-/// argument is read: a cluster's batch is refused as a local one is.
-pub(super) fn on_cluster<'py>(
-    executor: Option<&Bound<'py, PyAny>>,
+/// A batch call that runs here (`None`) or, with `plan=True`, only reads
+/// its arguments as the batch would and returns how a cluster cuts it:
+/// `(chunk, part)`, the samples of a worker's run and of a task
+/// (`softspine.distributed` calls it so before it cuts the batch).
+pub(super) fn cluster_plan<'py>(
+    py: Python<'py>,
+    plan: Option<&Bound<'py, PyAny>>,
     part: Option<&Bound<'py, PyAny>>,
     settings: &BatchSettings,
-) -> PyResult<Option<Cluster<'py>>> {
+) -> PyResult<Option<Bound<'py, PyAny>>> {
     let part = given(part).map(|p| int_arg("part", &p)).transpose()?;
-    let Some(executor) = given(executor) else {
-        if part.is_some() {
-            return Err(Path::argument("part").error(
+    let planned = given(plan).map(|p| bool_arg("plan", &p)).transpose()?;
+    if planned != Some(true) {
+        return match part {
+            Some(_) => Err(Path::argument("part").error(
                 "the samples of one task on a cluster: give it with executor= (a local batch is \
                  cut into chunk= samples a worker)",
-            ));
-        }
-        return Ok(None);
-    };
-    if let Some(p) = part {
-        settings.check_part(p)?;
+            )),
+            None => Ok(None),
+        };
     }
-    Ok(Some(Cluster { executor, part }))
-}
-
-/// A batch on a cluster: `softspine.distributed.<function>(*args, **given
-/// keywords)`, which cuts the batch into parts and runs them on the executor.
-pub(super) fn distributed<'py>(
-    py: Python<'py>,
-    function: &str,
-    cluster: Cluster<'py>,
-    args: impl pyo3::call::PyCallArgs<'py>,
-    keywords: &[(&str, Option<&Bound<'py, PyAny>>)],
-) -> PyResult<Bound<'py, PyAny>> {
-    let kwargs = PyDict::new(py);
-    for (key, value) in keywords {
-        if let Some(v) = given(*value) {
-            kwargs.set_item(key, v)?;
-        }
-    }
-    kwargs.set_item("executor", cluster.executor)?;
-    kwargs.set_item("part", cluster.part)?;
-    py.import("softspine.distributed")?
-        .getattr(function)?
-        .call(args, Some(&kwargs))
+    let part = settings.part(part)?;
+    Ok(Some((settings.chunk, part).into_pyobject(py)?.into_any()))
 }
 
 /// Run `work` with a fresh [`BatchControl`] (see `detach_batch`).
@@ -120,7 +82,7 @@ pub(super) fn run_batch<T: Send>(
     progress: Option<&Bound<'_, PyAny>>,
     work: impl FnOnce(&BatchControl) -> crate::Result<T> + Send,
 ) -> PyResult<T> {
-    let progress = progress_arg(py, progress)?;
+    let progress = progress_arg(progress)?;
     let control = BatchControl::default();
     detach_batch(py, &control, total, progress.as_ref(), || work(&control))
 }
@@ -131,13 +93,13 @@ fn names<'py>(py: Python<'py>, names: Vec<&'static str>) -> PyResult<Bound<'py, 
         .call_method1("asarray", (PyList::new(py, names)?, "U"))
 }
 
-/// The `softspine.batch.BatchResult` of forward samples; `actuations` the
+/// The fields of a `softspine.batch.BatchResult` of forward samples; `actuations` the
 /// rest curvature of a robot's samples, `sections` rows each.
 pub(super) fn batch_result<'py>(
     py: Python<'py>,
     samples: &[Sample],
     actuations: Option<(&[[f64; 2]], usize)>,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<Bound<'py, PyDict>> {
     batch_result_with(py, samples, actuations, &[])
 }
 
@@ -148,7 +110,7 @@ pub(super) fn batch_result_with<'py>(
     samples: &[Sample],
     actuations: Option<(&[[f64; 2]], usize)>,
     columns: &[(&str, &[Vec<f64>])],
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<Bound<'py, PyDict>> {
     let count = samples.len();
     let d = PyDict::new(py);
     for (name, rows) in columns {
@@ -184,19 +146,17 @@ pub(super) fn batch_result_with<'py>(
         let a = Array3::from_shape_fn((count, m, 2), |(i, s, c)| k[i * m + s][c]);
         d.set_item("actuations", a.into_pyarray(py))?;
     }
-    py.import("softspine.batch")?
-        .getattr("BatchResult")?
-        .call((), Some(&d))
+    Ok(d)
 }
 
-/// The `softspine.batch.IkBatchResult` of inverse samples of `sections`
+/// The fields of a `softspine.batch.IkBatchResult` of inverse samples of `sections`
 /// sections, searched in `space` (its tensions or fields kept).
 pub(super) fn ik_batch_result<'py>(
     py: Python<'py>,
     samples: &[IkSample],
     sections: usize,
     space: ActuationSpace,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<Bound<'py, PyDict>> {
     let count = samples.len();
     let d = PyDict::new(py);
     match space {
@@ -225,14 +185,14 @@ pub(super) fn ik_batch_result<'py>(
     d.set_item("ending", names(py, endings)?)?;
     let iterations = Array1::from_iter(samples.iter().map(|s| s.iterations as i64));
     d.set_item("iterations", iterations.into_pyarray(py))?;
-    py.import("softspine.batch")?
-        .getattr("IkBatchResult")?
-        .call((), Some(&d))
+    Ok(d)
 }
 
-/// Solve many scenes on every core. See ``softspine.solve_batch``.
-#[pyfunction]
-#[pyo3(signature = (scenes, settings=None, *, n_elements=None, method=None, scheme=None, residual_tol=None, max_iterations=None, shapes=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+/// Solve many scenes on every core: the fields of a ``BatchResult`` (or,
+/// with ``plan=True``, the cut of a cluster's batch: see [`cluster_plan`]). See
+/// ``softspine.solve_batch``, which calls it.
+#[pyfunction(name = "_solve_batch")]
+#[pyo3(signature = (scenes, settings=None, *, n_elements=None, method=None, scheme=None, residual_tol=None, max_iterations=None, shapes=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve_batch<'py>(
     py: Python<'py>,
@@ -247,8 +207,8 @@ pub(super) fn solve_batch<'py>(
     threads: Option<&Bound<'py, PyAny>>,
     chunk: Option<&Bound<'py, PyAny>>,
     progress: Option<&Bound<'py, PyAny>>,
-    executor: Option<&Bound<'py, PyAny>>,
     part: Option<&Bound<'py, PyAny>>,
+    plan: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let text = scenes.is_instance_of::<pyo3::types::PyString>()
         || scenes.is_instance_of::<pyo3::types::PyBytes>();
@@ -280,33 +240,11 @@ pub(super) fn solve_batch<'py>(
         ],
     )?;
     let batch = batch_settings(threads, chunk, None, shapes)?;
-    if let Some(cluster) = on_cluster(executor, part, &batch)? {
-        let scenes = PyList::new(
-            py,
-            scenes
-                .into_iter()
-                .map(|inner| super::scene::PyScene { inner }),
-        )?;
-        return distributed(
-            py,
-            "solve_batch",
-            cluster,
-            (scenes, settings),
-            &[
-                ("n_elements", n_elements),
-                ("method", method),
-                ("scheme", scheme),
-                ("residual_tol", residual_tol),
-                ("max_iterations", max_iterations),
-                ("shapes", shapes),
-                ("threads", threads),
-                ("chunk", chunk),
-                ("progress", progress),
-            ],
-        );
+    if let Some(cut) = cluster_plan(py, plan, part, &batch)? {
+        return Ok(cut);
     }
     let samples = run_batch(py, scenes.len(), progress, |control| {
         crate::solve_batch(&scenes, &solver_settings, &batch, control)
     })?;
-    batch_result(py, &samples, None)
+    Ok(batch_result(py, &samples, None)?.into_any())
 }

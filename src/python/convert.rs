@@ -644,14 +644,38 @@ pub(super) fn path_arg(obj: &Bound<'_, PyAny>) -> PyResult<std::path::PathBuf> {
 }
 
 /// Show each of the core's warnings about the caller's input (see
-/// `Scene::warnings`) as a `UserWarning` at the caller's line.
+/// `Scene::warnings`) as a `UserWarning` at the caller's line: the first
+/// frame outside the package (a batch's Python layer calls the core).
 pub(super) fn warn_user(py: Python<'_>, messages: &[String]) -> PyResult<()> {
+    if messages.is_empty() {
+        return Ok(());
+    }
     let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    let level = user_stack_level(py)?;
     for m in messages {
         let text = std::ffi::CString::new(m.replace('\0', " ")).expect("no interior NUL left");
-        PyErr::warn(py, &category, &text, 1)?;
+        PyErr::warn(py, &category, &text, level)?;
     }
     Ok(())
+}
+
+/// The `stacklevel` of the innermost frame whose module is not the package.
+fn user_stack_level(py: Python<'_>) -> PyResult<i32> {
+    let mut frame = py.import("sys")?.call_method1("_getframe", (0,))?;
+    let mut level = 1;
+    while !frame.is_none() {
+        let module: String = frame
+            .getattr("f_globals")?
+            .get_item("__name__")
+            .and_then(|n| n.extract())
+            .unwrap_or_default();
+        if module != "softspine" && !module.starts_with("softspine.") {
+            break;
+        }
+        level += 1;
+        frame = frame.getattr("f_back")?;
+    }
+    Ok(level)
 }
 
 /// A core error about what an argument holds (text that does not parse, a

@@ -47,12 +47,12 @@ fn matrix<'py>(py: Python<'py>, m: &nalgebra::Matrix3xX<f64>) -> Bound<'py, PyAn
         .into_any()
 }
 
-/// The `softspine.sensitivity.Sensitivity` of the core's.
+/// The fields of the `softspine.sensitivity.Sensitivity` of the core's.
 pub(super) fn sensitivity_result<'py>(
     py: Python<'py>,
     s: &Sensitivity,
     solution: Option<Solution>,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("parameters", s.parameters.clone())?;
     d.set_item("tip_position", matrix(py, &s.tip_position))?;
@@ -67,13 +67,12 @@ pub(super) fn sensitivity_result<'py>(
     )?;
     d.set_item("exact", s.exact.clone())?;
     d.set_item("solution", solution.map(|inner| PySolution { inner }))?;
-    py.import("softspine.sensitivity")?
-        .getattr("Sensitivity")?
-        .call((), Some(&d))
+    Ok(d)
 }
 
-/// Fit robot fields to measured tips. See ``softspine.calibrate``.
-#[pyfunction]
+/// Fit robot fields to measured tips: the fields of a ``Calibration``.
+/// ``softspine.calibrate`` calls it.
+#[pyfunction(name = "_calibrate")]
 #[pyo3(signature = (robot, actuations, measured_tips, parameters, load=None, *, max_iterations=None, threads=None))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn calibrate<'py>(
@@ -85,7 +84,7 @@ pub(super) fn calibrate<'py>(
     #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
     max_iterations: Option<&Bound<'py, PyAny>>,
     threads: Option<&Bound<'py, PyAny>>,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<Bound<'py, PyDict>> {
     let load = load.unwrap_or_default();
     warn_user(py, &robot.load_warnings(&load))?;
     let k = samples_arg::<2>("actuations", actuations, robot.sections)?;
@@ -127,7 +126,5 @@ pub(super) fn calibrate<'py>(
     d.set_item("converged", fit.converged)?;
     d.set_item("robot", PyRobot { inner: fit.robot })?;
     d.set_item("message", fit.message)?;
-    py.import("softspine.sensitivity")?
-        .getattr("Calibration")?
-        .call((), Some(&d))
+    Ok(d)
 }

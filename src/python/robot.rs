@@ -1,8 +1,7 @@
 //! `Robot`, its inverse kinematics (`InverseSolver`, `IkResult`) and the seed's trajectories.
 
 use super::batch::{
-    batch_result, batch_result_with, batch_settings, distributed, ik_batch_result, on_cluster,
-    run_batch,
+    batch_result, batch_result_with, batch_settings, cluster_plan, ik_batch_result, run_batch,
 };
 use super::convert::*;
 use super::detach::detach_solve;
@@ -470,9 +469,9 @@ impl PyRobot {
     }
 
     /// The loaded equilibrium of an actuation and its tip's sensitivity to
-    /// the named parameters (see the Python documentation of
-    /// ``Robot.sensitivity``).
-    #[pyo3(signature = (rest_curvature=None, load=None, parameters=None, initial=None, *, tensions=None, field=None))]
+    /// the named parameters: the fields of a ``Sensitivity``.
+    /// ``Robot.sensitivity`` (``softspine.sensitivity``) calls it.
+    #[pyo3(name = "_sensitivity", signature = (rest_curvature=None, load=None, parameters=None, initial=None, *, tensions=None, field=None))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity<'py>(
         &self,
@@ -483,7 +482,7 @@ impl PyRobot {
         initial: Option<&Bound<'py, PyAny>>,
         tensions: Option<&Bound<'py, PyAny>>,
         field: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, PyAny>> {
+    ) -> PyResult<Bound<'py, PyDict>> {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
         let k = actuation_arg(rest_curvature, tensions, field)?;
@@ -507,9 +506,10 @@ impl PyRobot {
     }
 
     /// Forward statics of many actuations (samples, m, 2), tendon tensions
-    /// (samples, tendons) or fields (samples, 3) under one load, on
-    /// every core. See the Python documentation of ``Robot.forward_batch``.
-    #[pyo3(signature = (actuations=None, load=None, *, tensions=None, field=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    /// (samples, tendons) or fields (samples, 3) under one load, on every
+    /// core: the fields of a ``BatchResult``. ``Robot.forward_batch``
+    /// (``softspine.batch``) calls it.
+    #[pyo3(name = "_forward_batch", signature = (actuations=None, load=None, *, tensions=None, field=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
     #[allow(clippy::too_many_arguments)]
     fn forward_batch<'py>(
         slf: &Bound<'py, Self>,
@@ -523,8 +523,8 @@ impl PyRobot {
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
-        executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
+        plan: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let load = load.unwrap_or_default();
         warn_user(py, &slf.get().inner.load_warnings(&load))?;
@@ -550,29 +550,15 @@ impl PyRobot {
         let b = field_given
             .map(|b| sample_rows("field", &b, 3))
             .transpose()?;
-        if let Some(cluster) = on_cluster(executor, part, &settings)? {
-            return distributed(
-                py,
-                "forward_batch",
-                cluster,
-                (slf, actuations, from_value(py, &load.to_value())?),
-                &[
-                    ("tensions", tensions),
-                    ("field", field),
-                    ("shapes", shapes),
-                    ("warm_start", warm_start),
-                    ("threads", threads),
-                    ("chunk", chunk),
-                    ("progress", progress),
-                ],
-            );
+        if let Some(cut) = cluster_plan(py, plan, part, &settings)? {
+            return Ok(cut);
         }
         if muscles_only {
             let k = k.expect("checked above");
             let samples = run_batch(py, k.len() / m, progress, |control| {
                 robot.forward_batch(&k, &load, &settings, control)
             })?;
-            return batch_result(py, &samples, Some((&k, m)));
+            return Ok(batch_result(py, &samples, Some((&k, m)))?.into_any());
         }
         let counts = [
             ("actuations", k.as_ref().map(|k| k.len() / m)),
@@ -611,17 +597,19 @@ impl PyRobot {
         if let Some(b) = &b {
             columns.push(("field", b));
         }
-        batch_result_with(
+        Ok(batch_result_with(
             py,
             &samples,
             k.as_ref().map(|k| (k.as_slice(), m)),
             &columns,
-        )
+        )?
+        .into_any())
     }
 
-    /// The equilibria of ``samples`` random actuations (muscle lengths
-    /// uniform over their range, seeded) under one load, on every core.
-    #[pyo3(signature = (samples, load=None, *, seed=0, first=0, shapes=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    /// The equilibria of ``samples`` random drives (seeded) under one load,
+    /// on every core: the fields of a ``BatchResult``. ``Robot.workspace``
+    /// (``softspine.batch``) calls it.
+    #[pyo3(name = "_workspace", signature = (samples, load=None, *, seed=0, first=0, shapes=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
     #[allow(clippy::too_many_arguments)]
     fn workspace<'py>(
         slf: &Bound<'py, Self>,
@@ -634,31 +622,16 @@ impl PyRobot {
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
-        executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
+        plan: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let load = load.unwrap_or_default();
         warn_user(py, &slf.get().inner.load_warnings(&load))?;
         let settings = batch_settings(threads, chunk, None, shapes)?;
         let robot = &slf.get().inner;
-        // Before a cluster's parts are cut too.
         robot.check_workspace(samples, first, &settings)?;
-        if let Some(cluster) = on_cluster(executor, part, &settings)? {
-            let (seed, first) = (seed.into_pyobject(py)?, first.into_pyobject(py)?);
-            return distributed(
-                py,
-                "workspace",
-                cluster,
-                (slf, samples, from_value(py, &load.to_value())?),
-                &[
-                    ("seed", Some(seed.as_any())),
-                    ("first", Some(first.as_any())),
-                    ("shapes", shapes),
-                    ("threads", threads),
-                    ("chunk", chunk),
-                    ("progress", progress),
-                ],
-            );
+        if let Some(cut) = cluster_plan(py, plan, part, &settings)? {
+            return Ok(cut);
         }
         let space = robot.actuation_space();
         if space != crate::robot::ActuationSpace::Curvature {
@@ -672,17 +645,18 @@ impl PyRobot {
                     _ => a.field.iter().copied().collect(),
                 })
                 .collect();
-            return batch_result_with(py, &out, None, &[(space.name(), &rows)]);
+            return Ok(batch_result_with(py, &out, None, &[(space.name(), &rows)])?.into_any());
         }
         let (k, out) = run_batch(py, samples, progress, |control| {
             robot.workspace(samples, first, &load, seed, &settings, control)
         })?;
-        batch_result(py, &out, Some((&k, robot.sections)))
+        Ok(batch_result(py, &out, Some((&k, robot.sections)))?.into_any())
     }
 
     /// Load-aware inverse kinematics of many targets (samples, 3), each on
-    /// its own, on every core. See ``Robot.inverse_batch``.
-    #[pyo3(signature = (targets, load=None, reference=None, direction=None, settings=None, *, pretension=None, threads=None, chunk=None, progress=None, executor=None, part=None))]
+    /// its own, on every core: the fields of an ``IkBatchResult``.
+    /// ``Robot.inverse_batch`` (``softspine.batch``) calls it.
+    #[pyo3(name = "_inverse_batch", signature = (targets, load=None, reference=None, direction=None, settings=None, *, pretension=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse_batch<'py>(
         slf: &Bound<'py, Self>,
@@ -696,13 +670,12 @@ impl PyRobot {
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
-        executor: Option<&Bound<'py, PyAny>>,
         part: Option<&Bound<'py, PyAny>>,
+        plan: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let load = load.unwrap_or_default();
         warn_user(py, &slf.get().inner.load_warnings(&load))?;
         let this = slf.get();
-        let given_targets = targets;
         let targets: Vec<Vector3<f64>> = rows_of::<3>("targets", targets)?
             .into_iter()
             .map(Vector3::from)
@@ -722,28 +695,14 @@ impl PyRobot {
             initial: None,
         };
         let batch = batch_settings(threads, chunk, None, None)?;
-        if let Some(cluster) = on_cluster(executor, part, &batch)? {
-            return distributed(
-                py,
-                "inverse_batch",
-                cluster,
-                (slf, given_targets, from_value(py, &load.to_value())?),
-                &[
-                    ("reference", reference),
-                    ("direction", direction),
-                    ("settings", settings),
-                    ("pretension", pretension),
-                    ("threads", threads),
-                    ("chunk", chunk),
-                    ("progress", progress),
-                ],
-            );
+        if let Some(cut) = cluster_plan(py, plan, part, &batch)? {
+            return Ok(cut);
         }
         let robot = &this.inner;
         let samples = run_batch(py, targets.len(), progress, |control| {
             robot.inverse_batch(&targets, &options, &batch, control)
         })?;
-        ik_batch_result(py, &samples, robot.sections, robot.actuation_space())
+        Ok(ik_batch_result(py, &samples, robot.sections, robot.actuation_space())?.into_any())
     }
 
     /// A reusable inverse solver for one load (warm starts between calls).

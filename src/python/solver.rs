@@ -227,12 +227,14 @@ impl PySolver {
     /// ``"stiffness.kx"``, ``"gravity.linear_density"``,
     /// ``"rest_curvature[2][1]"``), ``"rest_curvature"`` (every section) or
     /// ``"tip_wrench"`` (tip force and moment: the 6x6 tip compliance).
-    /// A ``softspine.sensitivity.Sensitivity``.
+    /// The fields of a ``softspine.sensitivity.Sensitivity``;
+    /// ``Solver.sensitivity`` (``softspine.sensitivity``) calls it.
+    #[pyo3(name = "_sensitivity")]
     fn sensitivity<'py>(
         &self,
         py: Python<'py>,
         parameters: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyAny>> {
+    ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
         let names = super::fitting::parameter_names(parameters)?;
         let inner = Arc::clone(&self.inner);
         let s = detach_solve(py, self.long_passes, move || {

@@ -34,6 +34,40 @@ pub(super) fn entries(v: &Value) -> &[(String, Value)] {
     }
 }
 
+/// The `#[pymethods]` of a settings class: for each plain field (`getter,
+/// setter: type = path in the core's struct`), its documented getter and a
+/// setter through the core's keyed `set` (by the class's `assign`, which names
+/// the key in a refusal); then the class's other methods as written.
+macro_rules! settings_methods {
+    (
+        impl $Py:ident {
+            fields {
+                $(
+                    $(#[doc = $doc:literal])*
+                    $get:ident, $set:ident: $ty:ty = $($path:ident).+;
+                )*
+            }
+            $($methods:tt)*
+        }
+    ) => {
+        #[pymethods]
+        impl $Py {
+            $(
+                $(#[doc = $doc])*
+                #[getter]
+                fn $get(&self) -> $ty {
+                    self.inner.$($path).+
+                }
+                #[setter]
+                fn $set(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+                    self.assign(stringify!($get), value)
+                }
+            )*
+            $($methods)*
+        }
+    };
+}
+
 /// Settings of the paper's method (``method="paper"``): the particle swarm, then
 /// Gauss-Newton and Levenberg-Marquardt.
 ///
@@ -50,137 +84,71 @@ pub struct PyPaperSettings {
     pub(super) inner: PaperSettings,
 }
 
-#[pymethods]
-impl PyPaperSettings {
-    #[new]
-    #[pyo3(signature = (**fields), text_signature = "(**fields)")]
-    fn new(fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let mut inner = PaperSettings::default();
-        for (k, v) in entries(&fields_value(fields)?) {
-            inner.set(k, v)?;
+settings_methods! {
+    impl PyPaperSettings {
+        fields {
+            /// Number of particles of the swarm (default 40).
+            particles, set_particles: usize = swarm.particles;
+            /// Iterations of the plain swarm, phase 1 of the seed's Algorithm 1 (default 60).
+            iterations, set_iterations: usize = swarm.iterations;
+            /// Constriction factor chi (default 0.729, Clerc and Kennedy).
+            chi, set_chi: f64 = swarm.chi;
+            /// Inertia weight on the previous velocity (default 1.0: pure constriction).
+            inertia, set_inertia: f64 = swarm.inertia;
+            /// Pull toward the particle's own best (default 2.05).
+            c1, set_c1: f64 = swarm.c1;
+            /// Pull toward the swarm's best (default 2.05).
+            c2, set_c2: f64 = swarm.c2;
+            /// Seed of the random streams (default 0): the same seed, the same answer
+            /// on any number of threads.
+            seed, set_seed: u64 = swarm.seed;
+            /// Phase 2: swarm iterations each followed by a Gauss-Newton step on the
+            /// global best (default 20).
+            gauss_newton_iterations, set_gauss_newton_iterations: usize = gauss_newton_iterations;
+            /// Levenberg-Marquardt iteration limit (default 200).
+            lm_iterations, set_lm_iterations: usize = lm_iterations;
+            /// Tolerance on the largest scaled residual row (default 1e-10, in [1e-14, 1e-4]).
+            tol, set_tol: f64 = tol;
         }
-        inner.validate()?;
-        Ok(PyPaperSettings { inner })
-    }
 
-    /// Refuse a field out of its range, naming it (``ValueError``).
-    fn validate(&self) -> PyResult<()> {
-        Ok(self.inner.validate()?)
-    }
+        #[new]
+        #[pyo3(signature = (**fields), text_signature = "(**fields)")]
+        fn new(fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+            let mut inner = PaperSettings::default();
+            for (k, v) in entries(&fields_value(fields)?) {
+                inner.set(k, v)?;
+            }
+            inner.validate()?;
+            Ok(PyPaperSettings { inner })
+        }
 
-    /// Every field as a dict (``PaperSettings(**d)`` reads it back).
-    fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        fields_dict(slf.as_any(), &PaperSettings::KEYS)
-    }
+        /// Refuse a field out of its range, naming it (``ValueError``).
+        fn validate(&self) -> PyResult<()> {
+            Ok(self.inner.validate()?)
+        }
 
-    /// Number of particles of the swarm (default 40).
-    #[getter]
-    fn particles(&self) -> usize {
-        self.inner.swarm.particles
-    }
-    #[setter]
-    fn set_particles(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("particles", value)
-    }
-    /// Iterations of the plain swarm, phase 1 of the seed's Algorithm 1 (default 60).
-    #[getter]
-    fn iterations(&self) -> usize {
-        self.inner.swarm.iterations
-    }
-    #[setter]
-    fn set_iterations(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("iterations", value)
-    }
-    /// Constriction factor chi (default 0.729, Clerc and Kennedy).
-    #[getter]
-    fn chi(&self) -> f64 {
-        self.inner.swarm.chi
-    }
-    #[setter]
-    fn set_chi(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("chi", value)
-    }
-    /// Inertia weight on the previous velocity (default 1.0: pure constriction).
-    #[getter]
-    fn inertia(&self) -> f64 {
-        self.inner.swarm.inertia
-    }
-    #[setter]
-    fn set_inertia(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("inertia", value)
-    }
-    /// Pull toward the particle's own best (default 2.05).
-    #[getter]
-    fn c1(&self) -> f64 {
-        self.inner.swarm.c1
-    }
-    #[setter]
-    fn set_c1(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("c1", value)
-    }
-    /// Pull toward the swarm's best (default 2.05).
-    #[getter]
-    fn c2(&self) -> f64 {
-        self.inner.swarm.c2
-    }
-    #[setter]
-    fn set_c2(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("c2", value)
-    }
-    /// Seed of the random streams (default 0): the same seed, the same answer
-    /// on any number of threads.
-    #[getter]
-    fn seed(&self) -> u64 {
-        self.inner.swarm.seed
-    }
-    #[setter]
-    fn set_seed(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("seed", value)
-    }
-    /// Phase 2: swarm iterations each followed by a Gauss-Newton step on the
-    /// global best (default 20).
-    #[getter]
-    fn gauss_newton_iterations(&self) -> usize {
-        self.inner.gauss_newton_iterations
-    }
-    #[setter]
-    fn set_gauss_newton_iterations(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("gauss_newton_iterations", value)
-    }
-    /// Levenberg-Marquardt iteration limit (default 200).
-    #[getter]
-    fn lm_iterations(&self) -> usize {
-        self.inner.lm_iterations
-    }
-    #[setter]
-    fn set_lm_iterations(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("lm_iterations", value)
-    }
-    /// Tolerance on the largest scaled residual row (default 1e-10, in [1e-14, 1e-4]).
-    #[getter]
-    fn tol(&self) -> f64 {
-        self.inner.tol
-    }
-    #[setter]
-    fn set_tol(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("tol", value)
-    }
+        /// Every field as a dict (``PaperSettings(**d)`` reads it back).
+        fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+            fields_dict(slf.as_any(), &PaperSettings::KEYS)
+        }
 
-    /// Pickling goes through ``to_dict``.
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (), Bound<'py, PyAny>)> {
-        let state = Self::to_dict(slf)?.into_any();
-        Ok((slf.get_type().into_any(), (), state))
-    }
 
-    fn __setstate__(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
-        *self = PyPaperSettings::new(Some(state))?;
-        Ok(())
-    }
+        /// Pickling goes through ``to_dict``.
+        fn __reduce__<'py>(
+            slf: &Bound<'py, Self>,
+        ) -> PyResult<(Bound<'py, PyAny>, (), Bound<'py, PyAny>)> {
+            let state = Self::to_dict(slf)?.into_any();
+            Ok((slf.get_type().into_any(), (), state))
+        }
 
-    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
-        settings_repr(slf.as_any(), "PaperSettings", &PaperSettings::KEYS)
+        fn __setstate__(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
+            *self = PyPaperSettings::new(Some(state))?;
+            Ok(())
+        }
+
+        fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+            settings_repr(slf.as_any(), "PaperSettings", &PaperSettings::KEYS)
+        }
     }
 }
 
@@ -227,139 +195,111 @@ pub struct PySettings {
     paper: Py<PyPaperSettings>,
 }
 
-#[pymethods]
-impl PySettings {
-    #[new]
-    #[pyo3(signature = (**fields), text_signature = "(**fields)")]
-    fn new(py: Python<'_>, fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let mut inner = Settings::default();
-        for (k, v) in entries(&fields_value(fields)?) {
-            inner.set(k, v)?;
+settings_methods! {
+    impl PySettings {
+        fields {
+            /// Number of elements ``n``, a multiple of the number of sections; None
+            /// (the default) for the smallest multiple of the sections that is at least 20.
+            n_elements, set_n_elements: Option<usize> = n_elements;
+            /// Tolerance on the relative residual, the largest torque imbalance of a
+            /// row over its stiffness scale k_c/L (default 1e-10, in [1e-14, 1e-4];
+            /// never below the residual's round-off floor).
+            residual_tol, set_residual_tol: f64 = residual_tol;
+            /// Iteration budget of the whole solve (default 500): ``Solution.iterations``
+            /// never exceeds it.
+            max_iterations, set_max_iterations: usize = max_iterations;
+            /// Smallest load-continuation step, a fraction of the load (default 1e-6, in (0, 1)).
+            min_continuation_step, set_min_continuation_step: f64 = min_continuation_step;
         }
-        inner.validate()?;
-        let paper = Py::new(
-            py,
-            PyPaperSettings {
-                inner: inner.paper.clone(),
-            },
-        )?;
-        Ok(PySettings { inner, paper })
-    }
 
-    /// Refuse a field out of its range, or an ``n_elements`` beyond what
-    /// ``method`` allows, naming the field (``ValueError``).
-    fn validate(&self, py: Python<'_>) -> PyResult<()> {
-        Ok(self.to_core(py).validate()?)
-    }
-
-    /// Every field as a dict (``Settings(**d)`` reads it back; ``paper`` as a dict).
-    fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        fields_dict(slf.as_any(), &Settings::KEYS)
-    }
-
-    /// Number of elements ``n``, a multiple of the number of sections; None
-    /// (the default) for the smallest multiple of the sections that is at least 20.
-    #[getter]
-    fn n_elements(&self) -> Option<usize> {
-        self.inner.n_elements
-    }
-    #[setter]
-    fn set_n_elements(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign(py, "n_elements", value)
-    }
-    /// ``"newton"`` (default), ``"lm"``, ``"paper"``, ``"paper-literal"`` or
-    /// ``"shooting"`` (RK4 on the rod equations, Newton on the base wrench).
-    #[getter]
-    fn method(&self) -> &'static str {
-        self.inner.method.name()
-    }
-    #[setter]
-    fn set_method(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign(py, "method", value)
-    }
-    /// The discretisation of the backbone: ``"fd2"`` (the seed's finite
-    /// differences, second order), ``"fe4"`` (quadratic elements with two-point
-    /// Gauss quadrature, fourth order at the nodes) or None (default: ``"fe4"``
-    /// for accuracy on demand below 1e-5 L, 1e-6 L with held points, where it
-    /// is the faster, ``"fd2"`` otherwise).
-    #[getter]
-    fn scheme(&self) -> Option<&'static str> {
-        self.inner.scheme.map(|s| s.name())
-    }
-    #[setter]
-    fn set_scheme(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign(py, "scheme", value)
-    }
-    /// Tolerance on the relative residual, the largest torque imbalance of a
-    /// row over its stiffness scale k_c/L (default 1e-10, in [1e-14, 1e-4];
-    /// never below the residual's round-off floor).
-    #[getter]
-    fn residual_tol(&self) -> f64 {
-        self.inner.residual_tol
-    }
-    #[setter]
-    fn set_residual_tol(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign(py, "residual_tol", value)
-    }
-    /// Iteration budget of the whole solve (default 500): ``Solution.iterations``
-    /// never exceeds it.
-    #[getter]
-    fn max_iterations(&self) -> usize {
-        self.inner.max_iterations
-    }
-    #[setter]
-    fn set_max_iterations(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign(py, "max_iterations", value)
-    }
-    /// Smallest load-continuation step, a fraction of the load (default 1e-6, in (0, 1)).
-    #[getter]
-    fn min_continuation_step(&self) -> f64 {
-        self.inner.min_continuation_step
-    }
-    #[setter]
-    fn set_min_continuation_step(
-        &mut self,
-        py: Python<'_>,
-        value: &Bound<'_, PyAny>,
-    ) -> PyResult<()> {
-        self.assign(py, "min_continuation_step", value)
-    }
-    /// Settings of the paper's method, a ``PaperSettings`` (set it to one or to a
-    /// dict of its fields, which applies them to the current ones).
-    #[getter]
-    fn paper(&self, py: Python<'_>) -> Py<PyPaperSettings> {
-        self.paper.clone_ref(py)
-    }
-    #[setter]
-    fn set_paper(&mut self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        if let Ok(p) = value.cast::<PyPaperSettings>() {
-            self.paper = p.clone().unbind();
-            return Ok(());
+        #[new]
+        #[pyo3(signature = (**fields), text_signature = "(**fields)")]
+        fn new(py: Python<'_>, fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+            let mut inner = Settings::default();
+            for (k, v) in entries(&fields_value(fields)?) {
+                inner.set(k, v)?;
+            }
+            inner.validate()?;
+            let paper = Py::new(
+                py,
+                PyPaperSettings {
+                    inner: inner.paper.clone(),
+                },
+            )?;
+            Ok(PySettings { inner, paper })
         }
-        self.assign(py, "paper", value)
-    }
 
-    /// Pickling goes through ``to_dict``.
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (), Bound<'py, PyAny>)> {
-        let state = Self::to_dict(slf)?.into_any();
-        Ok((slf.get_type().into_any(), (), state))
-    }
+        /// Refuse a field out of its range, or an ``n_elements`` beyond what
+        /// ``method`` allows, naming the field (``ValueError``).
+        fn validate(&self, py: Python<'_>) -> PyResult<()> {
+            Ok(self.to_core(py).validate()?)
+        }
 
-    fn __setstate__(&mut self, py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<()> {
-        *self = PySettings::new(py, Some(state))?;
-        Ok(())
-    }
+        /// Every field as a dict (``Settings(**d)`` reads it back; ``paper`` as a dict).
+        fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+            fields_dict(slf.as_any(), &Settings::KEYS)
+        }
 
-    fn __eq__(&self, py: Python<'_>, other: &Bound<'_, PyAny>) -> bool {
-        other
-            .cast::<PySettings>()
-            .is_ok_and(|o| o.borrow().to_core(py) == self.to_core(py))
-    }
+        /// ``"newton"`` (default), ``"lm"``, ``"paper"``, ``"paper-literal"`` or
+        /// ``"shooting"`` (RK4 on the rod equations, Newton on the base wrench).
+        #[getter]
+        fn method(&self) -> &'static str {
+            self.inner.method.name()
+        }
+        #[setter]
+        fn set_method(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+            self.assign("method", value)
+        }
+        /// The discretisation of the backbone: ``"fd2"`` (the seed's finite
+        /// differences, second order), ``"fe4"`` (quadratic elements with two-point
+        /// Gauss quadrature, fourth order at the nodes) or None (default: ``"fe4"``
+        /// for accuracy on demand below 1e-5 L, 1e-6 L with held points, where it
+        /// is the faster, ``"fd2"`` otherwise).
+        #[getter]
+        fn scheme(&self) -> Option<&'static str> {
+            self.inner.scheme.map(|s| s.name())
+        }
+        #[setter]
+        fn set_scheme(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+            self.assign("scheme", value)
+        }
+        /// Settings of the paper's method, a ``PaperSettings`` (set it to one or to a
+        /// dict of its fields, which applies them to the current ones).
+        #[getter]
+        fn paper(&self, py: Python<'_>) -> Py<PyPaperSettings> {
+            self.paper.clone_ref(py)
+        }
+        #[setter]
+        fn set_paper(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+            if let Ok(p) = value.cast::<PyPaperSettings>() {
+                self.paper = p.clone().unbind();
+                return Ok(());
+            }
+            self.assign("paper", value)
+        }
 
-    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
-        settings_repr(slf.as_any(), "Settings", &Settings::KEYS)
+        /// Pickling goes through ``to_dict``.
+        fn __reduce__<'py>(
+            slf: &Bound<'py, Self>,
+        ) -> PyResult<(Bound<'py, PyAny>, (), Bound<'py, PyAny>)> {
+            let state = Self::to_dict(slf)?.into_any();
+            Ok((slf.get_type().into_any(), (), state))
+        }
+
+        fn __setstate__(&mut self, py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<()> {
+            *self = PySettings::new(py, Some(state))?;
+            Ok(())
+        }
+
+        fn __eq__(&self, py: Python<'_>, other: &Bound<'_, PyAny>) -> bool {
+            other
+                .cast::<PySettings>()
+                .is_ok_and(|o| o.borrow().to_core(py) == self.to_core(py))
+        }
+
+        fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+            settings_repr(slf.as_any(), "Settings", &Settings::KEYS)
+        }
     }
 }
 
@@ -374,7 +314,8 @@ impl PySettings {
 
     /// Set one field through the core (a `paper` table applies to the
     /// current paper settings, as the core's `set` does).
-    fn assign(&mut self, py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn assign(&mut self, key: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let py = value.py();
         let mut core = self.to_core(py);
         core.set(key, &field_value(key, value)?)?;
         if key == "paper" {
@@ -394,76 +335,66 @@ pub struct PyAccuracy {
     pub(super) inner: Accuracy,
 }
 
-#[pymethods]
-impl PyAccuracy {
-    #[new]
-    #[pyo3(
-        signature = (tol, **fields),
-        text_signature = "(tol, refine=None, max_elements=10240)"
-    )]
-    fn new(tol: &Bound<'_, PyAny>, fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let mut all = vec![("tol".to_string(), field_value("tol", tol)?)];
-        all.extend(entries(&fields_value(fields)?).iter().cloned());
-        Ok(PyAccuracy {
-            inner: Accuracy::from_value(&Value::Map(all))?,
-        })
-    }
+settings_methods! {
+    impl PyAccuracy {
+        fields {
+            /// Tolerance on the backbone's estimated error, relative to the length L
+            /// (in [1e-12, 0.1]).
+            tol, set_tol: f64 = tol;
+            /// Largest number of elements tried (default 10 240).
+            max_elements, set_max_elements: usize = max_elements;
+        }
 
-    /// Refuse a field out of its range, naming it (``ValueError``).
-    fn validate(&self) -> PyResult<()> {
-        Ok(self.inner.validate()?)
-    }
+        #[new]
+        #[pyo3(
+            signature = (tol, **fields),
+            text_signature = "(tol, refine=None, max_elements=10240)"
+        )]
+        fn new(tol: &Bound<'_, PyAny>, fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+            let mut all = vec![("tol".to_string(), field_value("tol", tol)?)];
+            all.extend(entries(&fields_value(fields)?).iter().cloned());
+            Ok(PyAccuracy {
+                inner: Accuracy::from_value(&Value::Map(all))?,
+            })
+        }
 
-    /// Every field as a dict (``Accuracy(**d)`` reads it back).
-    fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        fields_dict(slf.as_any(), &Accuracy::KEYS)
-    }
+        /// Refuse a field out of its range, naming it (``ValueError``).
+        fn validate(&self) -> PyResult<()> {
+            Ok(self.inner.validate()?)
+        }
 
-    /// Tolerance on the backbone's estimated error, relative to the length L
-    /// (in [1e-12, 0.1]).
-    #[getter]
-    fn tol(&self) -> f64 {
-        self.inner.tol
-    }
-    #[setter]
-    fn set_tol(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("tol", value)
-    }
-    /// ``"richardson"``: return the Richardson-extrapolated tip ``(4 r_2n - r_n) / 3``;
-    /// None (the default): the last node of the finest solve.
-    #[getter]
-    fn refine(&self) -> Option<&'static str> {
-        self.inner.richardson.then_some("richardson")
-    }
-    #[setter]
-    fn set_refine(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("refine", value)
-    }
-    /// Largest number of elements tried (default 10 240).
-    #[getter]
-    fn max_elements(&self) -> usize {
-        self.inner.max_elements
-    }
-    #[setter]
-    fn set_max_elements(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("max_elements", value)
-    }
+        /// Every field as a dict (``Accuracy(**d)`` reads it back).
+        fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+            fields_dict(slf.as_any(), &Accuracy::KEYS)
+        }
 
-    /// Pickling goes through ``to_dict``.
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (f64,), Bound<'py, PyAny>)> {
-        let state = Self::to_dict(slf)?.into_any();
-        Ok((slf.get_type().into_any(), (slf.borrow().inner.tol,), state))
-    }
+        /// ``"richardson"``: return the Richardson-extrapolated tip ``(4 r_2n - r_n) / 3``;
+        /// None (the default): the last node of the finest solve.
+        #[getter]
+        fn refine(&self) -> Option<&'static str> {
+            self.inner.richardson.then_some("richardson")
+        }
+        #[setter]
+        fn set_refine(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+            self.assign("refine", value)
+        }
 
-    fn __setstate__(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
-        self.inner = Accuracy::from_value(&fields_value(Some(state))?)?;
-        Ok(())
-    }
+        /// Pickling goes through ``to_dict``.
+        fn __reduce__<'py>(
+            slf: &Bound<'py, Self>,
+        ) -> PyResult<(Bound<'py, PyAny>, (f64,), Bound<'py, PyAny>)> {
+            let state = Self::to_dict(slf)?.into_any();
+            Ok((slf.get_type().into_any(), (slf.borrow().inner.tol,), state))
+        }
 
-    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
-        settings_repr(slf.as_any(), "Accuracy", &Accuracy::KEYS)
+        fn __setstate__(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
+            self.inner = Accuracy::from_value(&fields_value(Some(state))?)?;
+            Ok(())
+        }
+
+        fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+            settings_repr(slf.as_any(), "Accuracy", &Accuracy::KEYS)
+        }
     }
 }
 
@@ -486,73 +417,63 @@ pub struct PyIkSettings {
     pub(super) inner: IkSettings,
 }
 
-#[pymethods]
-impl PyIkSettings {
-    #[new]
-    #[pyo3(signature = (**fields), text_signature = "(**fields)")]
-    fn new(fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        Ok(PyIkSettings {
-            inner: IkSettings::from_value(&fields_value(fields)?)?,
-        })
-    }
+settings_methods! {
+    impl PyIkSettings {
+        fields {
+            /// Tip position tolerance, m (default 1e-9, in [1e-12 L, 1e-2 L]); a
+            /// direction's tolerance is tol / L.
+            tol, set_tol: f64 = tol;
+            /// Iteration limit of one descent (default 60); a missed target tries at
+            /// most 8 descents in all.
+            max_iterations, set_max_iterations: usize = max_iterations;
+        }
 
-    /// Refuse a field out of its range, naming it (``ValueError``).
-    fn validate(&self) -> PyResult<()> {
-        Ok(self.inner.validate()?)
-    }
+        #[new]
+        #[pyo3(signature = (**fields), text_signature = "(**fields)")]
+        fn new(fields: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+            Ok(PyIkSettings {
+                inner: IkSettings::from_value(&fields_value(fields)?)?,
+            })
+        }
 
-    /// Every field as a dict (``IkSettings(**d)`` reads it back).
-    fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        fields_dict(slf.as_any(), &IkSettings::KEYS)
-    }
+        /// Refuse a field out of its range, naming it (``ValueError``).
+        fn validate(&self) -> PyResult<()> {
+            Ok(self.inner.validate()?)
+        }
 
-    /// ``"equilibrium"`` (default): the loaded robot reaches the target;
-    /// ``"geometric"``: the seed's fit that ignores weight and load, applied
-    /// to the loaded robot.
-    #[getter]
-    fn strategy(&self) -> &'static str {
-        self.inner.strategy.name()
-    }
-    #[setter]
-    fn set_strategy(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("strategy", value)
-    }
-    /// Tip position tolerance, m (default 1e-9, in [1e-12 L, 1e-2 L]); a
-    /// direction's tolerance is tol / L.
-    #[getter]
-    fn tol(&self) -> f64 {
-        self.inner.tol
-    }
-    #[setter]
-    fn set_tol(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("tol", value)
-    }
-    /// Iteration limit of one descent (default 60); a missed target tries at
-    /// most 8 descents in all.
-    #[getter]
-    fn max_iterations(&self) -> usize {
-        self.inner.max_iterations
-    }
-    #[setter]
-    fn set_max_iterations(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.assign("max_iterations", value)
-    }
+        /// Every field as a dict (``IkSettings(**d)`` reads it back).
+        fn to_dict<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+            fields_dict(slf.as_any(), &IkSettings::KEYS)
+        }
 
-    /// Pickling goes through ``to_dict``.
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (), Bound<'py, PyAny>)> {
-        let state = Self::to_dict(slf)?.into_any();
-        Ok((slf.get_type().into_any(), (), state))
-    }
+        /// ``"equilibrium"`` (default): the loaded robot reaches the target;
+        /// ``"geometric"``: the seed's fit that ignores weight and load, applied
+        /// to the loaded robot.
+        #[getter]
+        fn strategy(&self) -> &'static str {
+            self.inner.strategy.name()
+        }
+        #[setter]
+        fn set_strategy(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+            self.assign("strategy", value)
+        }
 
-    fn __setstate__(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
-        *self = PyIkSettings::new(Some(state))?;
-        Ok(())
-    }
+        /// Pickling goes through ``to_dict``.
+        fn __reduce__<'py>(
+            slf: &Bound<'py, Self>,
+        ) -> PyResult<(Bound<'py, PyAny>, (), Bound<'py, PyAny>)> {
+            let state = Self::to_dict(slf)?.into_any();
+            Ok((slf.get_type().into_any(), (), state))
+        }
 
-    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
-        settings_repr(slf.as_any(), "IkSettings", &IkSettings::KEYS)
+        fn __setstate__(&mut self, state: &Bound<'_, PyDict>) -> PyResult<()> {
+            *self = PyIkSettings::new(Some(state))?;
+            Ok(())
+        }
+
+        fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+            settings_repr(slf.as_any(), "IkSettings", &IkSettings::KEYS)
+        }
     }
 }
 

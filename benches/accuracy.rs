@@ -31,7 +31,12 @@ fn robot() -> Scene {
             [1.5 * phi.cos(), 1.5 * phi.sin()]
         })
         .collect();
-    robot.scene(&kappa, &softspine::Load::from(0.03)).unwrap()
+    robot
+        .scene(
+            &softspine::Actuation::muscles(kappa),
+            &softspine::Load::from(0.03),
+        )
+        .unwrap()
 }
 
 fn settings(n: usize, method: Method, scheme: Scheme) -> Settings {

@@ -12,7 +12,7 @@ const SAMPLES: usize = 10_000;
 
 fn batch(c: &mut Criterion) {
     let robot = Robot::default();
-    let actuations = robot.random_actuations(SAMPLES, 1).unwrap();
+    let actuations = robot.random_drives(SAMPLES, 1).unwrap();
     let mut group = c.benchmark_group("forward_batch_10000");
     group.sample_size(10);
     for (label, threads, warm_start) in [
@@ -52,13 +52,17 @@ fn batch(c: &mut Criterion) {
         });
     }
     // Along a path (a slow sweep of the actuation): where warm starts pay.
-    let path: Vec<[f64; 2]> = (0..SAMPLES)
-        .flat_map(|i| {
+    let path: Vec<softspine::Actuation> = (0..SAMPLES)
+        .map(|i| {
             let t = i as f64 / SAMPLES as f64;
-            (0..robot.sections).map(move |k| {
-                let phi = 40.0 * t + 0.5 * k as f64;
-                [3.0 * phi.cos(), 3.0 * phi.sin()]
-            })
+            softspine::Actuation::muscles(
+                (0..robot.sections)
+                    .map(|k| {
+                        let phi = 40.0 * t + 0.5 * k as f64;
+                        [3.0 * phi.cos(), 3.0 * phi.sin()]
+                    })
+                    .collect(),
+            )
         })
         .collect();
     for (label, warm_start) in [

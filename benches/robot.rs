@@ -65,7 +65,7 @@ fn actuated(c: &mut Criterion) {
     let mut group = c.benchmark_group("actuated");
     let forward = |robot: &Robot, actuation: Actuation, mass: f64| {
         let scene = robot
-            .actuated_scene(&actuation, &softspine::Load::from(mass))
+            .scene(&actuation, &softspine::Load::from(mass))
             .unwrap();
         let settings = Settings {
             n_elements: Some(robot.n_elements),

@@ -61,8 +61,8 @@ pub struct ReadmeDoctests;
 pub use model::{RodModel, Scheme};
 pub use quat::Quat;
 pub use robot::{
-    Actuation, ActuationSpace, Calibration, CalibrationSettings, IkEnding, IkOptions, IkResult,
-    IkSample, IkSettings, InverseSolver, Load, Robot, SectionSpec, Strategy, TendonRoute,
+    Actuation, ActuationSpace, Calibration, CalibrationSettings, DriveColumns, IkEnding, IkOptions,
+    IkResult, IkSample, IkSettings, InverseSolver, Load, Robot, SectionSpec, Strategy, TendonRoute,
 };
 pub use scene::{
     Gravity, Guide, PointLoad, Scene, SectionProperties, Stiffness, Tendon, TipCondition,

@@ -43,7 +43,7 @@ fn catheter(max_field: f64) -> Robot {
 
 fn tip_of(robot: &Robot, actuation: &Actuation, mass: f64) -> Vector3<f64> {
     let scene = robot
-        .actuated_scene(actuation, &softspine::Load::from(mass))
+        .scene(actuation, &softspine::Load::from(mass))
         .unwrap();
     let settings = softspine::Settings {
         n_elements: Some(robot.n_elements),
@@ -262,7 +262,7 @@ fn actuation_the_drives_cannot_apply_is_refused_by_name() {
     let robot = tendon_robot(Some(20.0));
     let scene = |tensions: Vec<f64>| {
         robot
-            .actuated_scene(
+            .scene(
                 &Actuation {
                     tensions,
                     ..Actuation::default()
@@ -281,7 +281,7 @@ fn actuation_the_drives_cannot_apply_is_refused_by_name() {
     assert!(scene(high).contains("max_tension"));
     let magnet = catheter(0.05);
     let e = magnet
-        .actuated_scene(
+        .scene(
             &Actuation {
                 field: Vector3::new(0.1, 0.0, 0.0),
                 ..Actuation::default()
@@ -314,7 +314,7 @@ fn the_tension_sensitivity_is_the_implicit_function_theorems_in_either_scheme() 
             ..Actuation::default()
         };
         let scene = robot
-            .actuated_scene(&actuation, &softspine::Load::from(0.02))
+            .scene(&actuation, &softspine::Load::from(0.02))
             .unwrap();
         let settings = softspine::Settings {
             n_elements: Some(robot.n_elements),
@@ -343,9 +343,7 @@ fn the_tension_sensitivity_is_the_implicit_function_theorems_in_either_scheme() 
                 tensions: moved,
                 ..Actuation::default()
             };
-            let scene = robot
-                .actuated_scene(&moved, &softspine::Load::from(0.02))
-                .unwrap();
+            let scene = robot.scene(&moved, &softspine::Load::from(0.02)).unwrap();
             let sol = softspine::solve(&scene, settings.clone(), None).unwrap();
             assert!(sol.converged());
             sol.tip_position()
@@ -368,7 +366,7 @@ fn tensions_reach_a_tip_position_and_direction_together() {
         ..Actuation::default()
     };
     let scene = robot
-        .actuated_scene(&actuation, &softspine::Load::from(0.01))
+        .scene(&actuation, &softspine::Load::from(0.01))
         .unwrap();
     let settings = softspine::Settings {
         n_elements: Some(robot.n_elements),

@@ -35,7 +35,12 @@ fn in_range_actuations(robot: &Robot, count: usize, seed: u64) -> Vec<Vec<[f64; 
 }
 
 fn forward(robot: &Robot, kappa: &[[f64; 2]], load: f64) -> softspine::Solution {
-    let scene = robot.scene(kappa, &softspine::Load::from(load)).unwrap();
+    let scene = robot
+        .scene(
+            &softspine::Actuation::muscles(kappa.to_vec()),
+            &softspine::Load::from(load),
+        )
+        .unwrap();
     let settings = Settings {
         n_elements: Some(robot.n_elements),
         ..Settings::default()

@@ -42,7 +42,10 @@ fn tracking_reaches_every_point_of_the_circle_with_30_g() {
         assert!(robot.within_bounds(&r.rest_curvature));
         // A true equilibrium: a fresh solve from the straight rod lands on the same tip.
         let scene = robot
-            .scene(&r.rest_curvature, &softspine::Load::from(0.03))
+            .scene(
+                &softspine::Actuation::muscles(r.rest_curvature.clone()),
+                &softspine::Load::from(0.03),
+            )
             .unwrap();
         let fresh = solve(
             &scene,

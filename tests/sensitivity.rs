@@ -158,7 +158,7 @@ fn unknown_parameters_and_unsolved_states_are_refused_by_name() {
 fn the_robot_sensitivity_matches_differences_of_forward_solves() {
     use softspine::Robot;
     let robot = Robot::default();
-    let kappa = robot.random_actuations(1, 5).unwrap();
+    let kappa = robot.random_drives(1, 5).unwrap()[0].rest_curvature.clone();
     let names = [
         "muscle_lengths[1][2]",
         "stiffness.E",
@@ -196,7 +196,12 @@ fn the_robot_sensitivity_matches_differences_of_forward_solves() {
                     r = Robot::from_value(&v).unwrap();
                 }
             }
-            let scene = r.scene(&k, &softspine::Load::from(mass)).unwrap();
+            let scene = r
+                .scene(
+                    &softspine::Actuation::muscles(k),
+                    &softspine::Load::from(mass),
+                )
+                .unwrap();
             let settings = Settings {
                 n_elements: Some(robot.n_elements),
                 residual_tol: 1e-13,
@@ -226,7 +231,11 @@ fn calibration_recovers_known_parameters_within_their_uncertainty() {
     let truth = Robot::default();
     let fields = ["stiffness.E", "linear_density", "disk_mass"];
     let samples = 24;
-    let actuations = truth.random_actuations(samples, 11).unwrap();
+    let drives = truth.random_drives(samples, 11).unwrap();
+    let actuations: Vec<[f64; 2]> = drives
+        .iter()
+        .flat_map(|a| a.rest_curvature.iter().copied())
+        .collect();
     let settings = Settings {
         n_elements: Some(truth.n_elements),
         ..Settings::default()
@@ -234,7 +243,12 @@ fn calibration_recovers_known_parameters_within_their_uncertainty() {
     let exact: Vec<Vector3<f64>> = actuations
         .chunks(truth.sections)
         .map(|k| {
-            let scene = truth.scene(k, &softspine::Load::from(0.03)).unwrap();
+            let scene = truth
+                .scene(
+                    &softspine::Actuation::muscles(k.to_vec()),
+                    &softspine::Load::from(0.03),
+                )
+                .unwrap();
             softspine::solve(&scene, settings.clone(), None)
                 .unwrap()
                 .tip_position()

@@ -6,7 +6,7 @@ use super::convert::*;
 use super::detach::detach_batch;
 use super::scene::scene_arg;
 use super::solve::settings_with;
-use crate::robot::ActuationSpace;
+use crate::robot::{Actuation, DriveColumns};
 use crate::{BatchControl, BatchSettings, IkSample, Sample, Status};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
@@ -93,30 +93,53 @@ fn names<'py>(py: Python<'py>, names: Vec<&'static str>) -> PyResult<Bound<'py, 
         .call_method1("asarray", (PyList::new(py, names)?, "U"))
 }
 
-/// The fields of a `softspine.batch.BatchResult` of forward samples; `actuations` the
-/// rest curvature of a robot's samples, `sections` rows each.
+/// The drives of a robot's batch: each sample's actuation, and which of its
+/// drives the result reports (the core's [`crate::robot::DriveColumns`]).
+pub(super) struct Drives<'a> {
+    pub(super) actuations: Vec<&'a Actuation>,
+    pub(super) columns: DriveColumns,
+    pub(super) sections: usize,
+    pub(super) tendons: usize,
+}
+
+/// Set the drive columns (`actuations` or `rest_curvature`, `tensions`,
+/// `field`) of a result's fields, a row a sample (an empty part of an
+/// actuation is its zero: straight, slack).
+fn set_drives(d: &Bound<'_, PyDict>, drives: &Drives<'_>, curvature_key: &str) -> PyResult<()> {
+    let py = d.py();
+    let a = &drives.actuations;
+    let count = a.len();
+    let (m, t) = (drives.sections, drives.tendons);
+    if drives.columns.rest_curvature {
+        let k = Array3::from_shape_fn((count, m, 2), |(i, s, c)| {
+            a[i].rest_curvature.get(s).map_or(0.0, |k| k[c])
+        });
+        d.set_item(curvature_key, k.into_pyarray(py))?;
+    }
+    if drives.columns.tensions {
+        let x = Array2::from_shape_fn((count, t), |(i, j)| {
+            a[i].tensions.get(j).copied().unwrap_or(0.0)
+        });
+        d.set_item("tensions", x.into_pyarray(py))?;
+    }
+    if drives.columns.field {
+        let b = Array2::from_shape_fn((count, 3), |(i, c)| a[i].field[c]);
+        d.set_item("field", b.into_pyarray(py))?;
+    }
+    Ok(())
+}
+
+/// The fields of a `softspine.batch.BatchResult` of forward samples, with
+/// the drives of a robot's batch.
 pub(super) fn batch_result<'py>(
     py: Python<'py>,
     samples: &[Sample],
-    actuations: Option<(&[[f64; 2]], usize)>,
-) -> PyResult<Bound<'py, PyDict>> {
-    batch_result_with(py, samples, actuations, &[])
-}
-
-/// [`batch_result`] with more per-sample arrays (`tensions`, `field`): each
-/// a row a sample.
-pub(super) fn batch_result_with<'py>(
-    py: Python<'py>,
-    samples: &[Sample],
-    actuations: Option<(&[[f64; 2]], usize)>,
-    columns: &[(&str, &[Vec<f64>])],
+    drives: Option<&Drives<'_>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let count = samples.len();
     let d = PyDict::new(py);
-    for (name, rows) in columns {
-        let width = rows.first().map_or(0, Vec::len);
-        let a = Array2::from_shape_fn((count, width), |(i, c)| rows[i][c]);
-        d.set_item(*name, a.into_pyarray(py))?;
+    if let Some(drives) = drives {
+        set_drives(&d, drives, "actuations")?;
     }
     let tips = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].tip_position[c]);
     let quats = Array2::from_shape_fn((count, 4), |(i, c)| samples[i].tip_quaternion.to_array()[c]);
@@ -142,39 +165,34 @@ pub(super) fn batch_result_with<'py>(
             d.set_item("quaternions", q.into_pyarray(py))?;
         }
     }
-    if let Some((k, m)) = actuations {
-        let a = Array3::from_shape_fn((count, m, 2), |(i, s, c)| k[i * m + s][c]);
-        d.set_item("actuations", a.into_pyarray(py))?;
-    }
     Ok(d)
 }
 
-/// The fields of a `softspine.batch.IkBatchResult` of inverse samples of `sections`
-/// sections, searched in `space` (its tensions or fields kept).
+/// The fields of a `softspine.batch.IkBatchResult` of inverse samples of
+/// `robot` (the drives found: the rest curvature, and the tensions or the
+/// field of a robot that has them).
 pub(super) fn ik_batch_result<'py>(
     py: Python<'py>,
     samples: &[IkSample],
-    sections: usize,
-    space: ActuationSpace,
+    robot: &crate::Robot,
 ) -> PyResult<Bound<'py, PyDict>> {
     let count = samples.len();
     let d = PyDict::new(py);
-    match space {
-        ActuationSpace::Tensions => {
-            let width = samples.first().map_or(0, |s| s.tensions.len());
-            let t = Array2::from_shape_fn((count, width), |(i, c)| samples[i].tensions[c]);
-            d.set_item("tensions", t.into_pyarray(py))?;
-        }
-        ActuationSpace::Field => {
-            let b = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].field[c]);
-            d.set_item("field", b.into_pyarray(py))?;
-        }
-        ActuationSpace::Curvature => {}
-    }
-    let k = Array3::from_shape_fn((count, sections, 2), |(i, s, c)| {
-        samples[i].rest_curvature[s][c]
-    });
-    d.set_item("rest_curvature", k.into_pyarray(py))?;
+    let found: Vec<Actuation> = samples
+        .iter()
+        .map(|s| Actuation {
+            rest_curvature: s.rest_curvature.clone(),
+            tensions: s.tensions.clone(),
+            field: s.field,
+        })
+        .collect();
+    let drives = Drives {
+        actuations: found.iter().collect(),
+        columns: robot.drive_columns(true),
+        sections: robot.sections,
+        tendons: robot.tendons.len(),
+    };
+    set_drives(&d, &drives, "rest_curvature")?;
     let tips = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].tip_position[c]);
     d.set_item("tip_positions", tips.into_pyarray(py))?;
     let miss = Array1::from_iter(samples.iter().map(|s| s.tip_miss));

@@ -1,7 +1,7 @@
 //! `Robot`, its inverse kinematics (`InverseSolver`, `IkResult`) and the seed's trajectories.
 
 use super::batch::{
-    batch_result, batch_result_with, batch_settings, cluster_plan, ik_batch_result, run_batch,
+    batch_result, batch_settings, cluster_plan, ik_batch_result, run_batch, Drives,
 };
 use super::convert::*;
 use super::detach::detach_solve;
@@ -9,7 +9,6 @@ use super::scene::PyScene;
 use super::settings::ik_settings_arg;
 use super::solution::{quaternions_arg, PySolution};
 use crate::robot::{trajectory, Actuation, IkOptions, IkResult, IkStart, InverseSolver, Robot};
-use crate::Settings;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -382,7 +381,7 @@ impl PyRobot {
         warn_user(py, &self.inner.load_warnings(&load))?;
         let a = actuation_arg(rest_curvature, tensions, field)?;
         Ok(PyScene {
-            inner: self.inner.actuated_scene(&a, &load)?,
+            inner: self.inner.scene(&a, &load)?,
         })
     }
 
@@ -453,17 +452,13 @@ impl PyRobot {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
         let a = actuation_arg(rest_curvature, tensions, field)?;
-        let scene = self.inner.actuated_scene(&a, &load)?;
-        let settings = Settings {
-            n_elements: Some(self.inner.n_elements),
-            ..Settings::default()
-        };
         let initial = given(initial)
             .map(|q| quaternions_arg("initial", &q))
             .transpose()?;
-        let long = self.inner.has_long_passes();
+        let robot = self.inner.clone();
+        let long = robot.has_long_passes();
         let sol = detach_solve(py, long, move || {
-            crate::solve(&scene, settings, initial.as_deref())
+            robot.forward(&a, &load, initial.as_deref())
         })?;
         Ok(PySolution { inner: sol })
     }
@@ -488,11 +483,7 @@ impl PyRobot {
         let k = actuation_arg(rest_curvature, tensions, field)?;
         let names = match given(parameters) {
             Some(p) => super::fitting::parameter_names(&p)?,
-            None => vec![self
-                .inner
-                .actuation_space()
-                .name()
-                .replace("curvature", "rest_curvature")],
+            None => vec![self.inner.drive_parameter().to_owned()],
         };
         let initial = given(initial)
             .map(|q| quaternions_arg("initial", &q))
@@ -527,83 +518,33 @@ impl PyRobot {
         plan: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let load = load.unwrap_or_default();
-        warn_user(py, &slf.get().inner.load_warnings(&load))?;
-        let this = slf.get();
-        let robot = &this.inner;
-        let m = robot.sections;
+        let robot = &slf.get().inner;
+        warn_user(py, &robot.load_warnings(&load))?;
         let settings = batch_settings(threads, chunk, warm_start, shapes)?;
         let k = given(actuations)
-            .map(|a| samples_arg::<2>("actuations", &a, m))
+            .map(|a| samples_arg::<2>("actuations", &a, robot.sections))
             .transpose()?;
-        let (tensions_given, field_given) = (given(tensions), given(field));
-        let muscles_only = tensions_given.is_none()
-            && field_given.is_none()
-            && robot.actuation_space() == crate::robot::ActuationSpace::Curvature;
-        if muscles_only && k.is_none() {
-            return Err(PyValueError::new_err(
-                "actuations: missing (the rest curvature of each sample)",
-            ));
-        }
-        let t = tensions_given
+        let t = given(tensions)
             .map(|t| sample_rows("tensions", &t, robot.tendons.len()))
             .transpose()?;
-        let b = field_given
+        let b = given(field)
             .map(|b| sample_rows("field", &b, 3))
-            .transpose()?;
+            .transpose()?
+            .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2]]).collect::<Vec<_>>());
+        let drives = robot.batch_actuations(k.as_deref(), t.as_deref(), b.as_deref())?;
         if let Some(cut) = cluster_plan(py, plan, part, &settings)? {
             return Ok(cut);
         }
-        if muscles_only {
-            let k = k.expect("checked above");
-            let samples = run_batch(py, k.len() / m, progress, |control| {
-                robot.forward_batch(&k, &load, &settings, control)
-            })?;
-            return Ok(batch_result(py, &samples, Some((&k, m)))?.into_any());
-        }
-        let counts = [
-            ("actuations", k.as_ref().map(|k| k.len() / m)),
-            ("tensions", t.as_ref().map(Vec::len)),
-            ("field", b.as_ref().map(Vec::len)),
-        ];
-        let mut given_counts = counts.iter().filter_map(|(name, c)| c.map(|c| (*name, c)));
-        let Some((first, count)) = given_counts.next() else {
-            return Err(PyValueError::new_err(
-                "tensions: missing (give the tensions, the field or the actuations of each sample)",
-            ));
-        };
-        if let Some((name, other)) = given_counts.find(|(_, c)| *c != count) {
-            return Err(PyValueError::new_err(format!(
-                "{name}: {other} samples, but {first} has {count}"
-            )));
-        }
-        let drives: Vec<Actuation> = (0..count)
-            .map(|i| Actuation {
-                rest_curvature: k
-                    .as_ref()
-                    .map_or(Vec::new(), |k| k[i * m..(i + 1) * m].to_vec()),
-                tensions: t.as_ref().map_or(Vec::new(), |t| t[i].clone()),
-                field: b.as_ref().map_or(Vector3::zeros(), |b| {
-                    Vector3::new(b[i][0], b[i][1], b[i][2])
-                }),
-            })
-            .collect();
-        let samples = run_batch(py, count, progress, |control| {
-            robot.actuated_batch(&drives, &load, &settings, control)
+        let samples = run_batch(py, drives.len(), progress, |control| {
+            robot.forward_batch(&drives, &load, &settings, control)
         })?;
-        let mut columns: Vec<(&str, &[Vec<f64>])> = Vec::new();
-        if let Some(t) = &t {
-            columns.push(("tensions", t));
-        }
-        if let Some(b) = &b {
-            columns.push(("field", b));
-        }
-        Ok(batch_result_with(
-            py,
-            &samples,
-            k.as_ref().map(|k| (k.as_slice(), m)),
-            &columns,
-        )?
-        .into_any())
+        let drives = Drives {
+            actuations: drives.iter().collect(),
+            columns: robot.drive_columns(k.is_some()),
+            sections: robot.sections,
+            tendons: robot.tendons.len(),
+        };
+        Ok(batch_result(py, &samples, Some(&drives))?.into_any())
     }
 
     /// The equilibria of ``samples`` random drives (seeded) under one load,
@@ -633,24 +574,16 @@ impl PyRobot {
         if let Some(cut) = cluster_plan(py, plan, part, &settings)? {
             return Ok(cut);
         }
-        let space = robot.actuation_space();
-        if space != crate::robot::ActuationSpace::Curvature {
-            let (drives, out) = run_batch(py, samples, progress, |control| {
-                robot.actuated_workspace(samples, first, &load, seed, &settings, control)
-            })?;
-            let rows: Vec<Vec<f64>> = drives
-                .iter()
-                .map(|a| match space {
-                    crate::robot::ActuationSpace::Tensions => a.tensions.clone(),
-                    _ => a.field.iter().copied().collect(),
-                })
-                .collect();
-            return Ok(batch_result_with(py, &out, None, &[(space.name(), &rows)])?.into_any());
-        }
-        let (k, out) = run_batch(py, samples, progress, |control| {
+        let (drawn, out) = run_batch(py, samples, progress, |control| {
             robot.workspace(samples, first, &load, seed, &settings, control)
         })?;
-        Ok(batch_result(py, &out, Some((&k, robot.sections)))?.into_any())
+        let drives = Drives {
+            actuations: drawn.iter().collect(),
+            columns: robot.drive_columns(false),
+            sections: robot.sections,
+            tendons: robot.tendons.len(),
+        };
+        Ok(batch_result(py, &out, Some(&drives))?.into_any())
     }
 
     /// Load-aware inverse kinematics of many targets (samples, 3), each on
@@ -702,7 +635,7 @@ impl PyRobot {
         let samples = run_batch(py, targets.len(), progress, |control| {
             robot.inverse_batch(&targets, &options, &batch, control)
         })?;
-        Ok(ik_batch_result(py, &samples, robot.sections, robot.actuation_space())?.into_any())
+        Ok(ik_batch_result(py, &samples, robot)?.into_any())
     }
 
     /// A reusable inverse solver for one load (warm starts between calls).

@@ -98,7 +98,7 @@ impl Robot {
     /// default discretisation) under `load`.
     fn chunk_solver(&self, load: &Load) -> Result<impl Fn() -> Result<ChunkState> + Sync + '_> {
         let zero = vec![[0.0; 2]; self.sections];
-        self.scene(&zero, load)?;
+        self.scene(&Actuation::muscles(zero.clone()), load)?;
         let load = load.clone();
         Ok(move || Ok((self.forward_solver(&zero, &load)?, Last::default())))
     }
@@ -121,10 +121,102 @@ impl Robot {
         Ok(Sample::of(&sol, settings.shapes))
     }
 
-    /// Forward statics of many actuations under one tip mass [kg]:
-    /// `actuations` holds `[kappa_x, kappa_y]` per section, sample after
-    /// sample (`sections` rows a sample).
+    /// The actuations of a batch given by drive, each `None` or a row a
+    /// sample: the muscles' rest curvature (`sections` rows a sample, sample
+    /// after sample), the tensions [N], the field [T]. Refused by name when
+    /// nothing is given or the counts of samples disagree.
+    pub fn batch_actuations(
+        &self,
+        rest_curvature: Option<&[[f64; 2]]>,
+        tensions: Option<&[Vec<f64>]>,
+        field: Option<&[[f64; 3]]>,
+    ) -> Result<Vec<Actuation>> {
+        let m = self.sections.max(1);
+        if rest_curvature.is_some_and(|k| k.len() % m != 0) {
+            return Err(Error::argument(
+                "actuations",
+                format!("rows are not whole samples of {m} sections"),
+            ));
+        }
+        let counts = [
+            ("actuations", rest_curvature.map(|k| k.len() / m)),
+            ("tensions", tensions.map(<[_]>::len)),
+            ("field", field.map(<[_]>::len)),
+        ];
+        let mut given = counts.iter().filter_map(|(name, c)| c.map(|c| (*name, c)));
+        let Some((first, count)) = given.next() else {
+            return Err(match self.actuation_space() {
+                ActuationSpace::Curvature => {
+                    Error::argument("actuations", "missing (the rest curvature of each sample)")
+                }
+                _ => Error::argument(
+                    "tensions",
+                    "missing (give the tensions, the field or the actuations of each sample)",
+                ),
+            });
+        };
+        if let Some((name, other)) = given.find(|(_, c)| *c != count) {
+            return Err(Error::argument(
+                name,
+                format!("{other} samples, but {first} has {count}"),
+            ));
+        }
+        Ok((0..count)
+            .map(|i| Actuation {
+                rest_curvature: rest_curvature
+                    .map_or(Vec::new(), |k| k[i * m..(i + 1) * m].to_vec()),
+                tensions: tensions.map_or(Vec::new(), |t| t[i].clone()),
+                field: field.map_or(Vector3::zeros(), |b| Vector3::from(b[i])),
+            })
+            .collect())
+    }
+
+    /// Forward statics of many actuations under one load, every drive of
+    /// the robot (muscles, tendons, field) in each: see [`Robot::scene`].
+    /// Each actuation is checked first (the drives' limits included), an
+    /// error naming its sample. A chunk's solver starts warm from its last
+    /// equilibrium where the actuation is near (within [`WARM_TURN`]).
     pub fn forward_batch(
+        &self,
+        actuations: &[Actuation],
+        load: &Load,
+        settings: &BatchSettings,
+        control: &BatchControl,
+    ) -> Result<Vec<Sample>> {
+        let m = self.sections;
+        let muscles_only = self.actuation_space() == ActuationSpace::Curvature
+            && actuations
+                .iter()
+                .all(|a| a.tensions.is_empty() && a.field == Vector3::zeros());
+        if !muscles_only {
+            return self.drive_batch(actuations, load, settings, control);
+        }
+        // The muscles' own path: one scene whose rest curvature changes.
+        let mut k = Vec::new();
+        k.try_reserve_exact(actuations.len() * m)
+            .map_err(|_| Error::OutOfMemory {
+                what: "actuations".into(),
+                bytes: actuations.len() * m * 16,
+            })?;
+        for (i, a) in actuations.iter().enumerate() {
+            match a.rest_curvature.len() {
+                0 => k.extend(std::iter::repeat_n([0.0; 2], m)),
+                rows if rows == m => k.extend_from_slice(&a.rest_curvature),
+                rows => {
+                    return Err(Error::argument(
+                        "actuations",
+                        format!("sample {i} has {rows} sections, the robot {m}"),
+                    ))
+                }
+            }
+        }
+        self.muscle_batch(&k, load, settings, control)
+    }
+
+    /// Forward statics of many muscle actuations: `actuations` holds
+    /// `[kappa_x, kappa_y]` per section, sample after sample (`sections` rows
+    /// a sample).
+    fn muscle_batch(
         &self,
         actuations: &[[f64; 2]],
         load: &Load,
@@ -256,12 +348,10 @@ impl Robot {
     }
 
     /// Forward statics of many whole actuations (rest curvature, tensions
-    /// and field: a tendon-driven or magnetic robot's, muscles too) under
-    /// one tip mass [kg]. Each actuation is checked first (the drives'
-    /// limits included), an error naming its sample. A warm start is taken
-    /// where [`Robot::actuation_turn`] from the chunk's last equilibrium is
-    /// within [`WARM_TURN`].
-    pub fn actuated_batch(
+    /// and field: a tendon-driven or magnetic robot's, muscles too). A warm
+    /// start is taken where [`Robot::actuation_turn`] from the chunk's last
+    /// equilibrium is within [`WARM_TURN`].
+    fn drive_batch(
         &self,
         actuations: &[Actuation],
         load: &Load,
@@ -314,7 +404,7 @@ impl Robot {
             tensions: vec![0.0; self.tendons.len()],
             field: Vector3::zeros(),
         };
-        let stiffness = self.actuated_scene(&rest, load)?.stiffness().min();
+        let stiffness = self.scene(&rest, load)?.stiffness().min();
         let load = load.clone();
         let start = move || Ok((self.actuated_solver(&rest, &load)?, LastActuated::default()));
         Ok((start, stiffness))
@@ -344,11 +434,13 @@ impl Robot {
         Ok(Sample::of(&sol, settings.shapes))
     }
 
-    /// Sample `index` of the seeded random drives of a tendon-driven or
-    /// magnetic robot: each tension uniform over `[0, max_tension]`, or the
-    /// field uniform in the ball `|B| <= max_field` (the muscles straight).
-    /// Each sample has its own stream, as [`Robot::random_actuation`].
-    pub fn random_drives(&self, seed: u64, index: u64) -> Result<Actuation> {
+    /// Sample `index` of the seeded random drives, in the robot's drive:
+    /// every muscle's length uniform over its range, each tension uniform
+    /// over `[0, max_tension]` (the muscles straight), or the field uniform in
+    /// the ball `|B| <= max_field`. Each sample has its own stream (from the
+    /// seed and its index), so a batch draws its samples in its workers, in
+    /// any order, and a part of a batch draws the same samples as the whole.
+    pub fn random_drive(&self, seed: u64, index: u64) -> Result<Actuation> {
         use rand::rngs::SmallRng;
         use rand::{RngExt, SeedableRng};
         let mut rng = SmallRng::seed_from_u64(seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
@@ -385,17 +477,36 @@ impl Robot {
                 };
             }
             ActuationSpace::Curvature => {
-                drives.rest_curvature = self.random_actuation(seed, index)?;
+                drives.rest_curvature = self.random_curvature(seed, index)?;
             }
         }
         Ok(drives)
     }
 
-    /// The workspace of a tendon-driven or magnetic robot: the equilibria
-    /// of `samples` random drives ([`Robot::random_drives`], drawn by the
-    /// workers) under a tip mass [kg]; `first` as in [`Robot::workspace`].
-    #[allow(clippy::too_many_arguments)]
-    pub fn actuated_workspace(
+    /// The workspace: the equilibria of `samples` random drives
+    /// ([`Robot::random_drive`], drawn by the workers) under `load`; the
+    /// drives and their samples.
+    ///
+    /// `first` is the index of the first sample: a part of a larger
+    /// workspace (a distributed engine's task) draws the samples the whole
+    /// would have drawn there.
+    pub fn workspace(
+        &self,
+        samples: usize,
+        first: u64,
+        load: &Load,
+        seed: u64,
+        settings: &BatchSettings,
+        control: &BatchControl,
+    ) -> Result<(Vec<Actuation>, Vec<Sample>)> {
+        if self.actuation_space() != ActuationSpace::Curvature {
+            return self.drive_workspace(samples, first, load, seed, settings, control);
+        }
+        self.muscle_workspace(samples, first, load, seed, settings, control)
+    }
+
+    /// The workspace of a tendon-driven or magnetic robot.
+    fn drive_workspace(
         &self,
         samples: usize,
         first: u64,
@@ -405,14 +516,14 @@ impl Robot {
         control: &BatchControl,
     ) -> Result<(Vec<Actuation>, Vec<Sample>)> {
         self.validate()?;
-        self.random_drives(seed, first)?;
+        self.random_drive(seed, first)?;
         self.check_workspace(samples, first, settings)?;
         let (start, stiffness) = self.actuated_chunk(load)?;
         let out = self.drawn_samples(
             (samples, first),
             (settings, control),
             start,
-            |index| self.random_drives(seed, index),
+            |index| self.random_drive(seed, index),
             |state, drives| self.actuated_sample(state, drives, stiffness, settings),
         )?;
         Ok(out.into_iter().unzip())
@@ -491,12 +602,9 @@ impl Robot {
 type ActuatedChunk = (Solver, LastActuated);
 
 impl Robot {
-    /// Sample `index` of the seeded random actuations: every muscle's length
-    /// uniform over its range, as `[kappa_x, kappa_y]` per section. Each
-    /// sample has its own stream (from the seed and its index), so a batch
-    /// draws its samples in its workers, in any order, and a part of a batch
-    /// draws the same samples as the whole.
-    pub fn random_actuation(&self, seed: u64, index: u64) -> Result<Vec<[f64; 2]>> {
+    /// The muscles' part of [`Robot::random_drive`]: every muscle's length
+    /// uniform over its range, as `[kappa_x, kappa_y]` per section.
+    fn random_curvature(&self, seed: u64, index: u64) -> Result<Vec<[f64; 2]>> {
         use rand::rngs::SmallRng;
         use rand::{RngExt, SeedableRng};
         let [lo, hi] = self.muscle_length_range;
@@ -508,26 +616,17 @@ impl Robot {
         self.rest_curvature(&lengths)
     }
 
-    /// `samples` random actuations ([`Robot::random_actuation`] of indices
-    /// `0..samples`), sample after sample.
-    pub fn random_actuations(&self, samples: usize, seed: u64) -> Result<Vec<[f64; 2]>> {
+    /// `samples` random drives ([`Robot::random_drive`] of indices
+    /// `0..samples`).
+    pub fn random_drives(&self, samples: usize, seed: u64) -> Result<Vec<Actuation>> {
         self.validate()?;
-        let mut out = Vec::with_capacity(samples * self.sections);
-        for i in 0..samples as u64 {
-            out.extend(self.random_actuation(seed, i)?);
-        }
-        Ok(out)
+        (0..samples as u64)
+            .map(|i| self.random_drive(seed, i))
+            .collect()
     }
 
-    /// The workspace: the equilibria of `samples` random actuations
-    /// ([`Robot::random_actuation`], drawn by the workers) under a tip mass
-    /// [kg]; the actuations, sample after sample, and their samples.
-    ///
-    /// `first` is the index of the first sample: a part of a larger
-    /// workspace (a distributed engine's task) draws the samples the whole
-    /// would have drawn there.
-    #[allow(clippy::too_many_arguments)]
-    pub fn workspace(
+    /// The workspace of a muscle-driven robot.
+    fn muscle_workspace(
         &self,
         samples: usize,
         first: u64,
@@ -535,39 +634,20 @@ impl Robot {
         seed: u64,
         settings: &BatchSettings,
         control: &BatchControl,
-    ) -> Result<(Vec<[f64; 2]>, Vec<Sample>)> {
-        if self.actuation_space() != ActuationSpace::Curvature {
-            return Err(Error::argument(
-                "robot",
-                format!(
-                    "the workspace samples muscle lengths; this robot's actuation is its {} \
-                     (see actuated_workspace)",
-                    self.actuation_space().name()
-                ),
-            ));
-        }
+    ) -> Result<(Vec<Actuation>, Vec<Sample>)> {
         self.check_workspace(samples, first, settings)?;
         let start = self.chunk_solver(load)?;
         let out = self.drawn_samples(
             (samples, first),
             (settings, control),
             start,
-            |index| self.random_actuation(seed, index),
+            |index| self.random_curvature(seed, index),
             |state, kappa| self.forward_sample(state, kappa, settings),
         )?;
-        let mut actuations = Vec::new();
-        actuations
-            .try_reserve_exact(samples * self.sections)
-            .map_err(|_| Error::OutOfMemory {
-                what: "samples: the actuations".into(),
-                bytes: samples * self.sections * 16,
-            })?;
-        let mut results = Vec::with_capacity(samples);
-        for (kappa, sample) in out {
-            actuations.extend(kappa);
-            results.push(sample);
-        }
-        Ok((actuations, results))
+        Ok(out
+            .into_iter()
+            .map(|(kappa, sample)| (Actuation::muscles(kappa), sample))
+            .unzip())
     }
 }
 
@@ -578,11 +658,18 @@ mod tests {
     use crate::solver::Settings;
     use std::sync::atomic::Ordering;
 
-    fn actuations(robot: &Robot, samples: usize) -> Vec<[f64; 2]> {
-        (0..samples * robot.sections)
-            .map(|i| {
-                let phi = 0.37 * i as f64;
-                [2.0 * phi.cos(), 2.0 * (1.3 * phi).sin()]
+    fn actuations(robot: &Robot, samples: usize) -> Vec<Actuation> {
+        let m = robot.sections;
+        (0..samples)
+            .map(|j| {
+                Actuation::muscles(
+                    (j * m..(j + 1) * m)
+                        .map(|i| {
+                            let phi = 0.37 * i as f64;
+                            [2.0 * phi.cos(), 2.0 * (1.3 * phi).sin()]
+                        })
+                        .collect(),
+                )
             })
             .collect()
     }
@@ -604,8 +691,8 @@ mod tests {
                 &BatchControl::default(),
             )
             .unwrap();
-        for (sample, kappa) in batch.iter().zip(k.chunks(robot.sections)) {
-            let scene = robot.scene(kappa, &crate::robot::Load::from(0.03)).unwrap();
+        for (sample, a) in batch.iter().zip(&k) {
+            let scene = robot.scene(a, &crate::robot::Load::from(0.03)).unwrap();
             let settings = Settings {
                 n_elements: Some(robot.n_elements),
                 ..Settings::default()
@@ -699,16 +786,21 @@ mod tests {
         let robot = Robot::default();
         let control = BatchControl::default();
         let mut k = actuations(&robot, 2);
+        k[0].rest_curvature.pop();
         let e = robot
             .forward_batch(
-                &k[1..],
+                &k,
                 &crate::robot::Load::from(0.0),
                 &BatchSettings::default(),
                 &control,
             )
             .unwrap_err();
-        assert!(e.to_string().contains("actuations"), "{e}");
-        k[robot.sections + 1][0] = f64::NAN;
+        assert!(
+            e.to_string().contains("actuations") && e.to_string().contains("sample 0"),
+            "{e}"
+        );
+        k[0].rest_curvature.push([0.0; 2]);
+        k[1].rest_curvature[1][0] = f64::NAN;
         let e = robot
             .forward_batch(
                 &k,
@@ -722,12 +814,7 @@ mod tests {
             chunk: 0,
             ..BatchSettings::default()
         };
-        let e = robot.forward_batch(
-            &k[..robot.sections],
-            &crate::robot::Load::from(0.0),
-            &zero,
-            &control,
-        );
+        let e = robot.forward_batch(&k[..1], &crate::robot::Load::from(0.0), &zero, &control);
         assert!(e.unwrap_err().to_string().contains("chunk"));
     }
 
@@ -750,11 +837,11 @@ mod tests {
         };
         let control = BatchControl::default();
         let batch = robot
-            .actuated_batch(&drives, &crate::robot::Load::from(0.02), &cold, &control)
+            .forward_batch(&drives, &crate::robot::Load::from(0.02), &cold, &control)
             .unwrap();
         let warm = BatchSettings::default();
         let warmed = robot
-            .actuated_batch(&drives, &crate::robot::Load::from(0.02), &warm, &control)
+            .forward_batch(&drives, &crate::robot::Load::from(0.02), &warm, &control)
             .unwrap();
         for ((sample, again), a) in batch.iter().zip(&warmed).zip(&drives) {
             let one = robot
@@ -770,7 +857,7 @@ mod tests {
         let mut over = drives.clone();
         over[4].tensions[2] = 100.0;
         let e = robot
-            .actuated_batch(&over, &crate::robot::Load::from(0.02), &cold, &control)
+            .forward_batch(&over, &crate::robot::Load::from(0.02), &cold, &control)
             .unwrap_err();
         assert!(e.to_string().contains("tensions[2]") && e.to_string().contains("sample 4"));
     }

@@ -150,7 +150,7 @@ impl Robot {
                 // The tip mass enters only as the tip force `(m + tool) g`,
                 // linearly: a difference through zero (no payload) is as
                 // exact as any, past the check that a mass is not negative.
-                let mut scene = self.actuated_scene(a, load)?;
+                let mut scene = self.scene(a, load)?;
                 scene.tip_force += delta * self.gravity;
                 return Ok(scene);
             }
@@ -160,7 +160,7 @@ impl Robot {
                 // built without the non-negativity check.
                 let tension = moved.tensions.get(*i).copied().unwrap_or(0.0);
                 moved.tensions = Vec::new();
-                let mut scene = self.actuated_scene(&moved, load)?;
+                let mut scene = self.scene(&moved, load)?;
                 for (k, t) in scene.tendons.iter_mut().enumerate() {
                     t.tension = a.tensions.get(k).copied().unwrap_or(0.0);
                 }
@@ -171,7 +171,7 @@ impl Robot {
                 // Past max_field by a difference step: built as the scene.
                 let field = moved.field;
                 moved.field = Vector3::zeros();
-                let mut scene = self.actuated_scene(&moved, load)?;
+                let mut scene = self.scene(&moved, load)?;
                 scene.magnetic_field = field;
                 scene.magnetic_field[*c] += delta;
                 return Ok(scene);
@@ -179,10 +179,10 @@ impl Robot {
             Parameter::Field(path) => {
                 let mut v = self.to_value();
                 *v.number_at_mut(path)? += delta;
-                return Robot::from_value(&v)?.actuated_scene(a, load);
+                return Robot::from_value(&v)?.scene(a, load);
             }
         }
-        self.actuated_scene(&moved, load)
+        self.scene(&moved, load)
     }
 
     /// The forward solver of this robot (its default discretisation).
@@ -202,7 +202,7 @@ impl Robot {
             n_elements: Some(self.n_elements),
             ..Settings::default()
         };
-        Solver::new(&self.actuated_scene(a, load)?, settings)
+        Solver::new(&self.scene(a, load)?, settings)
     }
 
     /// The loaded equilibrium of an actuation and its tip's sensitivity to

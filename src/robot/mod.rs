@@ -165,6 +165,26 @@ pub struct Actuation {
     pub field: Vector3<f64>,
 }
 
+impl Actuation {
+    /// The muscles' rest curvature alone (tendons slack, no field).
+    pub fn muscles(rest_curvature: Vec<[f64; 2]>) -> Actuation {
+        Actuation {
+            rest_curvature,
+            ..Actuation::default()
+        }
+    }
+}
+
+/// Which drives a batch's result reports, a column each: the rest curvature
+/// where the muscles drive the robot or it was given, the tensions of a
+/// robot with tendons, the field of a magnetic one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DriveColumns {
+    pub rest_curvature: bool,
+    pub tensions: bool,
+    pub field: bool,
+}
+
 /// Why muscle angles are refused.
 const SPAN_MESSAGE: &str =
     "the three muscles must sit at distinct angles that span the cross-section's plane (the map from curvature to length changes must have rank 2)";
@@ -343,16 +363,11 @@ impl Robot {
         forward.has_long_passes() || self.sections >= LONG_IK_PASS_SECTIONS
     }
 
-    /// The scene of the robot with the given muscle actuation under `load`
-    /// (tendons slack, no field): own weight, the disks as point loads at the
-    /// section ends, the payload's weight and the load's wrenches.
-    pub fn scene(&self, rest_curvature: &[[f64; 2]], load: &Load) -> Result<Scene> {
-        self.scene_of(rest_curvature, &[], Vector3::zeros(), load)
-    }
-
-    /// The scene of the robot under a whole actuation (muscles, tendons and
-    /// field) and `load`.
-    pub fn actuated_scene(&self, actuation: &Actuation, load: &Load) -> Result<Scene> {
+    /// The scene of the robot under an actuation (muscles, tendons and
+    /// field; each left empty does not act) and `load`: own weight, the disks
+    /// as point loads at the section ends, the payload's weight and the
+    /// load's wrenches.
+    pub fn scene(&self, actuation: &Actuation, load: &Load) -> Result<Scene> {
         if actuation.rest_curvature.is_empty() {
             let straight = vec![[0.0; 2]; self.sections];
             self.scene_of(&straight, &actuation.tensions, actuation.field, load)
@@ -364,6 +379,22 @@ impl Robot {
                 load,
             )
         }
+    }
+
+    /// Forward statics: the loaded equilibrium of an actuation (see
+    /// [`Robot::scene`]) at the robot's `n_elements`, from the straight rod
+    /// or warm from `initial` (the quaternions of an equilibrium).
+    pub fn forward(
+        &self,
+        actuation: &Actuation,
+        load: &Load,
+        initial: Option<&[Quat]>,
+    ) -> Result<crate::Solution> {
+        let settings = crate::Settings {
+            n_elements: Some(self.n_elements),
+            ..crate::Settings::default()
+        };
+        crate::solve(&self.scene(actuation, load)?, settings, initial)
     }
 
     /// Refuse tensions or a field the robot's drives cannot apply, naming them.
@@ -586,7 +617,7 @@ impl Robot {
     /// slender it is, its tendons), see [`Scene::warnings`].
     pub fn warnings(&self) -> Vec<String> {
         let straight = vec![[0.0; 2]; self.sections];
-        self.scene(&straight, &Load::default())
+        self.scene(&Actuation::muscles(straight), &Load::default())
             .map(|s| s.warnings())
             .unwrap_or_default()
     }
@@ -611,6 +642,17 @@ impl Robot {
         }
     }
 
+    /// The drives a batch of this robot reports (see [`DriveColumns`]);
+    /// `rest_curvature_given`: the batch was given the muscles' curvature.
+    pub fn drive_columns(&self, rest_curvature_given: bool) -> DriveColumns {
+        DriveColumns {
+            rest_curvature: rest_curvature_given
+                || self.actuation_space() == ActuationSpace::Curvature,
+            tensions: !self.tendons.is_empty(),
+            field: self.is_magnetic(),
+        }
+    }
+
     /// Whether the robot has magnetised material or a tip magnet.
     pub fn is_magnetic(&self) -> bool {
         !self.magnetization.is_empty() || self.tip_magnet != Vector3::zeros()
@@ -625,6 +667,16 @@ impl Robot {
             ActuationSpace::Field
         } else {
             ActuationSpace::Curvature
+        }
+    }
+
+    /// The sensitivity parameter of the robot's drive (the default of
+    /// [`Robot::sensitivity`]): `"rest_curvature"`, `"tensions"` or `"field"`.
+    pub fn drive_parameter(&self) -> &'static str {
+        match self.actuation_space() {
+            ActuationSpace::Curvature => "rest_curvature",
+            ActuationSpace::Tensions => "tensions",
+            ActuationSpace::Field => "field",
         }
     }
 

@@ -151,7 +151,7 @@ impl InverseSolver {
     /// The solver of `robot`'s own drive ([`Robot::actuation_space`]).
     pub fn new(robot: &Robot, load: &Load) -> Result<Self> {
         let drive = Drive::of(robot);
-        let scene = robot.actuated_scene(&Actuation::default(), load)?;
+        let scene = robot.scene(&Actuation::default(), load)?;
         let settings = Settings {
             n_elements: Some(robot.n_elements),
             residual_tol: 1e-12,

@@ -161,3 +161,69 @@ def test_a_load_warning_points_at_the_callers_line(call):
     with pytest.warns(UserWarning, match="grams meant") as record:
         call(softspine.Robot())
     assert record[0].filename == __file__
+
+
+def test_the_tip_sensitivity_to_the_loads_wrench_is_the_forward_difference():
+    robot = softspine.Robot()
+    kappa = robot.rest_curvature(np.full((robot.sections, 3), 0.095))
+    kappa[2] = [1.5, -0.5]
+    load = {"mass": 0.02, "tip_force": [0.1, 0.0, 0.0],
+            "point_loads": [{"s": 0.5, "force": [0.0, 0.05, 0.0], "moment": [0.0, 0.0, 0.01]}]}
+    names = ["load.tip_force", "load.tip_moment[1]", "load.point_loads[0].moment[2]", "load.mass"]
+    sens = robot.sensitivity(kappa, load, names)
+    assert sens.parameters == [
+        "load.tip_force[0]", "load.tip_force[1]", "load.tip_force[2]", "load.tip_moment[1]",
+        "load.point_loads[0].moment[2]", "load.mass",
+    ]
+
+    def tip(column, h):
+        moved = {**load, "tip_moment": [0.0, 0.0, 0.0],
+                 "point_loads": [dict(load["point_loads"][0])]}
+        moved["tip_force"] = list(load["tip_force"])
+        moved["point_loads"][0]["moment"] = [0.0, 0.0, 0.01]
+        if column < 3:
+            moved["tip_force"][column] += h
+        elif column == 3:
+            moved["tip_moment"] = [0.0, h, 0.0]
+        elif column == 4:
+            moved["point_loads"][0]["moment"] = [0.0, 0.0, 0.01 + h]
+        else:
+            moved["mass"] = 0.02 + h
+        return robot.forward(kappa, moved).tip_position
+
+    for column in range(6):
+        h = 1e-4
+        difference = (tip(column, h) - tip(column, -h)) / (2 * h)
+        np.testing.assert_allclose(
+            sens.tip_position[:, column], difference, rtol=1e-6, atol=1e-9,
+            err_msg=sens.parameters[column],
+        )
+
+
+def test_calibration_finds_an_unknown_tip_force_from_measured_tips():
+    # Force sensing: the tips of 12 known actuations under an unknown lateral
+    # tip force give the force back.
+    robot = softspine.Robot()
+    force = [0.08, -0.05, 0.0]
+    drives = robot.workspace(12, 0.0, seed=4, progress=False).actuations
+    measured = robot.forward_batch(drives, {"tip_force": force}, progress=False).tip_positions
+    fit = softspine.calibrate(robot, drives, measured, "load.tip_force", {"tip_force": [0, 0, 0]})
+    assert fit.converged, fit.message
+    assert fit.parameters == ["load.tip_force[0]", "load.tip_force[1]", "load.tip_force[2]"]
+    np.testing.assert_allclose(fit.estimates, force, atol=1e-7)
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("load.point_loads[0].s", "^parameters\\[0\\]: 'load.point_loads\\[0\\].s': expected"),
+        ("load.force", "^parameters\\[0\\]: 'load.force': expected load.mass"),
+        ("load.tip_force[3]", r"'load.tip_force\[3\]': a component is \[0\], \[1\] or \[2\]"),
+        ("load.point_loads[2].force", r"^load.point_loads\[2\].force\[0\]: not in the load, which"),
+    ],
+)
+def test_a_wrench_parameter_that_does_not_exist_is_refused_by_name(name, message):
+    robot = softspine.Robot()
+    load = {"point_loads": [{"s": 0.5, "force": [0.0, 0.05, 0.0]}]}
+    with pytest.raises(ValueError, match=message):
+        robot.sensitivity(None, load, name)

@@ -318,7 +318,9 @@ class Robot:
         sensitivity to the named parameters: ``"rest_curvature"``,
         ``"muscle_lengths"`` (or one component, ``"muscle_lengths[2][0]"``),
         ``"tensions"`` (or ``"tensions[i]"``), ``"field"`` (or
-        ``"field[c]"``), ``"load"`` (the tip mass) and any numeric field of
+        ``"field[c]"``), the load's ``"load.mass"``, ``"load.tip_force"``,
+        ``"load.tip_moment"``, ``"load.point_loads[j].force"`` / ``".moment"``
+        (three columns each, or one with ``[i]``) and any numeric field of
         ``to_dict()`` (``"stiffness.E"``, ``"linear_density"``,
         ``"disk_mass"``). Default: the robot's actuation space."""
     def forward_batch(

@@ -100,10 +100,13 @@ def robot_sensitivity(
     parameters
         A name or a list of names: ``"rest_curvature"``, ``"muscle_lengths"``
         (or one component, ``"muscle_lengths[2][0]"``), ``"tensions"`` (or
-        ``"tensions[i]"``), ``"field"`` (or ``"field[c]"``), ``"load"`` (the
-        payload mass) and any numeric field of ``Robot.to_dict()``
-        (``"stiffness.E"``, ``"linear_density"``, ``"disk_mass"``). Default:
-        the robot's drive (``Robot.actuation_space``).
+        ``"tensions[i]"``), ``"field"`` (or ``"field[c]"``), the load's
+        ``"load.mass"`` (or ``"load"``), ``"load.tip_force"``,
+        ``"load.tip_moment"``, ``"load.point_loads[j].force"`` and
+        ``".moment"`` (each three columns, or one with ``[i]``), and any
+        numeric field of ``Robot.to_dict()`` (``"stiffness.E"``,
+        ``"linear_density"``, ``"disk_mass"``). Default: the robot's drive
+        (``Robot.actuation_space``).
 
     Returns
     -------
@@ -138,9 +141,12 @@ def calibrate(
     threads: int | None = None,
 ) -> Calibration:
     """Fit numeric fields of ``robot`` (``"stiffness.E"``, ``"linear_density"``,
-    ``"disk_mass"``, ``"muscle_radius"``, ...; ``"load"`` the payload mass) to
-    tip positions (N, 3), m, measured at known actuations (N, m, 2), by
-    Gauss-Newton with the sensitivities of every sample (on every core).
+    ``"disk_mass"``, ``"muscle_radius"``, ...) and of the load (``"load.mass"``,
+    ``"load.tip_force"``, ``"load.tip_moment"``, ...: the names of
+    ``Robot.sensitivity``) to tip positions (N, 3), m, measured at known
+    actuations (N, m, 2), by Gauss-Newton with the sensitivities of every
+    sample (on every core). An unknown tip force starts from ``load``'s (zero
+    when not given): the measured tips sense it.
 
     Returns the estimates, their standard errors, the residuals and the
     fitted robot.

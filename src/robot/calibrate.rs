@@ -16,8 +16,11 @@ enum Parameter {
     Curvature(usize, usize),
     /// `muscle_lengths[s][k]`.
     Length(usize, usize),
-    /// `load`: the tip mass [kg].
+    /// `load` or `load.mass`: the payload mass [kg].
     Load,
+    /// A force or moment component of the load (`load.tip_force[0]`,
+    /// `load.point_loads[1].moment[2]`): its path in [`Load::to_table`].
+    LoadWrench(String),
     /// `tensions[i]`: a tendon's tension [N].
     Tension(usize),
     /// `field[c]`: a component of the external magnetic field [T].
@@ -83,7 +86,7 @@ impl Robot {
                     }
                 }
             }
-            "load" => out.push((name.into(), Parameter::Load)),
+            "load" | "load.mass" => out.push((name.into(), Parameter::Load)),
             "tensions" => out.extend(
                 (0..self.tendons.len()).map(|i| (format!("tensions[{i}]"), Parameter::Tension(i))),
             ),
@@ -91,6 +94,9 @@ impl Robot {
                 out.extend((0..3).map(|c| (format!("field[{c}]"), Parameter::MagneticField(c))))
             }
             _ => {
+                if let Some(path) = name.strip_prefix("load.") {
+                    return load_wrench(name, path, out);
+                }
                 if let Some(i) = one_index(name, "tensions", self.tendons.len())? {
                     out.push((name.into(), Parameter::Tension(i)));
                 } else if let Some(c) = one_index(name, "field", 3)? {
@@ -118,6 +124,15 @@ impl Robot {
             Parameter::Curvature(s, c) => kappa.get(*s).map_or(0.0, |k| k[*c]),
             Parameter::Length(s, c) => self.muscle_lengths(&self.curvature_of(a))[*s][*c],
             Parameter::Load => load.mass,
+            Parameter::LoadWrench(path) => *load.to_table().number_at_mut(path).map_err(|_| {
+                Error::argument(
+                    format!("load.{path}"),
+                    format!(
+                        "not in the load, which has {} point loads",
+                        load.point_loads.len()
+                    ),
+                )
+            })?,
             Parameter::Tension(i) => a.tensions.get(*i).copied().unwrap_or(0.0),
             Parameter::MagneticField(c) => a.field[*c],
             Parameter::Field(path) => *self.to_value().number_at_mut(path)?,
@@ -153,6 +168,13 @@ impl Robot {
                 let mut scene = self.scene(a, load)?;
                 scene.tip_force += delta * self.gravity;
                 return Ok(scene);
+            }
+            Parameter::LoadWrench(path) => {
+                // Linear in every force and moment: the load is rebuilt
+                // through its reader (which checks only that they are finite).
+                let mut v = load.to_table();
+                *v.number_at_mut(path)? += delta;
+                return self.scene(a, &Load::from_value(&v)?);
             }
             Parameter::Tension(i) => {
                 // The equations are linear in a tension: a difference through
@@ -240,6 +262,41 @@ impl Robot {
         })?;
         Ok((sol, sens))
     }
+}
+
+/// The parameters of a load's wrench named `name` (`path` after `load.`):
+/// a component (`tip_force[0]`, `point_loads[1].moment[2]`), or a vector
+/// (`tip_force`, `point_loads[1].force`) standing for its three. A point
+/// load's arc length is refused: it snaps to a node, not a smooth parameter.
+fn load_wrench(name: &str, path: &str, out: &mut Vec<(String, Parameter)>) -> Result<()> {
+    let field = path.rsplit('.').next().unwrap_or(path);
+    let vector = field.split('[').next().unwrap_or(field);
+    if !matches!(vector, "tip_force" | "tip_moment" | "force" | "moment")
+        || (matches!(vector, "force" | "moment") && !path.starts_with("point_loads["))
+    {
+        return Err(Error::argument(
+            name,
+            "expected load.mass, load.tip_force, load.tip_moment or \
+             load.point_loads[j].force / .moment (each [i] for one component)",
+        ));
+    }
+    if let Some(index) = field.strip_prefix(vector).filter(|i| !i.is_empty()) {
+        if !matches!(index, "[0]" | "[1]" | "[2]") {
+            return Err(Error::argument(
+                name,
+                "a component is [0], [1] or [2] (world frame)",
+            ));
+        }
+        out.push((name.into(), Parameter::LoadWrench(path.into())));
+    } else {
+        out.extend((0..3).map(|i| {
+            (
+                format!("{name}[{i}]"),
+                Parameter::LoadWrench(format!("{path}[{i}]")),
+            )
+        }));
+    }
+    Ok(())
 }
 
 /// `prefix[i]` with `i < count`, or `None` for another name.
@@ -366,7 +423,9 @@ impl Robot {
         let fields: Vec<String> = parameters
             .iter()
             .map(|(name, p)| match p {
-                Parameter::Field(_) | Parameter::Load => Ok(name.clone()),
+                Parameter::Field(_) | Parameter::Load | Parameter::LoadWrench(_) => {
+                    Ok(name.clone())
+                }
                 _ => Err(Error::argument(
                     name.clone(),
                     "the actuation is known: fit robot fields or the load",
@@ -390,15 +449,31 @@ impl Robot {
                 self.parameter_value(p, &first, load)
             })
             .collect::<Result<_>>()?;
-        let scale: Vec<f64> = start.iter().map(|x| x.abs().max(1e-12)).collect();
-        // The robot and tip mass of a parameter vector.
+        // A wrench that starts at zero (an unknown tip force) is scaled by
+        // the robot's weight, and its moment by the weight times the length.
+        let weight = self.own_mass() * self.gravity.norm();
+        let scale: Vec<f64> = start
+            .iter()
+            .zip(&parameters)
+            .map(|(x, (_, p))| {
+                let natural = match p {
+                    Parameter::LoadWrench(path) if path.contains("moment") => weight * self.length,
+                    Parameter::LoadWrench(_) => weight,
+                    _ => 0.0,
+                };
+                x.abs().max(natural).max(1e-12)
+            })
+            .collect();
+        // The robot and load of a parameter vector.
         let split = |p: &[f64]| -> Result<(Robot, Load)> {
             let mut mass = load.mass;
+            let mut wrench = load.to_table();
             let mut field_names = Vec::new();
             let mut field_values = Vec::new();
             for ((name, kind), x) in parameters.iter().zip(p) {
                 match kind {
                     Parameter::Load => mass = *x,
+                    Parameter::LoadWrench(path) => *wrench.number_at_mut(path)? = *x,
                     _ => {
                         field_names.push(name.clone());
                         field_values.push(*x);
@@ -407,7 +482,7 @@ impl Robot {
             }
             Ok((
                 self.with_fields(&field_names, &field_values)?,
-                load.with_mass(mass),
+                Load::from_value(&wrench)?.with_mass(mass),
             ))
         };
         let samples: Vec<&[[f64; 2]]> = actuations.chunks(m).collect();

@@ -104,6 +104,12 @@ impl Load {
         if self.is_mass_only() {
             return Value::Number(self.mass);
         }
+        self.to_table()
+    }
+
+    /// The load as a table of every key, a bare mass too: the paths of its
+    /// sensitivity parameters (`tip_force[0]`, `point_loads[1].moment[2]`).
+    pub fn to_table(&self) -> Value {
         let vector = |v: &Vector3<f64>| Value::List(v.iter().map(|x| Value::Number(*x)).collect());
         Value::Map(vec![
             ("mass".into(), Value::Number(self.mass)),

@@ -56,8 +56,28 @@ const LM_GIVE_UP: f64 = 1e10;
 /// kept whole (backtracked on a merit); farther off a refused step is damped.
 const NEAR: f64 = 1e-3;
 
+/// The slide toward the reference converges linearly, its steps shrinking
+/// by a nearly constant ratio along a nearly constant direction (the tendon
+/// robot's track: 0.28, cosines above 0.9999). Two full steps that agree so
+/// (cosine above `SLIDE_ALIGNED`, ratio below `SLIDE_RATIO`) give the rest of
+/// the geometric series in one step (Aitken's extrapolation), backtracked on
+/// the merit as any step.
+const SLIDE_ALIGNED: f64 = 0.99;
+const SLIDE_RATIO: f64 = 0.8;
+
 /// Tip miss allowed while a restart's answer slides toward the reference [relative to L].
 const POLISH_SLACK: f64 = 1e-2;
+
+/// How far a path's next step may differ from its last (relative to it) for
+/// the next answer to be predicted by extrapolation.
+const PATH_EVENNESS: f64 = 0.5;
+
+/// The targets of an inverse solver's last two answers (the older `None`
+/// when it did not follow the path) and the answer before the last.
+struct PathHistory {
+    targets: [Option<Vector3<f64>>; 2],
+    before_last: DVector<f64>,
+}
 
 /// What a step is pulled toward besides the target.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -141,6 +161,9 @@ pub struct InverseSolver {
     /// The last answer's drive and equilibrium.
     last: DVector<f64>,
     q: Option<Vec<Quat>>,
+    /// The targets of the last two answers reached and the answer before the
+    /// last, the path a next start is predicted along (see `predicted`).
+    path: Option<PathHistory>,
     /// Iterations of the current solve, all starts included.
     iterations: usize,
     /// The warm start the current solve was given (the last answer's equilibrium).
@@ -163,6 +186,7 @@ impl InverseSolver {
             drive,
             solver: Solver::new(&scene, settings)?,
             q: None,
+            path: None,
             iterations: 0,
             given_warm: None,
         })
@@ -193,6 +217,7 @@ impl InverseSolver {
         if let Some(x) = self.drive.warm(&self.robot, start)? {
             self.last = x;
         }
+        self.path = None;
         self.q = Some(start.quaternions.clone());
         Ok(())
     }
@@ -241,9 +266,10 @@ impl InverseSolver {
         // At the reference the Gauss-Newton path to the nearest solution is
         // short; sliding along the solution set from elsewhere converges only
         // linearly (along a path the reference is the last answer).
+        // From the last answer, the start is predicted along the path.
         let start = match reference {
-            Some(_) => goal.reference.clone(),
-            None => self.last.clone(),
+            Some(_) if goal.reference != self.last => goal.reference.clone(),
+            _ => self.predicted(&goal).unwrap_or_else(|| self.last.clone()),
         };
         let first = self.reach(&goal, start, Pull::Reference, max_iterations)?;
         let (mut best, starts) = if first.reached(&goal) || goal.beyond_length(self.base()) {
@@ -422,6 +448,8 @@ impl InverseSolver {
         let mut jac: Option<DMatrix<f64>> = None;
         let mut away = false;
         let mut near = false;
+        // The last full step of the slide toward the reference (see SLIDE_ALIGNED).
+        let mut last_slide: Option<DVector<f64>> = None;
         let ended = loop {
             if self.iterations >= end {
                 break PhaseEnd::Budget;
@@ -464,8 +492,22 @@ impl InverseSolver {
                     self.restore(st)?;
                     away = false;
                 }
-                match self.merit_search(goal, st, j, &step, pull)? {
+                // Two aligned full steps in a row: the rest of their series.
+                let series = last_slide.take().and_then(|last| {
+                    let ratio = norm / last.norm();
+                    let aligned = last.dot(&step) >= SLIDE_ALIGNED * last.norm() * norm;
+                    (aligned && ratio < SLIDE_RATIO).then(|| &step / (1.0 - ratio))
+                });
+                let extrapolated = series.is_some();
+                let slide = series.unwrap_or_else(|| step.clone());
+                match self.merit_search(goal, st, j, &slide, pull)? {
                     Search::Accepted(alpha) => {
+                        if std::env::var_os("SOFTSPINE_TRACE").is_some() {
+                            eprintln!("it {} miss {:.2e} step/size {:.2e} extrap {extrapolated} alpha {alpha}", self.iterations, st.e.norm(), norm / size);
+                        }
+                        if alpha == 1.0 && !extrapolated {
+                            last_slide = Some(step.clone());
+                        }
                         jac = None;
                         if alpha == 1.0 && goal.reached(&st.e) && norm <= MIN_NORM_ACCURACY * size {
                             break PhaseEnd::Done;
@@ -853,6 +895,16 @@ impl InverseSolver {
 
     /// The answer, its state kept as the warm start of the next solve.
     fn conclude(&mut self, goal: &Goal, state: State, ending: IkEnding, starts: usize) -> IkResult {
+        self.path = match (&self.path, ending) {
+            (_, IkEnding::Reached) if state.usable() => Some(PathHistory {
+                targets: [
+                    self.path.as_ref().and_then(|p| p.targets[1]),
+                    Some(goal.target),
+                ],
+                before_last: self.last.clone(),
+            }),
+            _ => None,
+        };
         if state.usable() {
             self.last = state.x.clone();
             self.q = Some(state.sol.quaternions.clone());
@@ -865,6 +917,21 @@ impl InverseSolver {
         r.iterations = self.iterations;
         r.starts = starts;
         r
+    }
+
+    /// Along a path, the start of the next solve: the linear extrapolation
+    /// of the last two answers, when both were reached and the targets
+    /// advance by nearly equal steps (the new step within half of the last).
+    /// The slide along the solution set then begins as near its end as the
+    /// path is straight. `None`: start from the last answer.
+    fn predicted(&self, goal: &Goal) -> Option<DVector<f64>> {
+        let path = self.path.as_ref()?;
+        let [Some(t0), Some(t1)] = path.targets else {
+            return None;
+        };
+        let (last, next) = (t1 - t0, goal.target - t1);
+        let even = last.norm() > 0.0 && (next - last).norm() <= PATH_EVENNESS * last.norm();
+        even.then(|| 2.0 * &self.last - &path.before_last)
     }
 
     fn message(

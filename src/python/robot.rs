@@ -436,9 +436,30 @@ impl PyRobot {
         Ok(self.inner.within_bounds(&k))
     }
 
-    /// Forward statics: the loaded equilibrium of an actuation, from the
-    /// straight rod or from ``initial`` (a Solution of this robot, or its
-    /// quaternions (n + 1, 4)): a warm start.
+    /// Forward statics: the loaded equilibrium of an actuation.
+    ///
+    /// Parameters
+    /// ----------
+    /// rest_curvature
+    ///     The muscles' rest curvature, (m, 2), 1/m (default straight).
+    /// load
+    ///     A payload mass [kg], or a dict of ``mass``, ``tip_force`` [N],
+    ///     ``tip_moment`` [N m] (world frame) and ``point_loads``
+    ///     (``[{s, force, moment}]``).
+    /// initial
+    ///     A warm start: a Solution of this robot or its quaternions
+    ///     (n + 1, 4) (default: from the straight rod).
+    /// tensions
+    ///     A tendon-driven robot's tensions, N, one a tendon, each within
+    ///     ``[0, max_tension]``.
+    /// field
+    ///     A magnetic robot's uniform field, T, world frame, within
+    ///     ``max_field``.
+    ///
+    /// Returns
+    /// -------
+    /// Solution
+    ///     At the robot's ``n_elements``; ``status`` says how the solve ended.
     #[pyo3(signature = (rest_curvature=None, load=None, initial=None, *, tensions=None, field=None))]
     fn forward(
         &self,
@@ -638,7 +659,9 @@ impl PyRobot {
         Ok(ik_batch_result(py, &samples, robot)?.into_any())
     }
 
-    /// A reusable inverse solver for one load (warm starts between calls).
+    /// A reusable inverse solver for one ``load`` (as ``forward``'s): each
+    /// ``solve`` starts warm from the last answer, and along evenly spaced
+    /// targets from the extrapolation of the last two (a control loop).
     #[pyo3(signature = (load=None))]
     fn inverse_solver(
         &self,
@@ -654,14 +677,38 @@ impl PyRobot {
         })
     }
 
-    /// Load-aware inverse kinematics of one target: the actuation whose
-    /// equilibrium under ``load`` (a payload mass in kg, or a dict of
-    /// ``mass``, ``tip_force``, ``tip_moment``, ``point_loads``, world frame)
-    /// puts the tip on ``target`` (m), closest to ``reference`` (rest
-    /// curvature (m, 2), default zero), optionally with the tip along
-    /// ``direction`` (within ``tol / L`` rad, whatever drives the robot). ``settings`` an
-    /// ``IkSettings`` or a dict; ``strategy``, ``tol`` and ``max_iterations``
-    /// override its fields.
+    /// Load-aware inverse kinematics of one target: the drive whose
+    /// equilibrium under ``load`` puts the tip (the tool's point) on
+    /// ``target``, the one closest to a reference.
+    ///
+    /// Parameters
+    /// ----------
+    /// target
+    ///     The tip's target, (3,), m, world frame.
+    /// load
+    ///     What the robot carries, as ``forward``'s.
+    /// reference
+    ///     The muscles' rest curvature (m, 2) the answer is closest to
+    ///     (default zero: the least curvature).
+    /// direction
+    ///     The tip's tangent, (3,), world frame: met within ``tol / L`` rad,
+    ///     whatever drives the robot (default: free).
+    /// settings
+    ///     An ``IkSettings`` or a dict of its fields; ``strategy``, ``tol``
+    ///     (m) and ``max_iterations`` override them.
+    /// initial
+    ///     A warm start: an earlier ``IkResult`` or a Solution's quaternions.
+    /// pretension
+    ///     A tendon-driven robot's tensions (N, one a tendon) the answer is
+    ///     closest to (default zero: the least tension).
+    ///
+    /// Returns
+    /// -------
+    /// IkResult
+    ///     The drive found in every space (``rest_curvature``,
+    ///     ``muscle_lengths``, ``tensions``, ``field``), its equilibrium, and
+    ///     ``ending``: why it ended (``reached``, or the true reason it could
+    ///     not be, with ``message``).
     #[pyo3(signature = (target, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None, pretension=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse(
@@ -697,8 +744,13 @@ impl PyRobot {
         Ok(PyIkResult { inner: r })
     }
 
-    /// Inverse kinematics of a sequence of targets (N, 3), each warm from the
-    /// previous one and closest to its actuation (see ``inverse``).
+    /// Inverse kinematics of a sequence of targets (N, 3), m, in order: each
+    /// solve starts warm from the previous answer (along evenly spaced
+    /// targets, from the extrapolation of the last two). A muscle-driven
+    /// robot's answer is the one closest to the previous answer (a smooth
+    /// motion); a tendon-driven or magnetic robot's keeps the least tension
+    /// (or ``pretension``) or field. The other arguments are ``inverse``'s.
+    /// A list of ``IkResult``, one a target.
     #[pyo3(signature = (points, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, pretension=None))]
     #[allow(clippy::too_many_arguments)]
     fn track(

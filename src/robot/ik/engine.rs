@@ -77,6 +77,8 @@ const PATH_EVENNESS: f64 = 0.5;
 struct PathHistory {
     targets: [Option<Vector3<f64>>; 2],
     before_last: DVector<f64>,
+    /// The equilibrium of the answer before the last.
+    before_last_q: Option<Vec<Quat>>,
 }
 
 /// What a step is pulled toward besides the target.
@@ -269,7 +271,13 @@ impl InverseSolver {
         // From the last answer, the start is predicted along the path.
         let start = match reference {
             Some(_) if goal.reference != self.last => goal.reference.clone(),
-            _ => self.predicted(&goal).unwrap_or_else(|| self.last.clone()),
+            _ => match self.predicted(&goal) {
+                Some((x, q)) => {
+                    self.q = q.or(self.q.take());
+                    x
+                }
+                None => self.last.clone(),
+            },
         };
         let first = self.reach(&goal, start, Pull::Reference, max_iterations)?;
         let (mut best, starts) = if first.reached(&goal) || goal.beyond_length(self.base()) {
@@ -902,6 +910,7 @@ impl InverseSolver {
                     Some(goal.target),
                 ],
                 before_last: self.last.clone(),
+                before_last_q: self.q.clone(),
             }),
             _ => None,
         };
@@ -924,14 +933,34 @@ impl InverseSolver {
     /// advance by nearly equal steps (the new step within half of the last).
     /// The slide along the solution set then begins as near its end as the
     /// path is straight. `None`: start from the last answer.
-    fn predicted(&self, goal: &Goal) -> Option<DVector<f64>> {
+    /// Its equilibrium is warm from the same extrapolation of the last two
+    /// equilibria (node by node, normalised), where both are known.
+    fn predicted(&self, goal: &Goal) -> Option<(DVector<f64>, Option<Vec<Quat>>)> {
         let path = self.path.as_ref()?;
         let [Some(t0), Some(t1)] = path.targets else {
             return None;
         };
         let (last, next) = (t1 - t0, goal.target - t1);
         let even = last.norm() > 0.0 && (next - last).norm() <= PATH_EVENNESS * last.norm();
-        even.then(|| 2.0 * &self.last - &path.before_last)
+        if !even {
+            return None;
+        }
+        let q = match (&self.q, &path.before_last_q) {
+            (Some(q1), Some(q0)) if q1.len() == q0.len() => Some(
+                q1.iter()
+                    .zip(q0)
+                    .map(|(&a, &b)| {
+                        // The same sign of the two (q and -q are one rotation).
+                        let b = if a.dot(b) < 0.0 { -b } else { b };
+                        let [w, x, y, z] =
+                            [0, 1, 2, 3].map(|i| 2.0 * a.to_array()[i] - b.to_array()[i]);
+                        Quat::new(w, x, y, z).normalized()
+                    })
+                    .collect(),
+            ),
+            _ => None,
+        };
+        Some((2.0 * &self.last - &path.before_last, q))
     }
 
     fn message(

@@ -458,6 +458,8 @@ impl InverseSolver {
         let mut near = false;
         // The last full step of the slide toward the reference (see SLIDE_ALIGNED).
         let mut last_slide: Option<DVector<f64>> = None;
+        // Its ratio, once two full steps agreed: what a step leaves to go.
+        let mut rate: Option<f64> = None;
         let ended = loop {
             if self.iterations >= end {
                 break PhaseEnd::Budget;
@@ -487,7 +489,9 @@ impl InverseSolver {
             // linearised problem's answer) moves the actuation by less than
             // MIN_NORM_ACCURACY of its size: the choice is settled to that
             // accuracy (the step itself may drown in the tip's round-off).
-            if was_reached && mu == 0.0 && norm <= MIN_NORM_ACCURACY * size {
+            // The distance left is the step's series where its ratio is known.
+            let to_go = rate.map_or(norm, |r| norm / (1.0 - r));
+            if was_reached && mu == 0.0 && to_go <= MIN_NORM_ACCURACY * size {
                 break PhaseEnd::Done;
             }
             let before = st.e.norm();
@@ -504,20 +508,26 @@ impl InverseSolver {
                 let series = last_slide.take().and_then(|last| {
                     let ratio = norm / last.norm();
                     let aligned = last.dot(&step) >= SLIDE_ALIGNED * last.norm() * norm;
-                    (aligned && ratio < SLIDE_RATIO).then(|| &step / (1.0 - ratio))
+                    (aligned && ratio < SLIDE_RATIO).then(|| {
+                        rate = Some(ratio);
+                        &step / (1.0 - ratio)
+                    })
                 });
                 let extrapolated = series.is_some();
                 let slide = series.unwrap_or_else(|| step.clone());
                 match self.merit_search(goal, st, j, &slide, pull)? {
                     Search::Accepted(alpha) => {
-                        if std::env::var_os("SOFTSPINE_TRACE").is_some() {
-                            eprintln!("it {} miss {:.2e} step/size {:.2e} extrap {extrapolated} alpha {alpha}", self.iterations, st.e.norm(), norm / size);
-                        }
                         if alpha == 1.0 && !extrapolated {
                             last_slide = Some(step.clone());
                         }
                         jac = None;
-                        if alpha == 1.0 && goal.reached(&st.e) && norm <= MIN_NORM_ACCURACY * size {
+                        // What is left of the slide after a full step: the rest
+                        // of its series where its ratio is known, else the step.
+                        let left = match rate {
+                            Some(r) if !extrapolated => norm * r / (1.0 - r),
+                            _ => norm,
+                        };
+                        if alpha == 1.0 && goal.reached(&st.e) && left <= MIN_NORM_ACCURACY * size {
                             break PhaseEnd::Done;
                         }
                         // At the closest tip short of the target the miss stops falling.

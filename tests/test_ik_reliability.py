@@ -96,6 +96,26 @@ def test_the_answer_is_the_least_curvature_that_reaches_the_target():
         assert np.linalg.norm(kappa - jac.T @ y) < 1e-5 * np.linalg.norm(kappa)
 
 
+def test_tracking_slides_to_the_least_tension_in_few_iterations():
+    """Along the tendon robot's circle every answer is the least tension that
+    reaches its point (the free tensions in the row space of the tip's
+    Jacobian), and the slide there takes few iterations: it converged
+    linearly (8.8 a point) until the extrapolated slide and the predicted
+    start (5.5)."""
+    example = Path(__file__).resolve().parent.parent / "examples" / "robots"
+    robot = Robot.from_file(example / "tendon_robot.toml")
+    points = softspine._core.trajectory_points("circle", 60, robot)
+    results = robot.track(points, load=0.02)
+    assert all(r.reached for r in results)
+    assert np.mean([r.iterations for r in results]) <= 6.5
+    for r in results[::6]:
+        jac = robot.sensitivity(None, 0.02, "tensions", tensions=r.tensions).tip_position
+        free = r.tensions > 1e-9
+        t = r.tensions[free]
+        y = np.linalg.lstsq(jac[:, free].T, t, rcond=None)[0]
+        assert np.linalg.norm(t - jac[:, free].T @ y) < 1e-5 * np.linalg.norm(t)
+
+
 def test_tol_means_the_same_angle_for_a_direction_on_every_drive():
     """One meaning of tol: the tip within tol of the point and its tangent
     within tol / L of the direction, whatever drives the robot."""

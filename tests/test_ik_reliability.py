@@ -137,6 +137,39 @@ def test_tol_means_the_same_angle_for_a_direction_on_every_drive():
         assert r.tip_miss <= tol and angle <= tol / length, (r.tip_miss, angle)
 
 
+def test_a_full_pose_is_reached_on_every_drive_within_tol_over_l():
+    """A full pose: the tip's point within tol and its frame within tol / L
+    rad, given as a quaternion [w, x, y, z] or a scipy Rotation."""
+    from scipy.spatial.transform import Rotation
+
+    example = Path(__file__).resolve().parent.parent / "examples" / "robots"
+    cases = [(Robot(), {"rest_curvature": np.array([[0.4, -0.2], [0.3, 0.1]] * 5)}),
+             (Robot.from_file(example / "tendon_robot.toml"),
+              {"tensions": [6.0, 0, 0, 0, 5.0, 0, 0, 0, 4.0]})]
+    for robot, drive in cases:
+        sol = robot.forward(load=0.02, **drive)
+        w, x, y, z = sol.quaternions[-1]
+        aimed = Rotation.from_quat([x, y, z, w])
+        tol, length = 1e-7, robot.to_dict()["length"]
+        for orientation in ([w, x, y, z], aimed):
+            r = robot.inverse(sol.tip_position, load=0.02, orientation=orientation, tol=tol)
+            assert r.ending == softspine.IkEnding.REACHED, r.message
+            w2, x2, y2, z2 = r.solution.quaternions[-1]
+            angle = (Rotation.from_quat([x2, y2, z2, w2]) * aimed.inv()).magnitude()
+            assert r.tip_miss <= tol and angle <= tol / length, (r.tip_miss, angle)
+
+
+@pytest.mark.parametrize(
+    ("keywords", "message"),
+    [({"orientation": [1, 0, 0, 0], "direction": [0, 0, -1]}, "^orientation: give a direction or"),
+     ({"orientation": [0, 0, 0, 0]}, "^orientation: must be a finite non-zero quaternion"),
+     ({"orientation": [1, 0, 0]}, "^orientation: expected a quaternion")],
+)
+def test_a_bad_orientation_is_refused_by_name(keywords, message):
+    with pytest.raises(ValueError, match=message):
+        Robot().inverse([0.1, 0.0, -0.9], load=0.02, **keywords)
+
+
 def test_a_target_farther_than_the_robot_is_long_is_out_of_reach():
     r = Robot().inverse([1.0, 0.0, -1.0], load=0.03)
     assert not r.reached

@@ -245,6 +245,7 @@ class InverseSolver:
         tol: float | None = None,
         max_iterations: int | None = None,
         pretension: npt.ArrayLike | None = None,
+        orientation: Any = None,
     ) -> IkResult: ...
 
 @final
@@ -387,6 +388,7 @@ class Robot:
         settings: IkSettings | dict[str, Any] | None = None,
         *,
         pretension: npt.ArrayLike | None = None,
+        orientation: Any = None,
         threads: int | None = None,
         chunk: int | None = None,
         progress: bool | Callable[[int, int], object] | None = None,
@@ -439,6 +441,7 @@ class Robot:
         settings: IkSettings | dict[str, Any] | None = None,
         *,
         pretension: npt.ArrayLike | None = None,
+        orientation: Any = None,
         threads: int | None = None,
         chunk: int | None = None,
         progress: Callable[[int, int], object] | None = None,
@@ -469,6 +472,7 @@ class Robot:
         max_iterations: int | None = None,
         initial: IkResult | Solution | npt.ArrayLike | None = None,
         pretension: npt.ArrayLike | None = None,
+        orientation: Any = None,
     ) -> IkResult:
         """Load-aware inverse kinematics of one target, in the robot's
         actuation space. Muscles: the curvature closest to ``reference``.
@@ -491,6 +495,7 @@ class Robot:
         tol: float | None = None,
         max_iterations: int | None = None,
         pretension: npt.ArrayLike | None = None,
+        orientation: Any = None,
     ) -> list[IkResult]: ...
     def __reduce__(self) -> tuple[type[Robot], tuple[dict[str, Any]]]: ...
 

@@ -310,6 +310,7 @@ def inverse_batch(
     settings: IkSettings | dict[str, Any] | None = None,
     *,
     pretension: npt.ArrayLike | None = None,
+    orientation: Any = None,
     threads: int | None = None,
     chunk: int | None = None,
     progress: Progress = None,
@@ -317,8 +318,8 @@ def inverse_batch(
     part: int | None = None,
 ) -> IkBatchResult:
     """Load-aware inverse kinematics of many targets (samples, 3), m, each on
-    its own as ``Robot.inverse`` (the same ``reference``, ``direction``,
-    ``settings`` and ``pretension`` for all), on every core.
+    its own as ``Robot.inverse`` (the same ``reference``, ``direction`` or
+    ``orientation``, ``settings`` and ``pretension`` for all), on every core.
 
     A chunk's solver starts each target from its last answer. The answers'
     drives are kept: ``rest_curvature`` always, ``tensions`` or ``field`` for
@@ -330,12 +331,13 @@ def inverse_batch(
 
         return distributed.inverse_batch(
             self, targets, load, executor=executor, reference=reference, direction=direction,
-            settings=settings, pretension=pretension, threads=threads, chunk=chunk,
-            progress=progress, part=part,
+            settings=settings, pretension=pretension, orientation=orientation, threads=threads,
+            chunk=chunk, progress=progress, part=part,
         )  # fmt: skip
     fields_ = self._inverse_batch(
         targets, load, reference, direction, settings, pretension=pretension,
-        threads=threads, chunk=chunk, progress=progress_callback(progress), part=part,
+        orientation=orientation, threads=threads, chunk=chunk,
+        progress=progress_callback(progress), part=part,
     )  # fmt: skip
     return IkBatchResult(**fields_)
 

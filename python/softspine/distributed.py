@@ -184,6 +184,7 @@ def inverse_batch(
     direction: npt.ArrayLike | None = None,
     settings: Any = None,
     pretension: npt.ArrayLike | None = None,
+    orientation: Any = None,
     threads: int | None = None,
     chunk: int | None = None,
     progress: Any = None,
@@ -192,7 +193,7 @@ def inverse_batch(
     """``Robot.inverse_batch`` on ``executor``."""
     chunk, part = robot._inverse_batch(
         targets, load, reference, direction, settings, pretension=pretension,
-        threads=threads, chunk=chunk, part=part, plan=True,
+        orientation=orientation, threads=threads, chunk=chunk, part=part, plan=True,
     )  # fmt: skip
     t = np.asarray(targets, dtype=np.float64)
     options = _options(
@@ -200,6 +201,7 @@ def inverse_batch(
         direction=direction,
         settings=settings,
         pretension=pretension,
+        orientation=orientation,
         threads=threads,
         chunk=chunk,
     )

@@ -554,6 +554,27 @@ pub(super) fn vec3_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f
     Ok(v)
 }
 
+/// An orientation, world frame: a unit quaternion `[w, x, y, z]` (scalar
+/// first, normalised here) or anything with SciPy's `Rotation.as_quat()`
+/// (scalar last). The core refuses a zero or non-finite one by name.
+pub(super) fn orientation_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<crate::quat::Quat> {
+    if obj.hasattr("as_quat")? {
+        let q = floats_arg(name, &obj.call_method0("as_quat")?)?;
+        if q.len() == 4 {
+            return Ok(crate::quat::Quat::new(q[3], q[0], q[1], q[2]));
+        }
+        return Err(Path::argument(name).error("expected a single rotation"));
+    }
+    let q = floats_arg(name, obj)?;
+    match q[..] {
+        [w, x, y, z] => Ok(crate::quat::Quat::new(w, x, y, z)),
+        _ => Err(Path::argument(name).error(format!(
+            "expected a quaternion [w, x, y, z] or a scipy Rotation, got {} values",
+            q.len()
+        ))),
+    }
+}
+
 /// A 3-vector by `vec3_arg`'s rules, finite or not.
 pub(super) fn vector_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f64>> {
     let path = Path::argument(name);

@@ -217,7 +217,7 @@ impl PyInverseSolver {
     /// ``Robot.inverse``); ``settings`` an ``IkSettings`` (its strategy must
     /// be "equilibrium"), the keywords over it. A tendon-driven or magnetic
     /// robot's: its tensions (closest to ``pretension``) or field.
-    #[pyo3(signature = (target, reference=None, direction=None, settings=None, *, tol=None, max_iterations=None, pretension=None))]
+    #[pyo3(signature = (target, reference=None, direction=None, settings=None, *, tol=None, max_iterations=None, pretension=None, orientation=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve(
         &self,
@@ -229,7 +229,11 @@ impl PyInverseSolver {
         tol: Option<&Bound<'_, PyAny>>,
         max_iterations: Option<&Bound<'_, PyAny>>,
         pretension: Option<&Bound<'_, PyAny>>,
+        orientation: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
+        let orientation = given(orientation)
+            .map(|q| orientation_arg("orientation", &q))
+            .transpose()?;
         let pretension = given(pretension)
             .map(|p| floats_arg("pretension", &p))
             .transpose()?;
@@ -250,6 +254,7 @@ impl PyInverseSolver {
                     load: crate::robot::Load::default(),
                     reference,
                     direction,
+                    orientation,
                     settings,
                     pretension,
                     initial: None,
@@ -610,7 +615,7 @@ impl PyRobot {
     /// Load-aware inverse kinematics of many targets (samples, 3), each on
     /// its own, on every core: the fields of an ``IkBatchResult``.
     /// ``Robot.inverse_batch`` (``softspine.batch``) calls it.
-    #[pyo3(name = "_inverse_batch", signature = (targets, load=None, reference=None, direction=None, settings=None, *, pretension=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
+    #[pyo3(name = "_inverse_batch", signature = (targets, load=None, reference=None, direction=None, settings=None, *, pretension=None, orientation=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse_batch<'py>(
         slf: &Bound<'py, Self>,
@@ -621,6 +626,7 @@ impl PyRobot {
         direction: Option<&Bound<'py, PyAny>>,
         settings: Option<&Bound<'py, PyAny>>,
         pretension: Option<&Bound<'py, PyAny>>,
+        orientation: Option<&Bound<'py, PyAny>>,
         threads: Option<&Bound<'py, PyAny>>,
         chunk: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
@@ -643,6 +649,9 @@ impl PyRobot {
                 .map(|d| vec3_arg("direction", &d))
                 .transpose()?,
             settings: ik_settings_arg(settings, &[])?,
+            orientation: given(orientation)
+                .map(|q| orientation_arg("orientation", &q))
+                .transpose()?,
             pretension: given(pretension)
                 .map(|p| floats_arg("pretension", &p))
                 .transpose()?,
@@ -701,6 +710,10 @@ impl PyRobot {
     /// pretension
     ///     A tendon-driven robot's tensions (N, one a tendon) the answer is
     ///     closest to (default zero: the least tension).
+    /// orientation
+    ///     A full pose: the tip frame's orientation, world frame, a
+    ///     quaternion ``[w, x, y, z]`` or a ``scipy.spatial.transform.Rotation``,
+    ///     met within ``tol / L`` rad (not with ``direction``).
     ///
     /// Returns
     /// -------
@@ -709,7 +722,7 @@ impl PyRobot {
     ///     ``muscle_lengths``, ``tensions``, ``field``), its equilibrium, and
     ///     ``ending``: why it ended (``reached``, or the true reason it could
     ///     not be, with ``message``).
-    #[pyo3(signature = (target, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None, pretension=None))]
+    #[pyo3(signature = (target, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, initial=None, pretension=None, orientation=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse(
         &self,
@@ -724,6 +737,7 @@ impl PyRobot {
         max_iterations: Option<&Bound<'_, PyAny>>,
         initial: Option<&Bound<'_, PyAny>>,
         pretension: Option<&Bound<'_, PyAny>>,
+        orientation: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyIkResult> {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
@@ -733,7 +747,14 @@ impl PyRobot {
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let mut options = self.ik_options(&load, reference, direction, settings, &keywords)?;
+        let mut options = self.ik_options(
+            &load,
+            reference,
+            direction,
+            orientation,
+            settings,
+            &keywords,
+        )?;
         options.initial = given(initial).map(|x| ik_start(&x)).transpose()?;
         options.pretension = given(pretension)
             .map(|p| floats_arg("pretension", &p))
@@ -751,7 +772,7 @@ impl PyRobot {
     /// motion); a tendon-driven or magnetic robot's keeps the least tension
     /// (or ``pretension``) or field. The other arguments are ``inverse``'s.
     /// A list of ``IkResult``, one a target.
-    #[pyo3(signature = (points, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, pretension=None))]
+    #[pyo3(signature = (points, load=None, reference=None, direction=None, settings=None, *, strategy=None, tol=None, max_iterations=None, pretension=None, orientation=None))]
     #[allow(clippy::too_many_arguments)]
     fn track(
         &self,
@@ -765,6 +786,7 @@ impl PyRobot {
         tol: Option<&Bound<'_, PyAny>>,
         max_iterations: Option<&Bound<'_, PyAny>>,
         pretension: Option<&Bound<'_, PyAny>>,
+        orientation: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<PyIkResult>> {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
@@ -777,7 +799,14 @@ impl PyRobot {
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let mut options = self.ik_options(&load, reference, direction, settings, &keywords)?;
+        let mut options = self.ik_options(
+            &load,
+            reference,
+            direction,
+            orientation,
+            settings,
+            &keywords,
+        )?;
         options.pretension = given(pretension)
             .map(|p| floats_arg("pretension", &p))
             .transpose()?;
@@ -872,6 +901,7 @@ impl PyRobot {
         load: &crate::robot::Load,
         reference: Option<&Bound<'_, PyAny>>,
         direction: Option<&Bound<'_, PyAny>>,
+        orientation: Option<&Bound<'_, PyAny>>,
         settings: Option<&Bound<'_, PyAny>>,
         keywords: &[(&str, Option<&Bound<'_, PyAny>>)],
     ) -> PyResult<IkOptions> {
@@ -880,7 +910,12 @@ impl PyRobot {
             reference: reference
                 .map(|r| rows_arg::<2>("reference", r))
                 .transpose()?,
-            direction: direction.map(|d| vec3_arg("direction", d)).transpose()?,
+            direction: given(direction)
+                .map(|d| vec3_arg("direction", &d))
+                .transpose()?,
+            orientation: given(orientation)
+                .map(|q| orientation_arg("orientation", &q))
+                .transpose()?,
             settings: ik_settings_arg(settings, keywords)?,
             pretension: None,
             initial: None,

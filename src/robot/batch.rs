@@ -274,6 +274,7 @@ impl Robot {
             ));
         }
         let ik = &options.settings;
+        let aim = options.aim()?;
         // Checked once, before any chunk runs.
         let reference = self.ik_reference(options)?;
         run_chunks(
@@ -290,7 +291,7 @@ impl Robot {
                 let r = match solver {
                     Some(solver) => solver.solve(
                         target,
-                        options.direction,
+                        aim,
                         reference.as_deref(),
                         ik.tol,
                         ik.max_iterations,

@@ -24,7 +24,7 @@
 //! runs into a limit there.
 
 use super::drive::{ActuationSpace, Drive};
-use super::goal::{tool_point, Goal};
+use super::goal::{tool_point, Aim, Goal};
 use super::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, Strategy};
 use crate::error::{Error, Result};
 use crate::quat::Quat;
@@ -251,18 +251,19 @@ impl InverseSolver {
     }
 
     /// The actuation whose loaded equilibrium puts the tip at `target` (and
-    /// along `direction`), closest to `reference` (in the drive's
+    /// its frame as `aim` says: a direction, `Option<Vector3>`, or a full
+    /// pose, [`Aim::Orientation`]), closest to `reference` (in the drive's
     /// coordinates, see [`IkResult::drive`]; default zero).
     pub fn solve(
         &mut self,
         target: Vector3<f64>,
-        direction: Option<Vector3<f64>>,
+        aim: impl Into<Aim>,
         reference: Option<&[f64]>,
         tol: f64,
         max_iterations: usize,
     ) -> Result<IkResult> {
         let started = std::time::Instant::now();
-        let goal = self.goal(target, direction, reference, tol)?;
+        let goal = self.goal(target, aim.into(), reference, tol)?;
         self.iterations = 0;
         self.given_warm = self.q.clone();
         // At the reference the Gauss-Newton path to the nearest solution is
@@ -308,7 +309,7 @@ impl InverseSolver {
         let reference = self.reference_of(options)?;
         self.solve(
             target,
-            options.direction,
+            options.aim()?,
             reference.as_deref(),
             settings.tol,
             settings.max_iterations,
@@ -322,7 +323,7 @@ impl InverseSolver {
     fn goal(
         &self,
         target: Vector3<f64>,
-        direction: Option<Vector3<f64>>,
+        aim: Aim,
         reference: Option<&[f64]>,
         tol: f64,
     ) -> Result<Goal> {
@@ -332,15 +333,26 @@ impl InverseSolver {
         // 1e-12 L is what double precision leaves of a tip; 1e-2 L is a miss.
         let length = self.robot.length;
         crate::read::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
-        let direction = match direction {
-            Some(d) if d.iter().all(|x| x.is_finite()) && d.norm() > 0.0 => Some(d.normalize()),
-            Some(_) => {
+        let (direction, orientation) = match aim {
+            Aim::Point => (None, None),
+            Aim::Direction(d) if d.iter().all(|x| x.is_finite()) && d.norm() > 0.0 => {
+                (Some(d.normalize()), None)
+            }
+            Aim::Direction(_) => {
                 return Err(Error::argument(
                     "direction",
                     "must be a finite non-zero vector",
                 ))
             }
-            None => None,
+            Aim::Orientation(q) if q.to_array().iter().all(|x| x.is_finite()) && q.norm() > 0.0 => {
+                (None, Some(q.normalized()))
+            }
+            Aim::Orientation(_) => {
+                return Err(Error::argument(
+                    "orientation",
+                    "must be a finite non-zero quaternion",
+                ))
+            }
         };
         let k = self.drive.dimension();
         let reference = match reference {
@@ -359,6 +371,7 @@ impl InverseSolver {
         Ok(Goal {
             target,
             direction,
+            orientation,
             reference,
             tol,
             length,

@@ -2,11 +2,12 @@
 //!
 //! The rows are the same for every drive: the aimed point's miss (3 rows,
 //! metres), then, with a direction, the turn that takes the tip's tangent to
-//! it, across the tangent (2 rows, radians times the robot's length `L`). So
-//! `tol` is a distance for the point and an angle of `tol / L` for the
-//! direction, whatever moves the tip.
+//! it, across the tangent (2 rows), or, with an orientation (a full pose),
+//! the turn that takes the tip's frame to it (3 rows), each in radians times
+//! the robot's length `L`. So `tol` is a distance for the point and an angle
+//! of `tol / L` for the direction or the orientation, whatever moves the tip.
 
-use crate::quat::skew;
+use crate::quat::{skew, Quat};
 use crate::solver::Solution;
 use nalgebra::{DMatrix, DVector, Matrix3xX, Vector3};
 
@@ -30,12 +31,44 @@ fn across(t: Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     (u, t.cross(&u))
 }
 
+/// What an inverse solve aims the tip's frame at besides its point.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Aim {
+    /// The point alone.
+    #[default]
+    Point,
+    /// The tip's tangent along a unit vector, world frame.
+    Direction(Vector3<f64>),
+    /// The tip's frame: a full pose (a unit quaternion, world frame).
+    Orientation(Quat),
+}
+
+impl From<Option<Vector3<f64>>> for Aim {
+    /// A direction, or the point alone.
+    fn from(direction: Option<Vector3<f64>>) -> Aim {
+        direction.map_or(Aim::Point, Aim::Direction)
+    }
+}
+
+/// The rotation vector of a unit quaternion (the shorter way round).
+fn rotation_vector(q: Quat) -> Vector3<f64> {
+    let q = if q.w < 0.0 { -q } else { q };
+    let v = q.v;
+    let s = v.norm();
+    if s < 1e-300 {
+        return Vector3::zeros();
+    }
+    v * (2.0 * s.atan2(q.w) / s)
+}
+
 /// What one inverse solve aims at.
 #[derive(Debug, Clone)]
 pub(super) struct Goal {
     pub target: Vector3<f64>,
     /// A unit vector, world frame.
     pub direction: Option<Vector3<f64>>,
+    /// The tip frame's orientation, world frame (a full pose).
+    pub orientation: Option<Quat>,
     /// The actuation the answer stays closest to, in the drive's coordinates.
     pub reference: DVector<f64>,
     pub tol: f64,
@@ -46,13 +79,9 @@ pub(super) struct Goal {
 }
 
 impl Goal {
-    /// Rows of the error: 3, or 5 with a direction.
+    /// Rows of the error: 3, 5 with a direction, 6 with an orientation.
     pub fn rows(&self) -> usize {
-        if self.direction.is_some() {
-            5
-        } else {
-            3
-        }
+        3 + 2 * usize::from(self.direction.is_some()) + 3 * usize::from(self.orientation.is_some())
     }
 
     /// The error of an equilibrium: the aimed point's miss, then the turn
@@ -76,12 +105,18 @@ impl Goal {
             e[3] = turn.dot(&u) * self.length;
             e[4] = turn.dot(&v) * self.length;
         }
+        if let Some(q) = self.orientation {
+            // The turn that takes the tip's frame to the aimed one, world frame.
+            let turn = rotation_vector(q * sol.tip_quaternion().conj());
+            e.rows_mut(3, 3).copy_from(&(turn * self.length));
+        }
         e
     }
 
-    /// Within `tol` of the point and `tol / L` of the direction.
+    /// Within `tol` of the point and `tol / L` of the direction or orientation.
     pub fn reached(&self, e: &DVector<f64>) -> bool {
-        e.rows(0, 3).norm() <= self.tol && (e.len() == 3 || e.rows(3, 2).norm() <= self.tol)
+        e.rows(0, 3).norm() <= self.tol
+            && (e.len() == 3 || e.rows(3, e.len() - 3).norm() <= self.tol)
     }
 
     /// The rows of [`Goal::error`] differentiated (negated) from the tip's
@@ -111,6 +146,10 @@ impl Goal {
                 jac[(4, c)] = phi.dot(&v) * self.length;
             }
         }
+        if self.orientation.is_some() {
+            // Near the aimed frame the turn left falls by the tip's own turn.
+            jac.rows_mut(3, 3).copy_from(&(rotation * self.length));
+        }
         jac
     }
 
@@ -129,10 +168,15 @@ impl Goal {
                     .unwrap_or(Vector3::y())
             }
         });
+        let orientation = self.orientation.map(|q| {
+            let q0 = from.tip_quaternion();
+            Quat::from_rotation_vector(rotation_vector(q * q0.conj()) * t) * q0
+        });
         let start = tool_point(from, self.offset);
         Goal {
             target: start + (self.target - start) * t,
             direction,
+            orientation,
             tol: if t < 1.0 {
                 CONTINUATION_TOL * self.length
             } else {

@@ -21,6 +21,7 @@ mod goal;
 
 pub use drive::ActuationSpace;
 pub use engine::InverseSolver;
+pub use goal::Aim;
 
 use super::{Load, Robot};
 use crate::error::{Error, Result};
@@ -165,6 +166,9 @@ pub struct IkOptions {
     pub reference: Option<Vec<[f64; 2]>>,
     /// Also reach this tip direction (unit vector, world frame).
     pub direction: Option<Vector3<f64>>,
+    /// Also reach this orientation of the tip's frame (a full pose; unit
+    /// quaternion, world frame). Not with `direction`.
+    pub orientation: Option<Quat>,
     pub settings: IkSettings,
     /// Tendon-driven robots: the tensions to stay closest to [N] (default
     /// zero: the least tension, in norm, that reaches the target).
@@ -174,6 +178,23 @@ pub struct IkOptions {
     /// actuation is the reference when none is given (the search starts at
     /// the reference).
     pub initial: Option<IkStart>,
+}
+
+impl IkOptions {
+    /// What the tip's frame aims at besides its point: the direction or
+    /// the orientation, refused when both are given.
+    pub fn aim(&self) -> Result<Aim> {
+        match (self.direction, self.orientation) {
+            (Some(_), Some(_)) => Err(Error::argument(
+                "orientation",
+                "give a direction or an orientation, not both (an orientation fixes the \
+                 direction)",
+            )),
+            (Some(d), None) => Ok(Aim::Direction(d)),
+            (None, Some(q)) => Ok(Aim::Orientation(q)),
+            (None, None) => Ok(Aim::Point),
+        }
+    }
 }
 
 /// A warm start of an inverse solve (see [`IkOptions::initial`]).
@@ -388,24 +409,13 @@ impl Robot {
             Strategy::Geometric => Some(InverseSolver::new(&self.weightless(), &Load::default())?),
         };
         let (tol, budget) = (options.settings.tol, options.settings.max_iterations);
+        let aim = options.aim()?;
         let mut out = Vec::with_capacity(targets.len());
         for target in targets {
             let result = match weightless.as_mut() {
-                None => loaded.solve(
-                    *target,
-                    options.direction,
-                    reference.as_deref(),
-                    tol,
-                    budget,
-                )?,
+                None => loaded.solve(*target, aim, reference.as_deref(), tol, budget)?,
                 Some(geometric) => {
-                    let fit = geometric.solve(
-                        *target,
-                        options.direction,
-                        reference.as_deref(),
-                        tol,
-                        budget,
-                    )?;
+                    let fit = geometric.solve(*target, aim, reference.as_deref(), tol, budget)?;
                     loaded.apply_geometric_fit(fit, *target, tol)?
                 }
             };

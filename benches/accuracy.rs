@@ -25,7 +25,7 @@ fn cantilever(alpha: f64) -> Scene {
 /// The default robot with an actuation that bends it in 3D, 30 g at the tip.
 fn robot() -> Scene {
     let robot = Robot::default();
-    let kappa: Vec<[f64; 2]> = (0..robot.sections)
+    let kappa: Vec<[f64; 2]> = (0..robot.body.sections)
         .map(|k| {
             let phi = 0.7 * k as f64;
             [1.5 * phi.cos(), 1.5 * phi.sin()]

@@ -56,7 +56,7 @@ fn batch(c: &mut Criterion) {
         .map(|i| {
             let t = i as f64 / SAMPLES as f64;
             softspine::Actuation::muscles(
-                (0..robot.sections)
+                (0..robot.body.sections)
                     .map(|k| {
                         let phi = 40.0 * t + 0.5 * k as f64;
                         [3.0 * phi.cos(), 3.0 * phi.sin()]

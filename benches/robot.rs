@@ -79,7 +79,7 @@ fn actuated(c: &mut Criterion) {
             forward(
                 &pneumatic,
                 Actuation {
-                    rest_curvature: vec![[1.0, -0.5]; pneumatic.sections],
+                    rest_curvature: vec![[1.0, -0.5]; pneumatic.body.sections],
                     ..Actuation::default()
                 },
                 0.02,

@@ -7,7 +7,7 @@
 
 use nalgebra::Vector3;
 use softspine::quat::Quat;
-use softspine::robot::{trajectory, IkEnding};
+use softspine::robot::{trajectory, Body, Drive, IkEnding, Muscles};
 use softspine::{solve, IkOptions, IkSettings, Robot, Settings};
 
 /// Uniform in [0, 1) from a splitmix64 sequence (reproducible, no dependency).
@@ -22,11 +22,11 @@ fn uniform(state: &mut u64) -> f64 {
 
 /// Actuations with every muscle length drawn uniformly in its range.
 fn in_range_actuations(robot: &Robot, count: usize, seed: u64) -> Vec<Vec<[f64; 2]>> {
-    let [lo, hi] = robot.muscle_length_range;
+    let [lo, hi] = robot.muscles("test").unwrap().length_range;
     let mut state = seed;
     (0..count)
         .map(|_| {
-            let lengths: Vec<[f64; 3]> = (0..robot.sections)
+            let lengths: Vec<[f64; 3]> = (0..robot.body.sections)
                 .map(|_| [0; 3].map(|_| lo + (hi - lo) * uniform(&mut state)))
                 .collect();
             robot.rest_curvature(&lengths).unwrap()
@@ -50,24 +50,25 @@ fn forward(robot: &Robot, kappa: &[[f64; 2]], load: f64) -> softspine::Solution 
 
 fn tilted() -> Robot {
     let q = Quat::new(0.92388, 0.38268, 0.0, 0.0);
-    Robot {
+    let body = Body {
         sections: 5,
-        n_elements: 20,
         base_quaternion: q.normalized(),
-        ..Robot::default()
+        ..Body::default()
+    };
+    Robot {
+        n_elements: 20,
+        ..Robot::new(body, Drive::default())
     }
 }
 
 fn upright() -> Robot {
-    let rest = 1.0 / 3.0;
-    Robot {
+    let body = Body {
         sections: 3,
-        n_elements: 21,
         base_quaternion: Quat::new(1.0, 0.0, 0.0, 0.0),
-        muscle_rest_length: rest,
-        muscle_length_range: [0.8 * rest, 1.05 * rest],
-        ..Robot::default()
-    }
+        ..Body::default()
+    };
+    let muscles = Muscles::for_sections_of(body.section_length());
+    Robot::new(body, Drive::Muscles(muscles))
 }
 
 /// Ask the IK for the tip of each stable forward solve of in-range actuations;
@@ -91,7 +92,7 @@ fn reach_fraction(name: &str, robot: &Robot, load: f64, count: usize, seed: u64)
         if r.reached {
             assert!(r.solution.converged() && r.solution.stable);
             assert!(r.tip_miss <= options.settings.tol);
-            assert!(robot.within_bounds(&r.rest_curvature));
+            assert!(robot.within_bounds(&r.rest_curvature).unwrap());
             reached += 1;
         } else {
             eprintln!("  {name}: {} ({} starts)", r.message, r.starts);
@@ -157,10 +158,11 @@ fn a_target_beyond_the_robots_length_is_out_of_reach() {
 
 #[test]
 fn a_target_beyond_the_muscles_range_says_the_bounds_limit_it() {
-    let robot = Robot {
-        muscle_length_range: [0.098, 0.1005],
-        ..Robot::default()
+    let mut robot = Robot::default();
+    let Drive::Muscles(muscles) = &mut robot.drive else {
+        panic!("the default robot is driven by muscles")
     };
+    muscles.length_range = [0.098, 0.1005];
     let options = IkOptions {
         load: 0.03.into(),
         ..IkOptions::default()
@@ -170,7 +172,7 @@ fn a_target_beyond_the_muscles_range_says_the_bounds_limit_it() {
         .unwrap();
     assert_eq!(r.ending, IkEnding::BoundsActive, "{}", r.message);
     assert!(r.message.contains("length range limits"));
-    assert!(r.solution.stable && robot.within_bounds(&r.rest_curvature));
+    assert!(r.solution.stable && robot.within_bounds(&r.rest_curvature).unwrap());
 }
 
 #[test]

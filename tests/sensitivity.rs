@@ -186,7 +186,7 @@ fn the_robot_sensitivity_matches_differences_of_forward_solves() {
                 "load" => mass += delta,
                 "rest_curvature[9][0]" => k[9][0] += delta,
                 "muscle_lengths[1][2]" => {
-                    let mut l = robot.muscle_lengths(&kappa);
+                    let mut l = robot.muscle_lengths(&kappa).unwrap();
                     l[1][2] += delta;
                     k = robot.rest_curvature(&l).unwrap();
                 }
@@ -241,7 +241,7 @@ fn calibration_recovers_known_parameters_within_their_uncertainty() {
         ..Settings::default()
     };
     let exact: Vec<Vector3<f64>> = actuations
-        .chunks(truth.sections)
+        .chunks(truth.body.sections)
         .map(|k| {
             let scene = truth
                 .scene(

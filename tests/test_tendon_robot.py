@@ -414,3 +414,35 @@ def test_actuation_the_drives_cannot_apply_is_refused_by_name():
     bad = {"sections": 3, "magnetization": [[0, 0, 1], [0, 0, 1]]}
     assert "magnetization" in message(lambda: softspine.Robot(bad))
     assert "max_field" in message(lambda: softspine.Robot({"max_field": -1.0}))
+
+
+def test_a_robot_is_a_body_and_one_drive():
+    """A robot has one drive: keys of two are refused by name, a tendon or
+    magnetic robot has no muscles (its dict none of their keys, its IK
+    result no muscle lengths), and it round-trips through its dict."""
+    for mixed, key in [
+        ({"muscle_radius": 0.03}, "muscle_radius"),
+        ({"tip_magnet": [0, 0, 0.05]}, "tip_magnet"),
+        ({"max_field": 0.05}, "max_field"),
+    ]:
+        text = message(lambda mixed=mixed: tendon_robot(**mixed))
+        assert text.startswith(f"{key}: a robot has one drive"), text
+    assert "max_tension" in message(lambda: catheter(max_tension=10.0))
+    assert "at least one tendon" in message(lambda: softspine.Robot({"tendons": []}))
+    assert "at least one tendon" in message(lambda: softspine.Robot({"max_tension": 10.0}))
+    assert "tip_magnet" in message(lambda: softspine.Robot({"tip_magnet": [0, 0, 0]}))
+
+    robot, magnetic = tendon_robot(max_tension=30.0), catheter()
+    for r, drive in [(robot, "tensions"), (magnetic, "field")]:
+        data = r.to_dict()
+        assert not any(k.startswith(("muscle", "inflation")) for k in data), data.keys()
+        assert softspine.Robot(data).to_dict() == data
+        assert r.actuation_space == drive and r.muscle_length_range is None
+        assert "has no muscles: it is driven by its" in message(
+            lambda r=r: r.muscle_lengths(np.zeros((r.sections, 2))))
+    result = robot.inverse(robot.forward(tensions=[2.0] + [0.0] * 8).tip_position)
+    assert result.reached and result.muscle_lengths.shape == (0, 3)
+    assert softspine.IkResult.from_dict(result.to_dict()).muscle_lengths.shape == (0, 3)
+    pneumatic = softspine.Robot()
+    assert pneumatic.actuation_space == "curvature"
+    assert pneumatic.muscle_length_range == pytest.approx((0.08, 0.105))

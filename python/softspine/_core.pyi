@@ -250,10 +250,11 @@ class InverseSolver:
 
 @final
 class Robot:
-    """A multi-section continuum robot: pneumatic muscles (three a section),
-    tendons routed along its sections, magnetised material, or any of them
-    together. Its inverse kinematics searches the tendons' tensions if it has
-    tendons, else the field if it is magnetic, else the muscles' curvature."""
+    """A continuum robot: a body (sections, stiffness, mass, base pose, tool)
+    and one drive: pneumatic muscles (three a section, the default), tendons
+    routed along its sections, or magnetised material in an external field.
+    Its inverse kinematics searches the drive's coordinates: the muscles'
+    curvature, the tendons' tensions or the field."""
 
     def __new__(cls, data: dict[str, Any] | None = None) -> Robot: ...
     @staticmethod
@@ -272,7 +273,7 @@ class Robot:
     @property
     def n_elements(self) -> int: ...
     @property
-    def muscle_length_range(self) -> tuple[float, float]: ...
+    def muscle_length_range(self) -> tuple[float, float] | None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def scene(
         self,

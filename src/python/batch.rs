@@ -189,8 +189,8 @@ pub(super) fn ik_batch_result<'py>(
     let drives = Drives {
         actuations: found.iter().collect(),
         columns: robot.drive_columns(true),
-        sections: robot.sections,
-        tendons: robot.tendons.len(),
+        sections: robot.body.sections,
+        tendons: robot.drive.tendon_routes().len(),
     };
     set_drives(&d, &drives, "rest_curvature")?;
     let tips = Array2::from_shape_fn((count, 3), |(i, c)| samples[i].tip_position[c]);

@@ -87,7 +87,7 @@ pub(super) fn calibrate<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let load = load.unwrap_or_default();
     warn_user(py, &robot.load_warnings(&load))?;
-    let k = samples_arg::<2>("actuations", actuations, robot.sections)?;
+    let k = samples_arg::<2>("actuations", actuations, robot.body.sections)?;
     let measured: Vec<Vector3<f64>> = rows_of::<3>("measured_tips", measured_tips)?
         .into_iter()
         .map(Vector3::from)

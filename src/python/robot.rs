@@ -16,10 +16,14 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::{Arc, Mutex};
 
-/// A multi-section pneumatic continuum robot (three muscles a section).
+/// A continuum robot: a body (sections, stiffness, mass, base pose, tool)
+/// and one drive (pneumatic muscles, tendons or a magnetic field).
 ///
-/// ``Robot()`` resembles the seed's prototype (1 m, 10 sections, hanging);
-/// ``Robot({...})`` overrides any field (see ``Robot().to_dict()``).
+/// ``Robot()`` resembles the seed's prototype (1 m, 10 sections of three
+/// muscles, hanging); ``Robot({...})`` overrides any field (see
+/// ``Robot().to_dict()``). Tendons (``tendons``, ``max_tension``) or magnets
+/// (``magnetization``, ``tip_magnet``, ``max_field``) replace the muscles
+/// (``muscle_*``, ``inflation_rate``): a robot has one drive.
 #[pyclass(
     name = "Robot",
     module = "softspine._core",
@@ -323,15 +327,15 @@ impl PyRobot {
         )
     }
 
-    /// Number of sections (three muscles each).
+    /// Number of sections.
     #[getter]
     fn sections(&self) -> usize {
-        self.inner.sections
+        self.inner.body.sections
     }
     /// Length of the backbone, m.
     #[getter]
     fn length(&self) -> f64 {
-        self.inner.length
+        self.inner.body.length
     }
     /// Elements of its forward solves (a multiple of the sections).
     #[getter]
@@ -344,13 +348,12 @@ impl PyRobot {
     fn actuation_space(&self) -> &'static str {
         self.inner.actuation_space().name()
     }
-    /// ``[min, max]`` muscle length, m.
+    /// ``[min, max]`` muscle length, m (``None``: the robot has no
+    /// muscles, tendons or a field drive it).
     #[getter]
-    fn muscle_length_range(&self) -> (f64, f64) {
-        (
-            self.inner.muscle_length_range[0],
-            self.inner.muscle_length_range[1],
-        )
+    fn muscle_length_range(&self) -> Option<(f64, f64)> {
+        let m = self.inner.drive.muscles()?;
+        Some((m.length_range[0], m.length_range[1]))
     }
 
     /// Pickling goes through ``to_dict``.
@@ -364,7 +367,7 @@ impl PyRobot {
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let d = from_value(py, &self.inner.to_value())?;
         // Counts as Python ints (a value tree holds numbers as floats).
-        d.set_item("sections", self.inner.sections)?;
+        d.set_item("sections", self.inner.body.sections)?;
         d.set_item("n_elements", self.inner.n_elements)?;
         Ok(d)
     }
@@ -398,7 +401,7 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
         self.inner.check_rows("rest_curvature", k.len())?;
-        Ok(rows_n(py, &self.inner.muscle_lengths(&k)))
+        Ok(rows_n(py, &self.inner.muscle_lengths(&k)?))
     }
 
     /// Rest curvature (m, 2) from muscle lengths (m, 3).
@@ -420,7 +423,7 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let l = rows_arg::<3>("muscle_lengths", muscle_lengths)?;
         self.inner.check_rows("muscle_lengths", l.len())?;
-        Ok(rows_n(py, &self.inner.inflation_times(&l)))
+        Ok(rows_n(py, &self.inner.inflation_times(&l)?))
     }
 
     /// Joint space from actuator space: muscle lengths from inflation times.
@@ -431,14 +434,14 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let t = rows_arg::<3>("times", times)?;
         self.inner.check_rows("times", t.len())?;
-        Ok(rows_n(py, &self.inner.muscle_lengths_from_times(&t)))
+        Ok(rows_n(py, &self.inner.muscle_lengths_from_times(&t)?))
     }
 
     /// Whether every muscle length lies in the range for this actuation.
     fn within_bounds(&self, rest_curvature: &Bound<'_, PyAny>) -> PyResult<bool> {
         let k = rows_arg::<2>("rest_curvature", rest_curvature)?;
         self.inner.check_rows("rest_curvature", k.len())?;
-        Ok(self.inner.within_bounds(&k))
+        Ok(self.inner.within_bounds(&k)?)
     }
 
     /// Forward statics: the loaded equilibrium of an actuation.
@@ -548,10 +551,10 @@ impl PyRobot {
         warn_user(py, &robot.load_warnings(&load))?;
         let settings = batch_settings(threads, chunk, warm_start, shapes)?;
         let k = given(actuations)
-            .map(|a| samples_arg::<2>("actuations", &a, robot.sections))
+            .map(|a| samples_arg::<2>("actuations", &a, robot.body.sections))
             .transpose()?;
         let t = given(tensions)
-            .map(|t| sample_rows("tensions", &t, robot.tendons.len()))
+            .map(|t| sample_rows("tensions", &t, robot.drive.tendon_routes().len()))
             .transpose()?;
         let b = given(field)
             .map(|b| sample_rows("field", &b, 3))
@@ -567,8 +570,8 @@ impl PyRobot {
         let drives = Drives {
             actuations: drives.iter().collect(),
             columns: robot.drive_columns(k.is_some()),
-            sections: robot.sections,
-            tendons: robot.tendons.len(),
+            sections: robot.body.sections,
+            tendons: robot.drive.tendon_routes().len(),
         };
         Ok(batch_result(py, &samples, Some(&drives))?.into_any())
     }
@@ -606,8 +609,8 @@ impl PyRobot {
         let drives = Drives {
             actuations: drawn.iter().collect(),
             columns: robot.drive_columns(false),
-            sections: robot.sections,
-            tendons: robot.tendons.len(),
+            sections: robot.body.sections,
+            tendons: robot.drive.tendon_routes().len(),
         };
         Ok(batch_result(py, &out, Some(&drives))?.into_any())
     }
@@ -819,7 +822,7 @@ impl PyRobot {
     fn __repr__(&self) -> String {
         format!(
             "Robot(length={}, sections={}, n_elements={})",
-            self.inner.length, self.inner.sections, self.inner.n_elements
+            self.inner.body.length, self.inner.body.sections, self.inner.n_elements
         )
     }
 }

@@ -97,7 +97,7 @@ impl Robot {
     /// What makes a chunk's state: a forward solver of this robot (its
     /// default discretisation) under `load`.
     fn chunk_solver(&self, load: &Load) -> Result<impl Fn() -> Result<ChunkState> + Sync + '_> {
-        let zero = vec![[0.0; 2]; self.sections];
+        let zero = vec![[0.0; 2]; self.body.sections];
         self.scene(&Actuation::muscles(zero.clone()), load)?;
         let load = load.clone();
         Ok(move || Ok((self.forward_solver(&zero, &load)?, Last::default())))
@@ -115,7 +115,7 @@ impl Robot {
             solver,
             last,
             kappa,
-            self.section_length(),
+            self.body.section_length(),
             settings.warm_start,
         )?;
         Ok(Sample::of(&sol, settings.shapes))
@@ -131,7 +131,7 @@ impl Robot {
         tensions: Option<&[Vec<f64>]>,
         field: Option<&[[f64; 3]]>,
     ) -> Result<Vec<Actuation>> {
-        let m = self.sections.max(1);
+        let m = self.body.sections.max(1);
         if rest_curvature.is_some_and(|k| k.len() % m != 0) {
             return Err(Error::argument(
                 "actuations",
@@ -183,7 +183,7 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<Vec<Sample>> {
-        let m = self.sections;
+        let m = self.body.sections;
         let muscles_only = self.actuation_space() == ActuationSpace::Curvature
             && actuations
                 .iter()
@@ -223,7 +223,7 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<Vec<Sample>> {
-        let m = self.sections;
+        let m = self.body.sections;
         if actuations.len() % m != 0 {
             return Err(Error::argument(
                 "actuations",
@@ -319,14 +319,14 @@ impl Robot {
     /// by `|m| |B|` a length (and a tip magnet's `|mu| |B|`), each over the
     /// softest stiffness `k` along the section `l_s`.
     fn actuation_turn(&self, a: &Actuation, b: &Actuation, k: f64) -> f64 {
-        let ls = self.section_length();
+        let ls = self.body.section_length();
         let curvature = a
             .rest_curvature
             .iter()
             .zip(&b.rest_curvature)
             .map(|(x, y)| ls * (x[0] - y[0]).hypot(x[1] - y[1]))
             .fold(0.0, f64::max);
-        let arms = self.tendons.iter().map(|t| {
+        let arms = self.drive.tendon_routes().iter().map(|t| {
             std::iter::once(&t.offset)
                 .chain(t.reroutes.iter().map(|r| &r.offset))
                 .map(|o| o[0].hypot(o[1]))
@@ -339,11 +339,12 @@ impl Robot {
             .zip(arms)
             .map(|((x, y), r)| (x - y).abs() * r)
             .sum();
-        let magnet = self
-            .magnetization
-            .iter()
-            .map(|m| m.norm() * ls)
-            .fold(self.tip_magnet.norm(), f64::max);
+        let magnet = self.drive.magnets().map_or(0.0, |f| {
+            f.magnetization
+                .iter()
+                .map(|m| m.norm() * ls)
+                .fold(f.tip_magnet.norm(), f64::max)
+        });
         let field = (a.field - b.field).norm() * magnet;
         curvature.max((tension * ls + field) / k)
     }
@@ -359,14 +360,14 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<Vec<Sample>> {
-        let straight = vec![[0.0; 2]; self.sections];
+        let straight = vec![[0.0; 2]; self.body.sections];
         let whole = |a: &Actuation| Actuation {
             rest_curvature: match a.rest_curvature.is_empty() {
                 true => straight.clone(),
                 false => a.rest_curvature.clone(),
             },
             tensions: match a.tensions.is_empty() {
-                true => vec![0.0; self.tendons.len()],
+                true => vec![0.0; self.drive.tendon_routes().len()],
                 false => a.tensions.clone(),
             },
             field: a.field,
@@ -401,8 +402,8 @@ impl Robot {
         load: &Load,
     ) -> Result<(impl Fn() -> Result<ActuatedChunk> + Sync + '_, f64)> {
         let rest = Actuation {
-            rest_curvature: vec![[0.0; 2]; self.sections],
-            tensions: vec![0.0; self.tendons.len()],
+            rest_curvature: vec![[0.0; 2]; self.body.sections],
+            tensions: vec![0.0; self.drive.tendon_routes().len()],
             field: Vector3::zeros(),
         };
         let stiffness = self.scene(&rest, load)?.stiffness().min();
@@ -446,13 +447,13 @@ impl Robot {
         use rand::{RngExt, SeedableRng};
         let mut rng = SmallRng::seed_from_u64(seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let mut drives = Actuation {
-            rest_curvature: vec![[0.0; 2]; self.sections],
-            tensions: vec![0.0; self.tendons.len()],
+            rest_curvature: vec![[0.0; 2]; self.body.sections],
+            tensions: vec![0.0; self.drive.tendon_routes().len()],
             field: Vector3::zeros(),
         };
         match self.actuation_space() {
             ActuationSpace::Tensions => {
-                let most = self.max_tension.ok_or_else(|| {
+                let most = self.drive.max_tension().ok_or_else(|| {
                     Error::argument(
                         "max_tension",
                         "missing: the workspace samples each tension over [0, max_tension]",
@@ -463,7 +464,7 @@ impl Robot {
                 }
             }
             ActuationSpace::Field => {
-                let most = self.max_field.ok_or_else(|| {
+                let most = self.drive.max_field().ok_or_else(|| {
                     Error::argument(
                         "max_field",
                         "missing: the workspace samples the field in the ball |B| <= max_field",
@@ -594,7 +595,7 @@ impl Robot {
     /// shape if kept, its drives (see [`BatchSettings::sample_bytes`]).
     pub fn sample_bytes(&self, settings: &BatchSettings) -> usize {
         let nodes = self.n_elements + 1;
-        let drives = 2 * self.sections + self.tendons.len() + 3;
+        let drives = 2 * self.body.sections + self.drive.tendon_routes().len() + 3;
         settings.sample_bytes(nodes, drives)
     }
 }
@@ -608,10 +609,10 @@ impl Robot {
     fn random_curvature(&self, seed: u64, index: u64) -> Result<Vec<[f64; 2]>> {
         use rand::rngs::SmallRng;
         use rand::{RngExt, SeedableRng};
-        let [lo, hi] = self.muscle_length_range;
+        let [lo, hi] = self.muscles("actuations")?.length_range;
         // Distinct streams for distinct (seed, index) pairs.
         let mut rng = SmallRng::seed_from_u64(seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-        let lengths: Vec<[f64; 3]> = (0..self.sections)
+        let lengths: Vec<[f64; 3]> = (0..self.body.sections)
             .map(|_| std::array::from_fn(|_| rng.random_range(lo..=hi)))
             .collect();
         self.rest_curvature(&lengths)
@@ -660,7 +661,7 @@ mod tests {
     use std::sync::atomic::Ordering;
 
     fn actuations(robot: &Robot, samples: usize) -> Vec<Actuation> {
-        let m = robot.sections;
+        let m = robot.body.sections;
         (0..samples)
             .map(|j| {
                 Actuation::muscles(

@@ -21,7 +21,7 @@
 //! the Woodbury identity, so a step costs O(m) a working-set row and a step
 //! that stays within range costs one pass over the constraints.
 
-use super::Robot;
+use super::Muscles;
 use nalgebra::{DMatrix, DVector};
 
 /// Rounds of the active-set method before it settles for its current
@@ -50,11 +50,12 @@ pub(crate) struct BoundedStep {
 }
 
 impl Bounds {
-    /// The muscles' length range of `robot`'s sections (see the module docs).
-    pub fn muscles(robot: &Robot) -> Self {
-        let lever = robot.lever();
+    /// The muscles' length range in sections `section_length` long (see
+    /// the module docs).
+    pub fn muscles(muscles: &Muscles, section_length: f64) -> Self {
+        let lever = muscles.lever(section_length);
         let pairs = [(0, 1), (1, 2), (2, 0), (1, 0), (2, 1), (0, 2)];
-        let span = robot.muscle_length_range[1] - robot.muscle_length_range[0];
+        let span = muscles.length_range[1] - muscles.length_range[0];
         Bounds {
             block: 2,
             rows: pairs
@@ -294,25 +295,28 @@ impl ActiveSet<'_> {
 mod tests {
     use super::*;
 
+    use crate::robot::Robot;
+
     fn within(robot: &Robot, kappa: &[[f64; 2]], x: &DVector<f64>) -> bool {
         let moved: Vec<[f64; 2]> = kappa
             .iter()
             .enumerate()
             .map(|(s, k)| [k[0] + x[2 * s], k[1] + x[2 * s + 1]])
             .collect();
-        robot.within_bounds(&moved)
+        robot.within_bounds(&moved).unwrap()
     }
 
     #[test]
     fn a_step_within_range_is_the_free_step_and_one_beyond_is_held_at_the_bounds() {
-        let robot = Robot {
-            sections: 2,
+        let mut robot = Robot {
             n_elements: 4,
             ..Robot::default()
         };
-        let bounds = Bounds::muscles(&robot);
+        robot.body.sections = 2;
+        let muscles = robot.muscles("test").unwrap();
+        let bounds = Bounds::muscles(muscles, robot.body.section_length());
         let kappa = [[0.5, -0.2], [0.0, 0.8]];
-        assert!(robot.within_bounds(&kappa));
+        assert!(robot.within_bounds(&kappa).unwrap());
         let at = DVector::from_iterator(4, kappa.iter().flatten().copied());
         let j = DMatrix::from_row_slice(
             3,

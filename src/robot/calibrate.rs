@@ -59,12 +59,12 @@ impl Robot {
             .collect::<Option<_>>()
             .unwrap_or_default();
         match parsed[..] {
-            [s, c] if s < self.sections && c < columns => Ok(Some((s, c))),
+            [s, c] if s < self.body.sections && c < columns => Ok(Some((s, c))),
             _ => Err(Error::argument(
                 name.to_string(),
                 format!(
                     "expected {prefix}[section][0..{columns}] with fewer than {} sections",
-                    self.sections
+                    self.body.sections
                 ),
             )),
         }
@@ -75,7 +75,7 @@ impl Robot {
         match name {
             "rest_curvature" | "muscle_lengths" => {
                 let columns = if name == "rest_curvature" { 2 } else { 3 };
-                for s in 0..self.sections {
+                for s in 0..self.body.sections {
                     for c in 0..columns {
                         let p = if columns == 2 {
                             Parameter::Curvature(s, c)
@@ -88,7 +88,8 @@ impl Robot {
             }
             "load" | "load.mass" => out.push((name.into(), Parameter::Load)),
             "tensions" => out.extend(
-                (0..self.tendons.len()).map(|i| (format!("tensions[{i}]"), Parameter::Tension(i))),
+                (0..self.drive.tendon_routes().len())
+                    .map(|i| (format!("tensions[{i}]"), Parameter::Tension(i))),
             ),
             "field" => {
                 out.extend((0..3).map(|c| (format!("field[{c}]"), Parameter::MagneticField(c))))
@@ -97,7 +98,7 @@ impl Robot {
                 if let Some(path) = name.strip_prefix("load.") {
                     return load_wrench(name, path, out);
                 }
-                if let Some(i) = one_index(name, "tensions", self.tendons.len())? {
+                if let Some(i) = one_index(name, "tensions", self.drive.tendon_routes().len())? {
                     out.push((name.into(), Parameter::Tension(i)));
                 } else if let Some(c) = one_index(name, "field", 3)? {
                     out.push((name.into(), Parameter::MagneticField(c)));
@@ -122,7 +123,7 @@ impl Robot {
         let kappa = &a.rest_curvature;
         Ok(match p {
             Parameter::Curvature(s, c) => kappa.get(*s).map_or(0.0, |k| k[*c]),
-            Parameter::Length(s, c) => self.muscle_lengths(&self.curvature_of(a))[*s][*c],
+            Parameter::Length(s, c) => self.muscle_lengths(&self.curvature_of(a))?[*s][*c],
             Parameter::Load => load.mass,
             Parameter::LoadWrench(path) => *load.to_table().number_at_mut(path).map_err(|_| {
                 Error::argument(
@@ -142,7 +143,7 @@ impl Robot {
     /// The actuation's rest curvature (straight when not given).
     fn curvature_of(&self, a: &Actuation) -> Vec<[f64; 2]> {
         if a.rest_curvature.is_empty() {
-            vec![[0.0; 2]; self.sections]
+            vec![[0.0; 2]; self.body.sections]
         } else {
             a.rest_curvature.clone()
         }
@@ -157,7 +158,7 @@ impl Robot {
         match p {
             Parameter::Curvature(s, c) => moved.rest_curvature[*s][*c] += delta,
             Parameter::Length(s, c) => {
-                let mut lengths = self.muscle_lengths(&moved.rest_curvature);
+                let mut lengths = self.muscle_lengths(&moved.rest_curvature)?;
                 lengths[*s][*c] += delta;
                 moved.rest_curvature = self.rest_curvature(&lengths)?;
             }
@@ -166,7 +167,7 @@ impl Robot {
                 // linearly: a difference through zero (no payload) is as
                 // exact as any, past the check that a mass is not negative.
                 let mut scene = self.scene(a, load)?;
-                scene.tip_force += delta * self.gravity;
+                scene.tip_force += delta * self.body.gravity;
                 return Ok(scene);
             }
             Parameter::LoadWrench(path) => {
@@ -389,7 +390,7 @@ impl Robot {
         settings: &CalibrationSettings,
     ) -> Result<Calibration> {
         settings.batch.validate()?;
-        let m = self.sections;
+        let m = self.body.sections;
         let measured = measured_tips;
         if actuations.len() != measured.len() * m {
             return Err(Error::argument(
@@ -451,13 +452,15 @@ impl Robot {
             .collect::<Result<_>>()?;
         // A wrench that starts at zero (an unknown tip force) is scaled by
         // the robot's weight, and its moment by the weight times the length.
-        let weight = self.own_mass() * self.gravity.norm();
+        let weight = self.body.own_mass() * self.body.gravity.norm();
         let scale: Vec<f64> = start
             .iter()
             .zip(&parameters)
             .map(|(x, (_, p))| {
                 let natural = match p {
-                    Parameter::LoadWrench(path) if path.contains("moment") => weight * self.length,
+                    Parameter::LoadWrench(path) if path.contains("moment") => {
+                        weight * self.body.length
+                    }
                     Parameter::LoadWrench(_) => weight,
                     _ => 0.0,
                 };

@@ -64,12 +64,12 @@ pub fn by_name(name: &str, points: usize) -> Option<Vec<Vector3<f64>>> {
 /// the points themselves.
 pub fn placed(points: &[Vector3<f64>], robot: &Robot) -> Vec<Vector3<f64>> {
     let default = Robot::default();
-    let scale = robot.length / default.length;
+    let scale = robot.body.length / default.body.length;
     // World from base of the robot, times base from world of the default.
-    let turn = robot.base_quaternion.normalized() * default.base_quaternion.conj();
+    let turn = robot.body.base_quaternion.normalized() * default.body.base_quaternion.conj();
     points
         .iter()
-        .map(|p| robot.base_position + turn.rotate((p - default.base_position) * scale))
+        .map(|p| robot.body.base_position + turn.rotate((p - default.body.base_position) * scale))
         .collect()
 }
 
@@ -83,15 +83,13 @@ mod tests {
         let points = circle(8);
         assert_eq!(placed(&points, &Robot::default()), points);
         // A 0.3 m robot pointing up from (0, 0, 1): the circle 0.264 m above it.
-        let up = Robot {
-            length: 0.3,
-            base_quaternion: Quat::IDENTITY,
-            base_position: Vector3::new(0.0, 0.0, 1.0),
-            ..Robot::default()
-        };
+        let mut up = Robot::default();
+        up.body.length = 0.3;
+        up.body.base_quaternion = Quat::IDENTITY;
+        up.body.base_position = Vector3::new(0.0, 0.0, 1.0);
         for (p, q) in points.iter().zip(placed(&points, &up)) {
             assert!((q.z - (1.0 + 0.3 * 0.88)).abs() < 1e-12);
-            assert!(((q - up.base_position).xy().norm() - 0.3 * RADIUS).abs() < 1e-12);
+            assert!(((q - up.body.base_position).xy().norm() - 0.3 * RADIUS).abs() < 1e-12);
             assert!((p.xy().norm() - RADIUS).abs() < 1e-12);
         }
     }

@@ -11,7 +11,7 @@
 //! | field | the uniform field, world frame [T] | `|B| <= max_field` | zero (the smallest field) |
 
 use super::super::bounds::{BoundedStep, Bounds};
-use super::super::Robot;
+use super::super::{Drive, Muscles, Robot};
 use crate::error::{Error, Result};
 use crate::solver::Solver;
 use nalgebra::{DMatrix, DVector, Matrix3xX, Vector2, Vector3};
@@ -59,12 +59,12 @@ enum Admissible {
 
 /// One robot's drive (see the module docs).
 #[derive(Debug, Clone)]
-pub(super) struct Drive {
+pub(super) struct DriveSpace {
     space: ActuationSpace,
     dimension: usize,
     admissible: Admissible,
     /// The scale below which a coordinate's change does not count (the
-    /// floor of [`Drive::size`]).
+    /// floor of [`DriveSpace::size`]).
     floor: f64,
     /// The drive's scale: the range of a curvature component's random
     /// draws; `max_tension`; `max_field` (0: no limit, no random draws).
@@ -75,40 +75,41 @@ pub(super) struct Drive {
     base: crate::quat::Quat,
 }
 
-impl Drive {
-    pub fn of(robot: &Robot) -> Drive {
+impl DriveSpace {
+    pub fn of(robot: &Robot) -> DriveSpace {
         let space = robot.actuation_space();
-        let (dimension, admissible, floor, reach) = match space {
-            ActuationSpace::Curvature => (
-                2 * robot.sections,
-                Admissible::Polytope(Bounds::muscles(robot)),
-                1.0 / robot.length,
-                max_curvature(robot),
+        let ls = robot.body.section_length();
+        let (dimension, admissible, floor, reach) = match &robot.drive {
+            Drive::Muscles(m) => (
+                2 * robot.body.sections,
+                Admissible::Polytope(Bounds::muscles(m, ls)),
+                1.0 / robot.body.length,
+                max_curvature(m, ls),
             ),
-            ActuationSpace::Tensions => {
-                let upper = robot.max_tension;
+            Drive::Tendons(t) => {
+                let upper = t.max_tension;
                 let reach = upper.unwrap_or(0.0);
                 (
-                    robot.tendons.len(),
+                    t.routes.len(),
                     Admissible::Polytope(Bounds::tensions(upper)),
                     1e-6 * upper.unwrap_or(1.0),
                     reach,
                 )
             }
-            ActuationSpace::Field => match robot.max_field {
+            Drive::Field(f) => match f.max_field {
                 Some(limit) => (3, Admissible::Ball(limit), 1e-6 * limit, limit),
                 None => (3, Admissible::Free, 1e-9, 0.0),
             },
         };
-        Drive {
+        DriveSpace {
             space,
             dimension,
             admissible,
             floor,
             reach,
-            sections: robot.sections,
-            length: robot.length,
-            base: robot.base_quaternion,
+            sections: robot.body.sections,
+            length: robot.body.length,
+            base: robot.body.base_quaternion,
         }
     }
 
@@ -229,12 +230,14 @@ impl Drive {
     pub fn clamp(&self, robot: &Robot, x: &mut DVector<f64>) {
         match self.space {
             ActuationSpace::Curvature => {
-                let mut kappa = pairs(x);
-                robot.clamp_to_bounds(&mut kappa);
-                *x = flat(&kappa);
+                if let Some(m) = robot.drive.muscles() {
+                    let mut kappa = pairs(x);
+                    m.clamp_to_bounds(robot.body.section_length(), &mut kappa);
+                    *x = flat(&kappa);
+                }
             }
             ActuationSpace::Tensions => {
-                let upper = robot.max_tension.unwrap_or(f64::INFINITY);
+                let upper = robot.drive.max_tension().unwrap_or(f64::INFINITY);
                 x.apply(|t| *t = t.clamp(0.0, upper));
             }
             ActuationSpace::Field => {
@@ -420,9 +423,9 @@ impl Drive {
 
 /// Curvature scale of the random starts: twice the range across the first
 /// two muscles (the starts are clamped into range).
-fn max_curvature(robot: &Robot) -> f64 {
-    let lever = robot.lever();
-    let [lo, hi] = robot.muscle_length_range;
+fn max_curvature(muscles: &Muscles, section_length: f64) -> f64 {
+    let lever = muscles.lever(section_length);
+    let [lo, hi] = muscles.length_range;
     let per = (lever[0][0] - lever[1][0]).hypot(lever[0][1] - lever[1][1]);
     2.0 * (hi - lo) / per.max(f64::MIN_POSITIVE)
 }
@@ -435,7 +438,7 @@ fn flat(k: &[[f64; 2]]) -> DVector<f64> {
     DVector::from_iterator(2 * k.len(), k.iter().flat_map(|x| x.iter().copied()))
 }
 
-/// [`Drive::step`] in the ball `|x + d| <= radius`: the free minimiser
+/// [`DriveSpace::step`] in the ball `|x + d| <= radius`: the free minimiser
 /// `d = r + J^T (c I + J J^T)^{-1} (e - J r)` if it stays inside, else
 /// the minimiser with `nu |x + d|^2` added, `nu` the smallest that keeps it
 /// on the sphere (by bisection): `(s I + J^T J / c) d = r + J^T e / c - nu x`,

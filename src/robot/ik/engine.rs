@@ -4,7 +4,7 @@
 //! sensitivity to the drive from the factored equilibrium Jacobian (O(n) a
 //! column) and steps by the minimum-norm Gauss-Newton rule
 //! `d = r + J^T (J J^T)^{-1} (e - J r)`, `r = x_ref - x`, held within the
-//! drive's admissible set (`Drive::step`), with a backtracking line search on
+//! drive's admissible set (`DriveSpace::step`), with a backtracking line search on
 //! the tip error. Only stable equilibria are accepted. At a solution,
 //! `x - x_ref` is orthogonal to the directions that keep the tip in place
 //! (within the active limits): the first-order condition of the minimum-norm
@@ -15,7 +15,7 @@
 //! path: the last answer), else at the last answer. When it misses, the
 //! target is tried again from starts that do not depend on the reference:
 //! continuation in the target from the reference's tip, then the drive's
-//! starts (`Drive::starts`), each with the same iteration budget, until one
+//! starts (`DriveSpace::starts`), each with the same iteration budget, until one
 //! reaches it; an answer found away from the reference then slides toward it.
 //!
 //! Endings are true: `out_of_reach` when the target is farther than the
@@ -23,7 +23,7 @@
 //! limit active; `bounds_active` when the undamped step toward the target
 //! runs into a limit there.
 
-use super::drive::{ActuationSpace, Drive};
+use super::drive::{ActuationSpace, DriveSpace};
 use super::goal::{tool_point, Aim, Goal};
 use super::{IkEnding, IkOptions, IkResult, IkSettings, IkStart, Strategy};
 use crate::error::{Error, Result};
@@ -156,7 +156,7 @@ fn usable(sol: &Solution) -> bool {
 /// next (trajectories).
 pub struct InverseSolver {
     robot: Robot,
-    drive: Drive,
+    drive: DriveSpace,
     solver: Solver,
     /// The last answer's drive and equilibrium.
     last: DVector<f64>,
@@ -173,7 +173,7 @@ pub struct InverseSolver {
 impl InverseSolver {
     /// The solver of `robot`'s own drive ([`Robot::actuation_space`]).
     pub fn new(robot: &Robot, load: &Load) -> Result<Self> {
-        let drive = Drive::of(robot);
+        let drive = DriveSpace::of(robot);
         let scene = robot.scene(&Actuation::default(), load)?;
         let settings = Settings {
             n_elements: Some(robot.n_elements),
@@ -309,7 +309,7 @@ impl InverseSolver {
     }
 
     fn base(&self) -> Vector3<f64> {
-        self.robot.base_position
+        self.robot.body.base_position
     }
 
     fn goal(
@@ -323,7 +323,7 @@ impl InverseSolver {
             return Err(Error::argument("target", "must be finite"));
         }
         // 1e-12 L is what double precision leaves of a tip; 1e-2 L is a miss.
-        let length = self.robot.length;
+        let length = self.robot.body.length;
         crate::read::check_tolerance("tol", tol, (1e-12 * length, 1e-2 * length))?;
         let (direction, orientation) = match aim {
             Aim::Point => (None, None),
@@ -367,7 +367,7 @@ impl InverseSolver {
             reference,
             tol,
             length,
-            offset: self.robot.tool_offset,
+            offset: self.robot.body.tool_offset,
         })
     }
 
@@ -973,7 +973,7 @@ impl InverseSolver {
         } else {
             String::new()
         };
-        let length = self.robot.length;
+        let length = self.robot.body.length;
         match ending {
             IkEnding::Reached => format!("reached{}", self.drive.describe(x)),
             IkEnding::OutOfReach if goal.beyond_length(self.base()) => format!(
@@ -1009,7 +1009,7 @@ impl InverseSolver {
         let x = DVector::from_vec(fit.drive(self.drive.space()));
         let sol = self.forward(&x)?;
         self.q = usable(&sol).then(|| sol.quaternions.clone());
-        let miss = (tool_point(&sol, self.robot.tool_offset) - target).norm();
+        let miss = (tool_point(&sol, self.robot.body.tool_offset) - target).norm();
         let ending = if miss <= tol && usable(&sol) {
             IkEnding::Reached
         } else {
@@ -1033,14 +1033,21 @@ impl InverseSolver {
         message: String,
     ) -> IkResult {
         let (rest_curvature, tensions, field) = self.drive.actuation(x);
-        let lengths = self.robot.muscle_lengths(&rest_curvature);
+        // The muscles' lengths and times, where muscles drive the robot.
+        let (muscle_lengths, inflation_times) = match self.robot.drive.muscles() {
+            Some(m) => {
+                let lengths = m.lengths(self.robot.body.section_length(), &rest_curvature);
+                (lengths.clone(), m.inflation_times(&lengths))
+            }
+            None => (Vec::new(), Vec::new()),
+        };
         IkResult {
-            inflation_times: self.robot.inflation_times(&lengths),
-            muscle_lengths: lengths,
+            inflation_times,
+            muscle_lengths,
             rest_curvature,
             tensions,
             field,
-            tip_position: tool_point(&sol, self.robot.tool_offset),
+            tip_position: tool_point(&sol, self.robot.body.tool_offset),
             solution: sol,
             tip_miss: miss,
             reached: ending == IkEnding::Reached,
@@ -1057,7 +1064,7 @@ impl InverseSolver {
 /// muscles' `reference`, the tendons' `pretension`); no solver needed.
 pub(crate) fn reference_of(
     robot: &Robot,
-    drive: &Drive,
+    drive: &DriveSpace,
     options: &IkOptions,
 ) -> Result<Option<Vec<f64>>> {
     let space = drive.space();

@@ -381,7 +381,7 @@ impl Robot {
     /// The reference (or pretension) of `options` in this robot's drive
     /// coordinates, checked, as [`InverseSolver::solve`] takes it.
     pub(crate) fn ik_reference(&self, options: &IkOptions) -> Result<Option<Vec<f64>>> {
-        engine::reference_of(self, &drive::Drive::of(self), options)
+        engine::reference_of(self, &drive::DriveSpace::of(self), options)
     }
 
     /// Load-aware inverse kinematics of one target (see [`IkOptions`]).

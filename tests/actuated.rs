@@ -391,3 +391,64 @@ fn tensions_reach_a_tip_position_and_direction_together() {
         (reached - direction).norm()
     );
 }
+
+#[test]
+fn the_predicted_equilibrium_is_first_order_in_the_drives_move() {
+    // Solver::predicted_state turns the state along the sensitivity's state
+    // columns: its distance from the true equilibrium at moved tensions falls
+    // as the square of the move (by 4 when the move halves), it is far
+    // closer than the unmoved state, and it is refused for another state.
+    let robot = tendon_robot(None);
+    let tensions = vec![3.0, 0.0, 1.0, 0.0, 2.0, 4.0, 0.5, 1.0, 0.0];
+    let settings = softspine::Settings {
+        n_elements: Some(robot.n_elements),
+        residual_tol: 1e-13,
+        ..Default::default()
+    };
+    let scene_at = |t: &[f64]| {
+        let actuation = Actuation {
+            tensions: t.to_vec(),
+            ..Actuation::default()
+        };
+        robot
+            .scene(&actuation, &softspine::Load::from(0.02))
+            .unwrap()
+    };
+    let mut solver = softspine::Solver::new(&scene_at(&tensions), settings.clone()).unwrap();
+    let q = solver.solve(None).unwrap().quaternions;
+    solver.tension_sensitivity().unwrap();
+    let direction = [0.5, 1.0, -0.3, 0.8, 0.0, -1.0, 0.4, 0.2, 0.6];
+    let gap = |a: &[softspine::Quat], b: &[softspine::Quat]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x.rotation() - y.rotation()).norm())
+            .fold(0.0, f64::max)
+    };
+    let misses: Vec<(f64, f64)> = [0.4, 0.2, 0.1]
+        .iter()
+        .map(|h| {
+            let moved: Vec<f64> = tensions
+                .iter()
+                .zip(&direction)
+                .map(|(t, d)| t + h * d)
+                .collect();
+            let dp: Vec<f64> = direction.iter().map(|d| h * d).collect();
+            let predicted = solver.predicted_state(&q, &dp).unwrap();
+            let truth = softspine::solve(&scene_at(&moved), settings.clone(), None)
+                .unwrap()
+                .quaternions;
+            (gap(&predicted, &truth), gap(&q, &truth))
+        })
+        .collect();
+    for pair in misses.windows(2) {
+        let ratio = pair[0].0 / pair[1].0;
+        assert!((3.0..5.0).contains(&ratio), "{misses:?}");
+    }
+    for (predicted, unmoved) in &misses {
+        assert!(predicted * 10.0 < *unmoved, "{misses:?}");
+    }
+    let mut other = q.clone();
+    other[3] = other[3].perturbed(nalgebra::Vector3::new(1e-9, 0.0, 0.0));
+    assert!(solver.predicted_state(&other, &direction).is_none());
+    assert!(solver.predicted_state(&q, &direction[..8]).is_none());
+}

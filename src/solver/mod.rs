@@ -69,6 +69,12 @@ pub struct Solver {
     tension_tangents: Vec<crate::disc::Loading>,
     field_tangents: Vec<crate::disc::Loading>,
     curvature_tangents: Vec<crate::disc::Loading>,
+    /// The node turns' derivative `d theta_i / d p_j` of the last tip
+    /// sensitivity, `n` a column, and the state it was taken at: a tangent
+    /// predictor of the equilibrium at moved parameters
+    /// ([`Solver::predicted_state`]).
+    state_tangents: Vec<Vector3<f64>>,
+    state_tangents_at: Vec<Quat>,
 }
 
 impl Solver {
@@ -115,6 +121,8 @@ impl Solver {
             tension_tangents: Vec::new(),
             field_tangents: Vec::new(),
             curvature_tangents: Vec::new(),
+            state_tangents: Vec::new(),
+            state_tangents_at: Vec::new(),
         })
     }
 

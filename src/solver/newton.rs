@@ -269,7 +269,7 @@ pub(crate) fn certified(norm: f64, step: &[Vector3<f64>], tol: f64) -> bool {
 /// but a finite step no longer composes the nodes' rotations into spurious
 /// relative twist (a second-order term that a torsion much stiffer than bending,
 /// kz = 1000 kx, turns into a residual that stalls the line search).
-fn retract_along_chain(q: &[Quat], step: &[Vector3<f64>], alpha: f64, out: &mut [Quat]) {
+pub(crate) fn retract_along_chain(q: &[Quat], step: &[Vector3<f64>], alpha: f64, out: &mut [Quat]) {
     out[0] = q[0];
     let mut previous = Vector3::zeros();
     for j in 1..q.len() {

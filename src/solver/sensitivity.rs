@@ -5,6 +5,7 @@ use super::{Solver, Status};
 use crate::disc::{Interior, Loading};
 use crate::error::{Error, Result};
 use crate::model::RodModel;
+use crate::quat::Quat;
 use crate::scene::Scene;
 use nalgebra::Vector3;
 
@@ -94,6 +95,8 @@ impl Solver {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
         }
         let (model, w) = (&self.model, &mut self.work);
+        self.state_tangents_at.clear();
+        self.state_tangents.clear();
         model.residual_jacobian(&w.q, 1.0, &mut w.interior, &mut w.g, &mut w.jac);
         if w.lu.factor(&w.jac, 0.0).is_err() {
             return Err(Error::NotConverged {
@@ -122,6 +125,7 @@ impl Solver {
                 model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
             }
             w.lu.solve_in_place(&mut w.step);
+            self.state_tangents.extend(w.step.iter().map(|x| -x));
             // d theta / dp = -A^{-1} dg/dp; the tip also moves with the
             // interior at fixed nodes (fe4).
             let dr: Vector3<f64> = d_tip.iter().zip(&w.step).map(|(b, x)| -(b * x)).sum();
@@ -131,7 +135,31 @@ impl Solver {
             // The tip turns by R d theta_n (body to world).
             out.rotation.set_column(column, &-(turn * w.step[n - 1]));
         }
+        self.state_tangents_at.extend_from_slice(&w.q);
         Ok(out)
+    }
+
+    /// The equilibrium predicted to first order when the parameters of the
+    /// last tip sensitivity (its columns) move by `dp` from the state `q`:
+    /// `q` turned by `sum_j d theta / d p_j dp_j` ([`Solver::tip_sensitivity`],
+    /// [`Solver::tension_sensitivity`], [`Solver::field_sensitivity`]).
+    /// `None` unless that sensitivity was taken at `q` with `dp.len()`
+    /// columns. A warm start from it saves a Newton iteration or two of an
+    /// inverse solve's every forward solve.
+    pub fn predicted_state(&self, q: &[Quat], dp: &[f64]) -> Option<Vec<Quat>> {
+        let n = self.model.n();
+        if q != self.state_tangents_at.as_slice() || dp.len() * n != self.state_tangents.len() {
+            return None;
+        }
+        let mut turn = vec![Vector3::zeros(); n];
+        for (column, d) in self.state_tangents.chunks_exact(n).zip(dp) {
+            for (t, c) in turn.iter_mut().zip(column) {
+                *t += *d * c;
+            }
+        }
+        let mut out = q.to_vec();
+        super::newton::retract_along_chain(q, &turn, 1.0, &mut out);
+        Some(out)
     }
 }
 

@@ -343,13 +343,20 @@ pub fn density(
     let mut hessian = Matrix3::zeros();
     for (tension, rho, v) in paths(tendons, scale, s, omega) {
         let length = v.norm();
-        let unit = v / length;
+        // One division (this loop is the tendon robot's hottest).
+        let inverse = 1.0 / length;
+        let unit = v * inverse;
         value += tension * length;
         // d v / d omega = -[rho]x.
-        moment += tension * rho.cross(&unit);
-        let arm = skew(&rho);
-        let across = Matrix3::identity() - unit * unit.transpose();
-        hessian += (tension / length) * arm.transpose() * across * arm;
+        let arm = rho.cross(&unit);
+        moment += tension * arm;
+        // The stiffness A^T (I - u u^T) A with A = [rho]x, without the 3 x 3
+        // products: A^T A = |rho|^2 I - rho rho^T and A^T u = -rho x u.
+        let c = tension * inverse;
+        let r = c * rho;
+        let w = c * arm;
+        hessian +=
+            Matrix3::from_diagonal_element(r.dot(&rho)) - r * rho.transpose() - w * arm.transpose();
     }
     (value, moment, hessian)
 }
@@ -358,7 +365,8 @@ pub fn density(
 #[inline]
 pub fn moment(tendons: &[Tendon], scale: f64, s: f64, omega: &Vector3<f64>) -> Vector3<f64> {
     paths(tendons, scale, s, omega).fold(Vector3::zeros(), |moment, (tension, rho, v)| {
-        moment + tension * rho.cross(&(v / v.norm()))
+        // As [`density`] computes it, to the last bit.
+        moment + tension * rho.cross(&(v * (1.0 / v.norm())))
     })
 }
 

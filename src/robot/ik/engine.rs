@@ -795,7 +795,21 @@ impl InverseSolver {
         let mut x = &st.x + step;
         // Rounding only: the bounded step stays within range.
         self.drive.clamp(&self.robot, &mut x);
-        let sol = self.forward(&x)?;
+        // Warm from the equilibrium the step's tangent predicts (the drive's
+        // sensitivity taken at the state), else from the state's.
+        let moved = (&x - &st.x).as_slice().to_vec();
+        let predicted = self.solver.predicted_state(&st.sol.quaternions, &moved);
+        let sol = match predicted {
+            Some(q) => {
+                self.drive.apply(&mut self.solver, &x)?;
+                let sol = self.solver.solve_warm_or_cold(Some(&q))?;
+                match usable(&sol) {
+                    true => sol,
+                    false => self.forward(&x)?,
+                }
+            }
+            None => self.forward(&x)?,
+        };
         if !usable(&sol) {
             return Ok(Trial::Unusable);
         }

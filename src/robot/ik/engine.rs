@@ -164,6 +164,10 @@ pub struct InverseSolver {
     /// The targets of the last two answers reached and the answer before the
     /// last, the path a next start is predicted along (see `predicted`).
     path: Option<PathHistory>,
+    /// The current descent starts from the path's prediction: near the
+    /// solution set, so its first step already pulls toward the reference
+    /// (taken by the first `min_norm`).
+    start_on_path: bool,
     /// Iterations of the current solve, all starts included.
     iterations: usize,
     /// The warm start the current solve was given (the last answer's equilibrium).
@@ -187,6 +191,7 @@ impl InverseSolver {
             solver: Solver::new(&scene, settings)?,
             q: None,
             path: None,
+            start_on_path: false,
             iterations: 0,
             given_warm: None,
         })
@@ -268,9 +273,15 @@ impl InverseSolver {
         // short; sliding along the solution set from elsewhere converges only
         // linearly (along a path the reference is the last answer).
         // From the last answer, the start is predicted along the path.
-        let start = match reference {
-            Some(_) if goal.reference != self.last => goal.reference.clone(),
-            _ => self.predicted(&goal).unwrap_or_else(|| self.last.clone()),
+        let predicted = match reference {
+            Some(_) if goal.reference != self.last => None,
+            _ => self.predicted(&goal),
+        };
+        self.start_on_path = predicted.is_some();
+        let start = match (reference, predicted) {
+            (_, Some(x)) => x,
+            (Some(_), None) if goal.reference != self.last => goal.reference.clone(),
+            _ => self.last.clone(),
         };
         let first = self.reach(&goal, start, Pull::Reference, max_iterations)?;
         let (mut best, starts) = if first.reached(&goal) || goal.beyond_length(self.base()) {
@@ -460,7 +471,7 @@ impl InverseSolver {
         // solver at the trial (`away`), and the Jacobian is kept.
         let mut jac: Option<DMatrix<f64>> = None;
         let mut away = false;
-        let mut near = false;
+        let mut near = std::mem::take(&mut self.start_on_path);
         // The last full step of the slide toward the reference (see SLIDE_ALIGNED).
         let mut last_slide: Option<DVector<f64>> = None;
         // Its ratio, once two full steps agreed: what a step leaves to go.

@@ -30,6 +30,7 @@
 
 pub mod batch;
 pub mod blocktri;
+pub mod contact;
 pub mod disc;
 pub mod error;
 pub mod interrupt;

@@ -1,0 +1,15 @@
+//! Contact with the surroundings: the obstacles a rod may touch and the gap
+//! between the rod's surface and each of them.
+//!
+//! This is the first layer of frictionless contact (the constrained
+//! equilibrium builds on it): each obstacle gives, at a point of the
+//! backbone, the signed gap `g(p)` from the obstacle's surface (positive in
+//! free space, negative inside the solid) and its gradient, the unit normal
+//! along which a contact force pushes. A rod of radius `r` touches where
+//! `g(p) = r` on its backbone; the condition to enforce is `g(p) - r >= 0`.
+//! Every shape's gap is a true signed distance, so `|grad g| = 1` wherever it
+//! is smooth, except a lumen of varying radius (see [`Obstacle::Lumen`]).
+
+mod obstacle;
+
+pub use obstacle::{Obstacle, Proximity};

@@ -7,6 +7,7 @@ with its ending.
 
     python tools/reach_campaign.py              # 150 targets a robot
     python tools/reach_campaign.py --targets 30 --robots tendon catheter
+    python tools/reach_campaign.py --pose       # the tip's whole pose as the goal
 
 Prints, per robot: targets reached, the endings of the others, and the IK
 time per point (median and 95th percentile, one core).
@@ -41,22 +42,28 @@ def robots() -> dict[str, tuple[softspine.Robot, float]]:
     }
 
 
-def reach(robot: softspine.Robot, load: float, count: int, seed: int) -> dict:
+def reach(robot: softspine.Robot, load: float, count: int, seed: int,
+          pose: bool = False) -> dict:
     """The IK of `count` targets drawn from the robot's admissible drives
-    (seeded): the targets, which were reached, each ending and the seconds."""
+    (seeded): the targets, which were reached, each ending and the seconds.
+    With `pose`, each target is the tip's position and orientation."""
     drawn = robot.workspace(count, load, seed=seed, threads=1, progress=False)
     usable = (drawn.status == "converged") & drawn.stable
     out: dict = {"targets": drawn.tip_positions[usable], "drawn": int(count),
                  "results": [], "seconds": []}
-    for target in out["targets"]:
+    for target, turn in zip(out["targets"], drawn.tip_quaternions[usable], strict=True):
         started = time.perf_counter()
-        out["results"].append(robot.inverse(target, load))
+        if pose:
+            out["results"].append(robot.inverse(target, load, orientation=turn))
+        else:
+            out["results"].append(robot.inverse(target, load))
         out["seconds"].append(time.perf_counter() - started)
     return out
 
 
-def campaign(name: str, robot: softspine.Robot, load: float, count: int, seed: int) -> None:
-    found = reach(robot, load, count, seed)
+def campaign(name: str, robot: softspine.Robot, load: float, count: int, seed: int,
+             pose: bool = False) -> None:
+    found = reach(robot, load, count, seed, pose)
     misses = [r for r in found["results"] if not r.reached]
     endings = Counter(str(r.ending) for r in misses)
     times = np.array(found["seconds"]) * 1e3
@@ -73,11 +80,13 @@ def main() -> None:
     parser.add_argument("--targets", type=int, default=150)
     parser.add_argument("--seed", type=int, default=27)
     parser.add_argument("--robots", nargs="*", default=None)
+    parser.add_argument("--pose", action="store_true",
+                        help="aim at each tip's orientation too (a full pose)")
     args = parser.parse_args()
     for name, (robot, load) in robots().items():
         if args.robots and name not in args.robots:
             continue
-        campaign(name, robot, load, args.targets, args.seed)
+        campaign(name, robot, load, args.targets, args.seed, args.pose)
 
 
 if __name__ == "__main__":

@@ -91,6 +91,12 @@ pub struct BlockLu {
     /// `C_j^{-1} U_j`, for back substitution.
     coupling: Vec<Matrix3<f64>>,
     lower: Vec<Matrix3<f64>>,
+    /// The diagonal and upper blocks factored, and whether the factors are
+    /// those of the matrix itself (unshifted, complete): see
+    /// [`BlockLu::is_factor_of`].
+    diag: Vec<Matrix3<f64>>,
+    upper: Vec<Matrix3<f64>>,
+    plain: bool,
 }
 
 /// A pivot block was (numerically) singular.
@@ -103,6 +109,9 @@ impl BlockLu {
             inv_pivot: vec![Matrix3::zeros(); n],
             coupling: vec![Matrix3::zeros(); n.saturating_sub(1)],
             lower: vec![Matrix3::zeros(); n.saturating_sub(1)],
+            diag: vec![Matrix3::zeros(); n],
+            upper: vec![Matrix3::zeros(); n.saturating_sub(1)],
+            plain: false,
         }
     }
 
@@ -113,12 +122,23 @@ impl BlockLu {
             inv_pivot: zeros(n)?,
             coupling: zeros(n.saturating_sub(1))?,
             lower: zeros(n.saturating_sub(1))?,
+            diag: zeros(n)?,
+            upper: zeros(n.saturating_sub(1))?,
+            plain: false,
         })
+    }
+
+    /// Whether this is the unshifted factorisation of `a` as `a` is now
+    /// (every block equal to the one factored): a caller that needs `a`'s
+    /// factors may skip factoring it again.
+    pub fn is_factor_of(&self, a: &BlockTridiagonal) -> bool {
+        self.plain && self.diag == a.diag && self.upper == a.upper && self.lower == a.lower
     }
 
     /// Factor `A + shift I`.
     pub fn factor(&mut self, a: &BlockTridiagonal, shift: f64) -> Result<(), SingularPivot> {
         let n = a.n();
+        self.plain = false;
         let scale = a.max_diagonal().max(shift.abs()).max(f64::MIN_POSITIVE);
         let mut pivot = a.diag[0] + Matrix3::identity() * shift;
         for j in 0..n {
@@ -133,11 +153,14 @@ impl BlockLu {
             }
             let inv = invert_checked(&pivot, scale).ok_or(SingularPivot(j))?;
             self.inv_pivot[j] = inv;
+            self.diag[j] = a.diag[j];
             if j + 1 < n {
                 self.coupling[j] = inv * a.upper[j];
                 self.lower[j] = a.lower[j];
+                self.upper[j] = a.upper[j];
             }
         }
+        self.plain = shift == 0.0;
         Ok(())
     }
 
@@ -149,6 +172,7 @@ impl BlockLu {
     /// [`factor`]: BlockLu::factor
     pub fn factor_symmetric_part(&mut self, a: &BlockTridiagonal) -> Option<usize> {
         let n = a.n();
+        self.plain = false;
         let sym = |m: Matrix3<f64>| 0.5 * (m + m.transpose());
         let scale = a.max_diagonal().max(f64::MIN_POSITIVE);
         let mut negative = 0;
@@ -265,6 +289,33 @@ pub fn symmetric_part_is_positive_definite(a: &BlockTridiagonal) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_factorisation_knows_the_matrix_it_factored() {
+        let mut a = sample(6);
+        let mut lu = BlockLu::new(6);
+        assert!(!lu.is_factor_of(&a), "nothing factored yet");
+        lu.factor(&a, 0.0).unwrap();
+        assert!(lu.is_factor_of(&a));
+        // Any block changed since, a shifted or a symmetric-part factorisation: not a's.
+        for change in 0..3 {
+            let mut b = a.clone();
+            match change {
+                0 => b.diag[5][(2, 2)] += 1e-15,
+                1 => b.upper[0][(0, 1)] += 1e-15,
+                _ => b.lower[4][(1, 0)] += 1e-15,
+            }
+            assert!(!lu.is_factor_of(&b), "change {change}");
+        }
+        lu.factor(&a, 1e-3).unwrap();
+        assert!(!lu.is_factor_of(&a));
+        lu.factor(&a, 0.0).unwrap();
+        lu.factor_symmetric_part(&a).unwrap();
+        assert!(!lu.is_factor_of(&a));
+        a.diag[0] = Matrix3::zeros();
+        assert!(lu.factor(&a, 0.0).is_err());
+        assert!(!lu.is_factor_of(&a), "a failed factorisation is of nothing");
+    }
 
     fn sample(n: usize) -> BlockTridiagonal {
         let mut a = BlockTridiagonal::zeros(n);

@@ -75,6 +75,13 @@ pub struct Solver {
     /// ([`Solver::predicted_state`]).
     state_tangents: Vec<Vector3<f64>>,
     state_tangents_at: Vec<Quat>,
+    /// The workspace's Jacobian is the equations' at the workspace's state
+    /// (a free rod's, at full load, of the model as it is), as a stable
+    /// direct solve leaves it: the tip sensitivity then needs no assembly,
+    /// nor a factorisation if the workspace's is still of it
+    /// ([`crate::blocktri::BlockLu::is_factor_of`]). Cleared by every change
+    /// of the model, at every solve's start and by the general sensitivity.
+    jacobian_at_solution: bool,
 }
 
 impl Solver {
@@ -123,6 +130,7 @@ impl Solver {
             curvature_tangents: Vec::new(),
             state_tangents: Vec::new(),
             state_tangents_at: Vec::new(),
+            jacobian_at_solution: false,
         })
     }
 
@@ -146,6 +154,7 @@ impl Solver {
         if sections.iter().flatten().any(|k| !k.is_finite()) {
             return Err(Error::argument("rest_curvature", "must be finite"));
         }
+        self.jacobian_at_solution = false;
         self.model.set_section_curvature(sections);
         // The scene too: the paper's method and nested iteration rebuild from it.
         self.scene.rest_curvature = sections.to_vec();
@@ -170,6 +179,7 @@ impl Solver {
         scene.check_derived()?;
         // In place: nothing else of the discretisation depends on them.
         self.scene = scene;
+        self.jacobian_at_solution = false;
         self.model.set_tip_load(force, moment);
         self.work.interior.forget();
         Ok(())
@@ -184,6 +194,7 @@ impl Solver {
         for (t, tension) in self.scene.tendons.iter_mut().zip(tensions) {
             t.tension = *tension;
         }
+        self.jacobian_at_solution = false;
         self.model.set_tensions(tensions);
         // The interior belonged to the old drives: a fresh start, as a new solver's.
         self.work.interior.forget();
@@ -195,6 +206,7 @@ impl Solver {
         check_field(field)?;
         self.scene.check_field_load(field)?;
         self.scene.magnetic_field = field;
+        self.jacobian_at_solution = false;
         self.model.set_magnetic_field(field);
         self.work.interior.forget();
         Ok(())
@@ -248,6 +260,7 @@ impl Solver {
     /// discretised loads are rebuilt (O(n)), the workspace kept.
     fn rebuild(&mut self, scene: Scene) -> Result<()> {
         scene.check_derived()?;
+        self.jacobian_at_solution = false;
         self.model = RodModel::new(&scene, self.model.n()).with_scheme(self.model.scheme());
         self.work.interior.forget();
         self.tension_tangents.clear();
@@ -289,6 +302,7 @@ impl Solver {
 
     fn solve_uninterrupted(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
         let n = self.model.n();
+        self.jacobian_at_solution = false;
         if let Some(q) = initial {
             if q.len() != n + 1 {
                 return Err(Error::argument(
@@ -375,6 +389,9 @@ impl Solver {
                 .attempt(model, w, 1.0, (budget - spent).min(DIRECT_ITERATIONS), tol);
         let mut iterations = spent + direct.iterations;
         if direct.converged && is_stable(model, w) {
+            // The local method leaves the Jacobian at its answer (see
+            // `LocalSolver`); a free rod's is the equations' own.
+            self.jacobian_at_solution = !model.is_constrained();
             return Ok(self.finish(Ending::DirectStable, iterations, 0));
         }
         // The direct attempt failed or found an unstable equilibrium: follow the

@@ -97,8 +97,14 @@ impl Solver {
         let (model, w) = (&self.model, &mut self.work);
         self.state_tangents_at.clear();
         self.state_tangents.clear();
-        model.residual_jacobian(&w.q, 1.0, &mut w.interior, &mut w.g, &mut w.jac);
-        if w.lu.factor(&w.jac, 0.0).is_err() {
+        // After an IK's forward solve the Jacobian at its equilibrium is
+        // usually there, and factored: a third of a step's assembly saved.
+        let factored = self.jacobian_at_solution && w.lu.is_factor_of(&w.jac);
+        if !self.jacobian_at_solution {
+            model.residual_jacobian(&w.q, 1.0, &mut w.interior, &mut w.g, &mut w.jac);
+            self.jacobian_at_solution = true;
+        }
+        if !factored && w.lu.factor(&w.jac, 0.0).is_err() {
             return Err(Error::NotConverged {
                 status: Status::NotConverged,
                 iterations: 0,
@@ -646,6 +652,8 @@ impl Solver {
                 "needs the equilibrium of method 'newton' or 'lm'",
             ));
         }
+        // The differences below may leave other Jacobians in the workspace.
+        self.jacobian_at_solution = false;
         let (model, w) = (&self.model, &mut self.work);
         let (n, scheme) = (model.n(), model.scheme());
         let held = model.is_constrained();

@@ -643,23 +643,15 @@ impl PyRobot {
             .into_iter()
             .map(Vector3::from)
             .collect();
-        let options = IkOptions {
-            load: load.clone(),
-            reference: given(reference)
-                .map(|r| rows_arg::<2>("reference", &r))
-                .transpose()?,
-            direction: given(direction)
-                .map(|d| vec3_arg("direction", &d))
-                .transpose()?,
-            settings: ik_settings_arg(settings, &[])?,
-            orientation: given(orientation)
-                .map(|q| orientation_arg("orientation", &q))
-                .transpose()?,
-            pretension: given(pretension)
-                .map(|p| floats_arg("pretension", &p))
-                .transpose()?,
-            initial: None,
-        };
+        let options = ik_options_arg(
+            &load,
+            reference,
+            direction,
+            orientation,
+            pretension,
+            settings,
+            &[],
+        )?;
         let batch = batch_settings(threads, chunk, None, None)?;
         if let Some(cut) = cluster_plan(py, plan, part, &batch)? {
             return Ok(cut);
@@ -750,18 +742,16 @@ impl PyRobot {
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let mut options = self.ik_options(
+        let mut options = ik_options_arg(
             &load,
             reference,
             direction,
             orientation,
+            pretension,
             settings,
             &keywords,
         )?;
         options.initial = given(initial).map(|x| ik_start(&x)).transpose()?;
-        options.pretension = given(pretension)
-            .map(|p| floats_arg("pretension", &p))
-            .transpose()?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
         let r = detach_solve(py, long, move || robot.inverse(target, &options))?;
@@ -802,17 +792,15 @@ impl PyRobot {
             ("tol", tol),
             ("max_iterations", max_iterations),
         ];
-        let mut options = self.ik_options(
+        let options = ik_options_arg(
             &load,
             reference,
             direction,
             orientation,
+            pretension,
             settings,
             &keywords,
         )?;
-        options.pretension = given(pretension)
-            .map(|p| floats_arg("pretension", &p))
-            .transpose()?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
         let rs = detach_solve(py, long, move || robot.track(&pts, &options))?;
@@ -898,32 +886,6 @@ impl PyRobot {
         warn_user(py, &inner.warnings())?;
         Ok(PyRobot { inner })
     }
-
-    fn ik_options(
-        &self,
-        load: &crate::robot::Load,
-        reference: Option<&Bound<'_, PyAny>>,
-        direction: Option<&Bound<'_, PyAny>>,
-        orientation: Option<&Bound<'_, PyAny>>,
-        settings: Option<&Bound<'_, PyAny>>,
-        keywords: &[(&str, Option<&Bound<'_, PyAny>>)],
-    ) -> PyResult<IkOptions> {
-        Ok(IkOptions {
-            load: load.clone(),
-            reference: reference
-                .map(|r| rows_arg::<2>("reference", r))
-                .transpose()?,
-            direction: given(direction)
-                .map(|d| vec3_arg("direction", &d))
-                .transpose()?,
-            orientation: given(orientation)
-                .map(|q| orientation_arg("orientation", &q))
-                .transpose()?,
-            settings: ik_settings_arg(settings, keywords)?,
-            pretension: None,
-            initial: None,
-        })
-    }
 }
 
 /// One of the seed's trajectories for the default robot: "pentagram", "circle"
@@ -952,4 +914,35 @@ pub(super) fn trajectory_points<'py>(
         None => pts,
     };
     Ok(rows3(py, &pts))
+}
+
+/// The options of an inverse solve from the bindings' arguments (each
+/// converted and named; the core checks them).
+#[allow(clippy::too_many_arguments)]
+fn ik_options_arg(
+    load: &crate::robot::Load,
+    reference: Option<&Bound<'_, PyAny>>,
+    direction: Option<&Bound<'_, PyAny>>,
+    orientation: Option<&Bound<'_, PyAny>>,
+    pretension: Option<&Bound<'_, PyAny>>,
+    settings: Option<&Bound<'_, PyAny>>,
+    keywords: &[(&str, Option<&Bound<'_, PyAny>>)],
+) -> PyResult<IkOptions> {
+    Ok(IkOptions {
+        load: load.clone(),
+        reference: given(reference)
+            .map(|r| rows_arg::<2>("reference", &r))
+            .transpose()?,
+        direction: given(direction)
+            .map(|d| vec3_arg("direction", &d))
+            .transpose()?,
+        orientation: given(orientation)
+            .map(|q| orientation_arg("orientation", &q))
+            .transpose()?,
+        settings: ik_settings_arg(settings, keywords)?,
+        pretension: given(pretension)
+            .map(|p| floats_arg("pretension", &p))
+            .transpose()?,
+        initial: None,
+    })
 }

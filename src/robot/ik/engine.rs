@@ -808,8 +808,10 @@ impl InverseSolver {
         self.drive.clamp(&self.robot, &mut x);
         // Warm from the equilibrium the step's tangent predicts (the drive's
         // sensitivity taken at the state), else from the state's.
-        let moved = (&x - &st.x).as_slice().to_vec();
-        let predicted = self.solver.predicted_state(&st.sol.quaternions, &moved);
+        let moved = &x - &st.x;
+        let predicted = self
+            .solver
+            .predicted_state(&st.sol.quaternions, moved.as_slice());
         let sol = match predicted {
             Some(q) => {
                 self.drive.apply(&mut self.solver, &x)?;

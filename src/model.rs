@@ -25,6 +25,7 @@ use crate::quat::Quat;
 pub use crate::scene::reach::clamped_end_deficit;
 use crate::scene::{Scene, TipCondition};
 use crate::terms::Terms;
+use crate::contact::Obstacle;
 use nalgebra::{Matrix3, Vector3};
 
 /// A node held at a position (a pinned tip or a guide). Its reaction force is
@@ -85,6 +86,10 @@ pub struct RodModel {
     stiffness_spread: f64,
     max_rest_turn: f64,
     breaks: Vec<usize>,
+    /// Rigid obstacles the rod may touch, and the rod's radius [m]: the
+    /// contact rows of the constrained solve (see `solver::contact`).
+    obstacles: Vec<Obstacle>,
+    contact_radius: f64,
 }
 
 impl RodModel {
@@ -142,6 +147,8 @@ impl RodModel {
             stiffness_spread: 1.0,
             max_rest_turn: 0.0,
             breaks: Vec::new(),
+            obstacles: scene.obstacles.clone(),
+            contact_radius: scene.contact_radius(),
             rod,
         };
         model.residual_scale = model.stiffness / model.length();
@@ -422,6 +429,7 @@ impl RodModel {
     /// True when nothing loads the rod: the rest shape is the exact equilibrium.
     pub fn is_trivial(&self) -> bool {
         self.terms.vanish()
+            && self.obstacles.is_empty()
             && self.constraints.iter().all(|c| c.target == c.rest)
             && self.clamped_tip.is_none_or(|q| q == self.rest_tip)
     }
@@ -439,9 +447,25 @@ impl RodModel {
         ratio
     }
 
-    /// Whether the scene has unknown reactions (held nodes or a clamped tip).
+    /// Whether the scene has unknown reactions (held nodes, a clamped tip or
+    /// obstacles, whose contact forces are unknowns).
     pub fn is_constrained(&self) -> bool {
-        !self.constraints.is_empty() || self.clamped_tip.is_some()
+        !self.constraints.is_empty() || self.clamped_tip.is_some() || self.has_obstacles()
+    }
+
+    /// The obstacles the rod may touch.
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// Whether there are obstacles.
+    pub fn has_obstacles(&self) -> bool {
+        !self.obstacles.is_empty()
+    }
+
+    /// The rod's radius for contact [m].
+    pub fn contact_radius(&self) -> f64 {
+        self.contact_radius
     }
 
     /// The scale of the applied loads at path parameter `lambda`.
@@ -555,6 +579,22 @@ impl RodModel {
             .evaluate(&self.rod, q, load, held, interior, g, jac);
     }
 
+    /// Residual with the forces `held` at nodes besides the loads (the held
+    /// points' reactions and the contact forces), and optionally its Jacobian.
+    pub(crate) fn residual_with_forces(
+        &self,
+        q: &[Quat],
+        lambda: f64,
+        held: NodeForces,
+        interior: &mut Interior,
+        g: &mut [Vector3<f64>],
+        jac: Option<&mut BlockTridiagonal>,
+    ) {
+        let load = self.load_scale(lambda);
+        self.disc
+            .evaluate(&self.rod, q, load, held, interior, g, jac);
+    }
+
     /// `d g / d lambda`: the residual is affine in the load scale.
     pub fn residual_lambda_derivative(
         &self,
@@ -611,6 +651,11 @@ impl RodModel {
         h: &mut [Vector3<f64>],
     ) {
         self.positions(q, interior, r);
+        self.held_point_residual(r, lambda, h);
+    }
+
+    /// `h_c = r_{node_c} - target_c(lambda)` from the node positions `r`.
+    pub fn held_point_residual(&self, r: &[Vector3<f64>], lambda: f64, h: &mut [Vector3<f64>]) {
         for (c, hc) in self.constraints.iter().zip(h.iter_mut()) {
             *hc = r[c.node] - c.target_at(lambda);
         }
@@ -640,6 +685,26 @@ impl RodModel {
     ) -> Option<nalgebra::DMatrix<f64>> {
         self.disc
             .held_point_compliance(&self.rod, q, &self.held_nodes, interior)
+    }
+
+    /// Internal force at the nodes with the forces `held` at nodes (held
+    /// points' reactions and contact forces): the force that the distal part
+    /// exerts on the proximal one (a force at the tip node counts there).
+    pub(crate) fn internal_forces(&self, held: NodeForces) -> Vec<Vector3<f64>> {
+        let n = self.n();
+        let mut distal = vec![Vector3::zeros(); n + 1];
+        for (&k, f) in held.nodes.iter().zip(held.forces) {
+            // Counted at every node before it, and at the tip's own.
+            distal[k] += f;
+        }
+        let mut out = vec![Vector3::zeros(); n + 1];
+        let mut sum = distal[n];
+        out[n] = self.rod.loading.node_force[n] + sum;
+        for j in (0..n).rev() {
+            out[j] = self.rod.loading.node_force[j] + sum;
+            sum += distal[j];
+        }
+        out
     }
 
     /// Internal force at the nodes with the reactions: the force that the distal

@@ -27,6 +27,7 @@ mod plausible;
 pub mod reach;
 pub use plausible::{MAX_LOAD_PARAMETER, MODULUS_RANGE, ROUNDOFF_LOAD, SLENDER_LIMIT};
 
+use crate::contact::Obstacle;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::quat::Quat;
@@ -313,6 +314,12 @@ pub struct Scene {
     pub tip_magnet: Vector3<f64>,
     /// Uniform external magnetic field, world frame [T].
     pub magnetic_field: Vector3<f64>,
+    /// Rigid obstacles the rod may touch (frictionless contact).
+    pub obstacles: Vec<Obstacle>,
+    /// The rod's radius [m]: its surface, this far from the backbone, keeps
+    /// out of the obstacles. `None`: half the diameter of a round rod's
+    /// stiffness, else zero (see [`Scene::contact_radius`]).
+    pub radius: Option<f64>,
 }
 
 impl Scene {
@@ -339,7 +346,18 @@ impl Scene {
             magnetization: Vec::new(),
             tip_magnet: Vector3::zeros(),
             magnetic_field: Vector3::zeros(),
+            obstacles: Vec::new(),
+            radius: None,
         }
+    }
+
+    /// The rod's radius for contact [m]: `radius`, else half a round rod's
+    /// diameter, else zero (a line).
+    pub fn contact_radius(&self) -> f64 {
+        self.radius.unwrap_or(match self.stiffness_spec {
+            Stiffness::RoundRod { diameter, .. } => 0.5 * diameter,
+            Stiffness::Diagonal { .. } => 0.0,
+        })
     }
 
     /// `(kx, ky, kz)` [N m^2]; with per-section stiffness, the softest
@@ -414,6 +432,7 @@ impl Scene {
                 self.tip_force_offset != Vector3::zeros(),
                 "a tip force off the tip (tip_force_offset)",
             ),
+            (!self.obstacles.is_empty(), "contact with obstacles"),
             (
                 self.has_distributed_moment()
                     || self
@@ -478,6 +497,8 @@ impl Scene {
             "magnetization",
             "tip_magnet",
             "magnetic_field",
+            "obstacles",
+            "radius",
         ])?;
         let name = match top.get("name") {
             None => None,
@@ -583,6 +604,14 @@ impl Scene {
             magnetization,
             tip_magnet: vec3_or_zero("tip_magnet")?,
             magnetic_field: vec3_or_zero("magnetic_field")?,
+            obstacles: match top.get("obstacles") {
+                None => Vec::new(),
+                Some(v) => obstacles(v)?,
+            },
+            radius: match top.get("radius") {
+                None => None,
+                Some(v) => Some(non_negative_length(v, "radius")?),
+            },
         };
         scene.check_section_lengths()?;
         scene.check_derived()?;
@@ -896,6 +925,13 @@ impl Scene {
         }
         if self.tip_magnet != Vector3::zeros() {
             m.push(("tip_magnet".into(), v3(&self.tip_magnet)));
+        }
+        if !self.obstacles.is_empty() {
+            let list = self.obstacles.iter().map(Obstacle::to_value).collect();
+            m.push(("obstacles".into(), Value::List(list)));
+        }
+        if let Some(radius) = self.radius {
+            m.push(("radius".into(), num(radius)));
         }
         if self.magnetic_field != Vector3::zeros() {
             m.push(("magnetic_field".into(), v3(&self.magnetic_field)));
@@ -1651,6 +1687,30 @@ fn tendons(v: &Value, length: f64, section_starts: &[f64]) -> Result<Vec<Tendon>
             })
         },
     )
+}
+
+/// A list of obstacles (`obstacles[i]`), each a table with its `shape`.
+fn obstacles(v: &Value) -> Result<Vec<Obstacle>> {
+    match v {
+        Value::List(items) => items
+            .iter()
+            .enumerate()
+            .map(|(i, x)| Obstacle::from_value(x, &format!("obstacles[{i}]")))
+            .collect(),
+        other => Err(Error::scene(
+            "obstacles",
+            format!("expected a list of obstacles, got {}", other.kind()),
+        )),
+    }
+}
+
+/// A length that may be zero (a rod's radius).
+fn non_negative_length(v: &Value, key: &str) -> Result<f64> {
+    let x = finite(v, key)?;
+    if x < 0.0 {
+        return Err(Error::scene(key, format!("must not be negative, got {x}")));
+    }
+    Ok(x)
 }
 
 fn guides(v: &Value) -> Result<Vec<Guide>> {

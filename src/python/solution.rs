@@ -314,6 +314,7 @@ impl PySolution {
             tip_reaction_force: d.optional_vector("tip_reaction_force")?,
             tip_reaction_moment: d.optional_vector("tip_reaction_moment")?,
             guide_reactions: d.vectors("guide_reactions")?,
+            contacts: Vec::new(),
             status: str_arg("solution.status", &d.get("status")?)?.parse()?,
             iterations: int_arg("solution.iterations", &d.get("iterations")?)?,
             continuation_steps: int_arg(

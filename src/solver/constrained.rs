@@ -18,6 +18,8 @@
 //! moment is what the torque balance of node n leaves over. Nothing here runs
 //! for a free tip without guides.
 
+use super::contact::{self, ContactWork};
+use crate::disc::NodeForces;
 use super::{step_limit, Workspace};
 use crate::blocktri::BlockLu;
 use crate::interrupt;
@@ -46,17 +48,25 @@ pub(crate) struct KktWorkspace {
     /// `dh / dR` at fixed rotations (the fourth-order scheme's internal nodes
     /// move with the reactions; see `RodModel::held_point_compliance`).
     pub compliance: Option<DMatrix<f64>>,
+    /// The KKT system's rows as `n` vectors each (`D^T e`): three a held
+    /// point, then one an active contact; `row_count` of them in use.
+    pub rows: Vec<Vec<Vector3<f64>>>,
+    pub row_count: usize,
+    /// The contact rows' sites, active set and forces (see `contact.rs`).
+    pub contact: ContactWork,
 }
 
 impl KktWorkspace {
     pub fn new(model: &RodModel) -> Self {
         let (n, m) = (model.n(), model.constraints().len());
         let positions = if model.is_constrained() { n + 1 } else { 0 };
+        // The contact slots' multipliers follow the held points' reactions.
+        let multipliers = m + contact::slot_count(model);
         KktWorkspace {
-            reactions: vec![Vector3::zeros(); m],
-            reactions_start: vec![Vector3::zeros(); m],
-            reaction_step: vec![Vector3::zeros(); m],
-            reactions_saved: vec![Vector3::zeros(); m],
+            reactions: vec![Vector3::zeros(); multipliers],
+            reactions_start: vec![Vector3::zeros(); multipliers],
+            reaction_step: vec![Vector3::zeros(); multipliers],
+            reactions_saved: vec![Vector3::zeros(); multipliers],
             h: vec![Vector3::zeros(); m],
             d: vec![vec![Matrix3::zeros(); n]; m],
             columns: vec![vec![Vector3::zeros(); n]; 3 * m],
@@ -65,6 +75,9 @@ impl KktWorkspace {
             rhs: DVector::zeros(3 * m),
             tip_torque: Vector3::zeros(),
             compliance: None,
+            rows: vec![vec![Vector3::zeros(); n]; 3 * m],
+            row_count: 3 * m,
+            contact: ContactWork::new(model),
         }
     }
 }
@@ -90,21 +103,41 @@ pub(crate) fn evaluate(
     } else {
         None
     };
-    model.residual_with_reactions(
-        &w.q,
-        lambda,
-        &w.kkt.reactions,
-        &mut w.interior,
-        &mut w.g,
-        jac,
-    );
-    model.constraint_residual(
-        &w.q,
-        lambda,
-        &mut w.interior,
-        &mut w.kkt.positions,
-        &mut w.kkt.h,
-    );
+    if model.has_obstacles() {
+        // The contact forces act where the backbone is: positions first
+        // (the second-order scheme's need no interior).
+        model.positions(&w.q, &mut w.interior, &mut w.kkt.positions);
+        contact::locate(model, &w.kkt.positions, &mut w.kkt.contact.sites);
+        contact::gather_forces(model, w);
+        contact::gather_gaps(w);
+        let held = NodeForces {
+            nodes: &w.kkt.contact.force_nodes,
+            forces: &w.kkt.contact.force_vectors,
+        };
+        let jac = if with_jacobian {
+            Some(&mut w.jac)
+        } else {
+            None
+        };
+        model.residual_with_forces(&w.q, lambda, held, &mut w.interior, &mut w.g, jac);
+        model.held_point_residual(&w.kkt.positions, lambda, &mut w.kkt.h);
+    } else {
+        model.residual_with_reactions(
+            &w.q,
+            lambda,
+            &w.kkt.reactions,
+            &mut w.interior,
+            &mut w.g,
+            jac,
+        );
+        model.constraint_residual(
+            &w.q,
+            lambda,
+            &mut w.interior,
+            &mut w.kkt.positions,
+            &mut w.kkt.h,
+        );
+    }
     if model.clamped_tip().is_some() {
         w.kkt.tip_torque = w.g[n - 1];
         w.g[n - 1] = Vector3::zeros();
@@ -117,12 +150,14 @@ pub(crate) fn evaluate(
             }
         }
     }
-    merit(model, &w.g, &w.kkt.h)
+    merit(model, &w.g, &w.kkt.h, &w.kkt.contact.gaps)
 }
 
-fn merit(model: &RodModel, g: &[Vector3<f64>], h: &[Vector3<f64>]) -> f64 {
+fn merit(model: &RodModel, g: &[Vector3<f64>], h: &[Vector3<f64>], gaps: &[f64]) -> f64 {
     let wt = position_weight(model);
-    model.merit(g) + wt * wt * h.iter().map(|x| x.norm_squared()).sum::<f64>()
+    let rows = h.iter().map(|x| x.norm_squared()).sum::<f64>()
+        + gaps.iter().map(|x| x * x).sum::<f64>();
+    model.merit(g) + wt * wt * rows
 }
 
 /// Dimensionless residual: torque rows and weighted constraint rows together.
@@ -130,6 +165,13 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
     let mut h = 0.0f64;
     for x in &w.kkt.h {
         let r = x.amax() * position_weight(model);
+        if !r.is_finite() {
+            return f64::INFINITY;
+        }
+        h = h.max(r);
+    }
+    for x in &w.kkt.contact.gaps {
+        let r = x.abs() * position_weight(model);
         if !r.is_finite() {
             return f64::INFINITY;
         }
@@ -147,14 +189,32 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
             d[model.n() - 1] = Matrix3::zeros();
         }
     }
+    let held = model.constraints().len();
+    for (c, d) in w.kkt.d[..held].iter().enumerate() {
+        for e in 0..3 {
+            for (x, b) in w.kkt.rows[3 * c + e].iter_mut().zip(d) {
+                *x = b.row(e).transpose();
+            }
+        }
+    }
+    contact::load_rows(model, w, 3 * held);
+    w.kkt.row_count = 3 * held + w.kkt.contact.active.len();
 }
 
-/// `sum_j D_c[j].row(e) . x_j`: component `e` of `D_c x`.
-fn d_times(d: &[Matrix3<f64>], e: usize, x: &[Vector3<f64>]) -> f64 {
-    d.iter()
-        .zip(x)
-        .map(|(b, v)| b.row(e).transpose().dot(v))
-        .sum()
+/// `x . y` over the nodes.
+fn dot(x: &[Vector3<f64>], y: &[Vector3<f64>]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a.dot(b)).sum()
+}
+
+/// Row `r`'s residual: a held point's position error, then an active
+/// contact's gap.
+fn row_residual(w: &Workspace, r: usize) -> f64 {
+    let held = w.kkt.row_count - w.kkt.contact.gaps.len();
+    if r < held {
+        w.kkt.h[r / 3][r % 3]
+    } else {
+        w.kkt.contact.gaps[r - held]
+    }
 }
 
 /// Solve the KKT system at the current state (Jacobian and `D` loaded, `lu`
@@ -169,38 +229,40 @@ pub(crate) fn kkt_solve(w: &mut Workspace) -> bool {
 }
 
 fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
-    let m = w.kkt.d.len();
+    let rows = w.kkt.row_count;
     // y = A^{-1} g  (in w.scratch)
     w.scratch.copy_from_slice(&w.g);
     lu.solve_in_place(&mut w.scratch);
-    // columns = A^{-1} D^T e_(c, e)
-    for c in 0..m {
-        for e in 0..3 {
-            let col = &mut w.kkt.columns[3 * c + e];
-            for (x, b) in col.iter_mut().zip(&w.kkt.d[c]) {
-                *x = b.row(e).transpose();
-            }
-            lu.solve_in_place(col);
-        }
+    // columns = A^{-1} D^T e_r
+    let n = w.g.len();
+    while w.kkt.columns.len() < rows {
+        w.kkt.columns.push(vec![Vector3::zeros(); n]);
     }
-    for c in 0..m {
-        for e in 0..3 {
-            let r = 3 * c + e;
-            for k in 0..3 * m {
-                w.kkt.schur[(r, k)] = d_times(&w.kkt.d[c], e, &w.kkt.columns[k]);
-            }
-            w.kkt.rhs[r] = d_times(&w.kkt.d[c], e, &w.scratch) - w.kkt.h[c][e];
+    for (col, row) in w.kkt.columns.iter_mut().zip(&w.kkt.rows[..rows]) {
+        col.copy_from_slice(row);
+        lu.solve_in_place(col);
+    }
+    if w.kkt.schur.nrows() != rows {
+        w.kkt.schur = DMatrix::zeros(rows, rows);
+        w.kkt.rhs = DVector::zeros(rows);
+    }
+    for r in 0..rows {
+        for k in 0..rows {
+            w.kkt.schur[(r, k)] = dot(&w.kkt.rows[r], &w.kkt.columns[k]);
         }
+        w.kkt.rhs[r] = dot(&w.kkt.rows[r], &w.scratch) - row_residual(w, r);
     }
     if let Some(e) = &w.kkt.compliance {
-        w.kkt.schur += e;
+        let held = e.nrows();
+        let mut block = w.kkt.schur.view_mut((0, 0), (held, held));
+        block += e;
     }
     if !solve_small_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
         return false;
     }
     for (j, s) in w.step.iter_mut().enumerate() {
         let mut v = -w.scratch[j];
-        for (k, col) in w.kkt.columns.iter().enumerate() {
+        for (k, col) in w.kkt.columns[..rows].iter().enumerate() {
             v += col[j] * w.kkt.rhs[k];
         }
         *s = v;
@@ -208,11 +270,35 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     true
 }
 
+/// The multipliers' step from the last KKT solve into `reaction_step`:
+/// the held points' reactions, then the active contacts' forces (a free
+/// contact's stays zero).
+fn take_multiplier_step(model: &RodModel, w: &mut Workspace) {
+    let held = model.constraints().len();
+    let rhs = &w.kkt.rhs;
+    for (i, d) in w.kkt.reaction_step[..held].iter_mut().enumerate() {
+        *d = Vector3::new(rhs[3 * i], rhs[3 * i + 1], rhs[3 * i + 2]);
+    }
+    if model.has_obstacles() {
+        let first = contact::offset(model, w);
+        w.kkt.reaction_step[first..]
+            .iter_mut()
+            .for_each(|d| *d = Vector3::zeros());
+        for (a, &i) in w.kkt.contact.active.iter().enumerate() {
+            w.kkt.reaction_step[first + i] = Vector3::new(w.kkt.rhs[3 * held + a], 0.0, 0.0);
+        }
+    }
+}
+
 /// Minimum-norm solution of the small Schur system by SVD. `S` is singular where
 /// a held point cannot move to first order: at the straight rod, along its axis
 /// (the rod is inextensible). The pseudo-inverse leaves that reaction component
 /// alone for this step; the loads bend the rod and the next step sees it.
 fn solve_small_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
+    if a.nrows() == 0 {
+        // No row held (obstacles, none touched): the free step.
+        return true;
+    }
     let svd = a.clone().svd(true, true);
     let cutoff = 1e-11 * svd.singular_values.max();
     if cutoff.is_nan() || cutoff <= 0.0 {
@@ -251,13 +337,13 @@ pub(crate) fn tangent(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool 
     for (h, c) in w.kkt.h[..m].iter_mut().zip(model.constraints()) {
         *h = c.rest - c.target;
     }
+    // The obstacles stay: the active contacts keep their gaps.
+    w.kkt.contact.gaps.iter_mut().for_each(|x| *x = 0.0);
     if !super::newton::damped_solve(model, w, kkt_step) {
         return false;
     }
     w.step.iter_mut().for_each(|x| *x = -*x);
-    for (i, d) in w.kkt.reaction_step[..m].iter_mut().enumerate() {
-        *d = Vector3::new(w.kkt.rhs[3 * i], w.kkt.rhs[3 * i + 1], w.kkt.rhs[3 * i + 2]);
-    }
+    take_multiplier_step(model, w);
     true
 }
 
@@ -275,6 +361,17 @@ pub(crate) fn newton(
     let mut merit_now = evaluate(model, w, lambda, true);
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
+        // The contacts held on their obstacles for this step (see
+        // `contact.rs`): a step that changes them certifies nothing.
+        let mut settled = true;
+        if model.has_obstacles() {
+            let (force_floor, gap_floor) = contact_floors(model, tol);
+            if contact::update_active_set(model, w, force_floor, gap_floor) {
+                settled = false;
+                merit_now = evaluate(model, w, lambda, true);
+            }
+
+        }
         let norm = residual_norm(model, w);
         if !norm.is_finite() || interrupt::requested() {
             return (false, it);
@@ -284,15 +381,13 @@ pub(crate) fn newton(
         if !solved {
             return (false, it);
         }
-        if super::newton::certified(norm, &w.step, tol) {
+        if settled && super::newton::certified(norm, &w.step, tol) {
             return (true, it);
         }
         if it == max_iter {
             return (false, it);
         }
-        for (i, d) in w.kkt.reaction_step.iter_mut().enumerate() {
-            *d = Vector3::new(w.kkt.rhs[3 * i], w.kkt.rhs[3 * i + 1], w.kkt.rhs[3 * i + 2]);
-        }
+        take_multiplier_step(model, w);
         // The start is kept in `w.trial` and `reactions_start`; trials go in place.
         w.trial.copy_from_slice(&w.q);
         w.kkt.reactions_start.copy_from_slice(&w.kkt.reactions);
@@ -329,6 +424,15 @@ pub(crate) fn newton(
     unreachable!("the loop returns at its last pass")
 }
 
+/// The round-off a converged contact may leave: a force this far below zero
+/// [N] (`tol` of the force scale `k / L^2`) and a gap this far inside [m]
+/// (`tol` of `L`).
+fn contact_floors(model: &RodModel, tol: f64) -> (f64, f64) {
+    let length = model.length();
+    let force = model.stiffness().min() / (length * length);
+    (tol * force, 1e-3 * tol * length)
+}
+
 /// Stability of a constrained equilibrium: the reduced Hessian `Z^T A Z` on the
 /// null space of `D` is positive definite iff the KKT matrix has exactly 3m
 /// negative eigenvalues; by Haynsworth's inertia formula that number is
@@ -339,21 +443,15 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     // takes that of the symmetric part; `w.scratch` holds the columns.
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let negative = lu.factor_symmetric_part(&w.jac);
+    let rows = w.kkt.row_count;
     let s = negative.map(|_| {
-        let m = model.constraints().len();
-        let mut s = DMatrix::zeros(3 * m, 3 * m);
+        let mut s = DMatrix::zeros(rows, rows);
         let col = &mut w.scratch;
-        for c2 in 0..m {
-            for e2 in 0..3 {
-                for (x, b) in col.iter_mut().zip(&w.kkt.d[c2]) {
-                    *x = b.row(e2).transpose();
-                }
-                lu.solve_in_place(col);
-                for c in 0..m {
-                    for e in 0..3 {
-                        s[(3 * c + e, 3 * c2 + e2)] = d_times(&w.kkt.d[c], e, col);
-                    }
-                }
+        for r2 in 0..rows {
+            col.copy_from_slice(&w.kkt.rows[r2]);
+            lu.solve_in_place(col);
+            for r in 0..rows {
+                s[(r, r2)] = dot(&w.kkt.rows[r], col);
             }
         }
         s
@@ -362,11 +460,19 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     let (Some(negative), Some(s)) = (negative, s) else {
         return false;
     };
-    let m = model.constraints().len();
     let s = match &w.kkt.compliance {
-        Some(e) => s + e,
+        Some(e) => {
+            let mut s = s;
+            let held = e.nrows();
+            let mut block = s.view_mut((0, 0), (held, held));
+            block += e;
+            s
+        }
         None => s,
     };
+    if rows == 0 {
+        return negative == 0;
+    }
     let s = 0.5 * (&s + s.transpose());
     let eig = SymmetricEigen::new(s);
     let tiny = 1e-12 * eig.eigenvalues.amax().max(f64::MIN_POSITIVE);
@@ -374,5 +480,5 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
         return false;
     }
     let positive = eig.eigenvalues.iter().filter(|v| **v > 0.0).count();
-    negative + positive == 3 * m
+    negative + positive == rows
 }

@@ -19,6 +19,7 @@
 
 mod adaptive;
 mod constrained;
+mod contact;
 mod continuation;
 mod lm;
 mod nested;
@@ -36,6 +37,7 @@ pub use settings::{
     default_elements, Engine, Local, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS,
     MAX_ELEMENTS, MAX_PAPER_ELEMENTS, RESIDUAL_TOL_RANGE,
 };
+pub use contact::Contact;
 pub use solution::{Solution, Status, MAX_RESOLVED_TURN};
 pub(crate) use workspace::{step_limit, LocalOutcome, LocalSolver, Workspace};
 
@@ -45,7 +47,7 @@ pub(crate) use workspace::{evaluate, is_stable};
 
 use crate::error::{Error, Result};
 use crate::interrupt;
-use crate::model::RodModel;
+use crate::model::{RodModel, Scheme};
 
 use crate::quat::Quat;
 use crate::scene::{ReachLimit, Scene};
@@ -112,6 +114,20 @@ impl Solver {
             ));
         }
         let scheme = settings.scheme_for(scene, None);
+        if !scene.obstacles.is_empty() {
+            if scheme != Scheme::Fd2 {
+                return Err(Error::argument(
+                    "scheme",
+                    "contact with obstacles is solved by the 'fd2' scheme so far",
+                ));
+            }
+            if settings.method.local() != Local::Newton {
+                return Err(Error::argument(
+                    "method",
+                    "contact with obstacles is solved by 'newton' so far",
+                ));
+            }
+        }
         let model = RodModel::new(scene, n).with_scheme(scheme);
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method.local() {
@@ -423,6 +439,7 @@ impl Solver {
         // a fallback, and only for moderate n. It shares the iteration budget.
         if self.settings.method.engine() == Engine::Potential(Local::Newton)
             && direct_state.is_none()
+            && !model.has_obstacles()
             && 3 * (model.n() + model.constraints().len()) <= LM_FALLBACK_UNKNOWNS
         {
             let mut lm = lm::LevenbergMarquardt::new(model);
@@ -538,7 +555,11 @@ impl Solver {
             positions,
             internal_quaternions: model.internal_nodes(&w.q, &mut w.interior),
             breaks: Some(model.breaks().to_vec()),
-            forces: model.node_forces(reactions),
+            forces: if model.has_obstacles() {
+                model.internal_forces(w.kkt.contact.node_forces())
+            } else {
+                model.node_forces(reactions)
+            },
             stiffness: model.stiffness(),
             rest_curvature: self.scene.rest_curvature.clone(),
             section_stiffness: (0..self.scene.sections.len())
@@ -548,6 +569,7 @@ impl Solver {
             tip_reaction_force: tip_held.then(|| reactions[guides]),
             tip_reaction_moment,
             guide_reactions: reactions[..guides].to_vec(),
+            contacts: contact::contacts(model, w),
             status,
             iterations,
             continuation_steps,

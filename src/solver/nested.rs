@@ -62,7 +62,9 @@ pub(crate) fn coarse_elements(
     load_parameter: f64,
 ) -> Option<usize> {
     let n = settings.elements_for(scene);
+    // A coarse rod's contacts are other slots than the fine rod's.
     if settings.method.engine() != Engine::Potential(Local::Newton)
+        || !scene.obstacles.is_empty()
         || n < NEST_FACTOR * COARSE_ELEMENTS
     {
         return None;

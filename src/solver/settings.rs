@@ -248,7 +248,8 @@ impl Settings {
                 FOURTH_ORDER_TOL
             };
             let fine = accuracy.is_some_and(|tol| tol < threshold);
-            if fine && self.method == Method::Newton {
+            // Contact is solved on the second-order scheme's chords so far.
+            if fine && self.method == Method::Newton && scene.obstacles.is_empty() {
                 Scheme::Fe4
             } else {
                 Scheme::Fd2

@@ -1,6 +1,7 @@
 //! What a solve returns: the [`Solution`] and its [`Status`], and the one
 //! judgement of every method's end state.
 
+use super::contact::Contact;
 use crate::disc::Scheme;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -72,6 +73,9 @@ pub struct Solution {
     pub tip_reaction_moment: Option<Vector3<f64>>,
     /// Force of each guide on the rod, in the scene's order, world frame [N].
     pub guide_reactions: Vec<Vector3<f64>>,
+    /// Where the rod touches the obstacles and how hard, by arc length
+    /// (empty without obstacles).
+    pub contacts: Vec<Contact>,
     pub status: Status,
     /// Newton or LM iterations, all continuation steps included.
     pub iterations: usize,

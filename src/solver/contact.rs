@@ -1,0 +1,356 @@
+//! Frictionless contact with rigid obstacles: the contact rows of the
+//! constrained solve (see `constrained.rs`) and their active set.
+//!
+//! Where a rod of radius `r` may touch an obstacle, its backbone keeps
+//! `g(p) - r >= 0`, and a contact force `lambda nu` (`nu` the obstacle's
+//! normal, `lambda >= 0`) acts only where the gap vanishes. The backbone of
+//! the discrete rod is the polygon of its nodes (`fd2`: `r_k - r_(k-1) = h
+//! t_k`), so the condition is enforced on every chord, not only at the
+//! nodes: each obstacle has a *slot* at every free node and one inside every
+//! element, at the point of the chord nearest the obstacle when it lies
+//! strictly between the nodes (a sphere, a cylinder's edge, a box's corner
+//! between two nodes). Every obstacle's gap is convex along a chord (a
+//! signed distance to a convex set; a lumen's is concave, so its nearest
+//! point is a node), so that point is found by bisection on the gap's slope.
+//!
+//! A force `lambda nu` at the point `(1 - s) r_(k-1) + s r_k` does the
+//! virtual work of `(1 - s) lambda nu` at node `k - 1` and `s lambda nu` at
+//! node `k`: the contacts act on the rod as point forces at nodes, like the
+//! held points' reactions, and the row of a slot is `nu^T ((1 - s) D_(k-1) +
+//! s D_k)` with `D_k = dr_k / dtheta`. The normal and the point are those of
+//! the current state (their own change is left out of the Jacobian: exact
+//! for a plane, a quasi-Newton step on a curved surface; the residual is
+//! exact, so is the answer).
+//!
+//! The active set is primal-dual (a semismooth Newton on `min(lambda, g - r)
+//! = 0`): at each step a slot is held on its obstacle if its force is not
+//! negative and it was held, or if it penetrates; its row then asks the
+//! linearised gap to vanish, and a free slot's force is zero. The solve has
+//! converged only when the set no longer changes, so no held force is
+//! negative and no free slot penetrates.
+//!
+//! The multipliers `lambda` live after the held points' reactions in the
+//! workspace's `reactions` (the `x` entry of one vector a slot), so that
+//! every save and restore of a solve's state keeps them.
+
+use super::Workspace;
+use crate::contact::{Obstacle, Proximity};
+use crate::disc::NodeForces;
+use crate::model::RodModel;
+use nalgebra::{Matrix3, Vector3};
+
+/// Bisection steps for the nearest point of a chord: `2^-48` of its length.
+const BISECTION_STEPS: usize = 48;
+
+/// One slot's geometry at the last evaluation.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Site {
+    /// `g(p) - r` at the slot's point [m] (`+inf` for an element whose
+    /// nearest point is one of its nodes: the node's slot holds it).
+    pub gap: f64,
+    /// The obstacle's normal there (into free space).
+    pub normal: Vector3<f64>,
+    /// The point's place along its element's chord, `0..=1` (1 at a node).
+    pub s: f64,
+    /// The backbone point [m].
+    pub point: Vector3<f64>,
+}
+
+impl Default for Site {
+    fn default() -> Self {
+        Site {
+            gap: f64::INFINITY,
+            normal: Vector3::zeros(),
+            s: 1.0,
+            point: Vector3::zeros(),
+        }
+    }
+}
+
+/// Buffers of the contact rows, sized once (empty without obstacles).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ContactWork {
+    /// Every slot's site at the last evaluation.
+    pub sites: Vec<Site>,
+    /// The slots held on their obstacles, increasing.
+    pub active: Vec<usize>,
+    /// The active rows' residuals: their gaps (zero for a tangent).
+    pub gaps: Vec<f64>,
+    /// The nodes and forces that act on the rod besides the loads: the held
+    /// points' reactions, then the contacts' shares at nodes.
+    pub force_nodes: Vec<usize>,
+    pub force_vectors: Vec<Vector3<f64>>,
+    /// Scratch for one node's `D_k` (n blocks).
+    pub position_jacobian: Vec<Matrix3<f64>>,
+}
+
+impl ContactWork {
+    /// The forces at nodes of the last evaluation (held points and contacts).
+    pub fn node_forces(&self) -> NodeForces<'_> {
+        NodeForces {
+            nodes: &self.force_nodes,
+            forces: &self.force_vectors,
+        }
+    }
+
+    pub fn new(model: &RodModel) -> Self {
+        if !model.has_obstacles() {
+            return ContactWork::default();
+        }
+        ContactWork {
+            sites: vec![Site::default(); slot_count(model)],
+            position_jacobian: vec![Matrix3::zeros(); model.n()],
+            ..ContactWork::default()
+        }
+    }
+}
+
+/// Which place a slot stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Place {
+    /// Node `k` (1..=n).
+    Node(usize),
+    /// The inside of element `k` (1..=n), between nodes `k - 1` and `k`.
+    Element(usize),
+}
+
+/// The number of slots: a node and an element slot per element and obstacle.
+pub(crate) fn slot_count(model: &RodModel) -> usize {
+    2 * model.n() * model.obstacles().len()
+}
+
+/// The obstacle and place of slot `i`.
+pub(crate) fn slot(model: &RodModel, i: usize) -> (usize, Place) {
+    let n = model.n();
+    let (obstacle, r) = (i / (2 * n), i % (2 * n));
+    if r < n {
+        (obstacle, Place::Node(r + 1))
+    } else {
+        (obstacle, Place::Element(r - n + 1))
+    }
+}
+
+/// The index of the first slot's multiplier in `reactions` (after the held
+/// points', whichever leg of a load path is solved).
+pub(crate) fn offset(model: &RodModel, w: &Workspace) -> usize {
+    w.kkt.reactions.len() - slot_count(model)
+}
+
+/// Slot `i`'s contact force `lambda` [N].
+pub(crate) fn force(model: &RodModel, w: &Workspace, i: usize) -> f64 {
+    w.kkt.reactions[offset(model, w) + i].x
+}
+
+/// The point of the chord `a`-`b` nearest the obstacle and its gap, when it
+/// lies strictly inside; `None` when it is an end. Bisection on the gap's
+/// slope along the chord (the gap is convex along it, see the module).
+fn nearest_inside(
+    obstacle: &Obstacle,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    at_a: &Proximity,
+    at_b: &Proximity,
+) -> Option<(f64, Proximity)> {
+    let chord = b - a;
+    if at_a.normal.dot(&chord) >= 0.0 || at_b.normal.dot(&chord) <= 0.0 {
+        return None;
+    }
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    for _ in 0..BISECTION_STEPS {
+        let mid = 0.5 * (lo + hi);
+        if obstacle.proximity(&(a + mid * chord)).normal.dot(&chord) < 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let s = 0.5 * (lo + hi);
+    Some((s, obstacle.proximity(&(a + s * chord))))
+}
+
+/// Every slot's site at the node positions `r` (`n + 1`).
+pub(crate) fn locate(model: &RodModel, r: &[Vector3<f64>], sites: &mut [Site]) {
+    let n = model.n();
+    let radius = model.contact_radius();
+    for (o, obstacle) in model.obstacles().iter().enumerate() {
+        let (nodes, elements) = sites[2 * n * o..2 * n * (o + 1)].split_at_mut(n);
+        let mut before = obstacle.proximity(&r[0]);
+        for k in 1..=n {
+            let here = obstacle.proximity(&r[k]);
+            nodes[k - 1] = Site {
+                gap: here.gap - radius,
+                normal: here.normal,
+                s: 1.0,
+                point: r[k],
+            };
+            // Far from the obstacle no point of the chord can touch: the
+            // gap changes by at most the distance moved along it.
+            let length = (r[k] - r[k - 1]).norm();
+            let reachable = 0.5 * (before.gap + here.gap - length) <= radius + length;
+            elements[k - 1] = match reachable
+                .then(|| nearest_inside(obstacle, &r[k - 1], &r[k], &before, &here))
+                .flatten()
+            {
+                Some((s, p)) => Site {
+                    gap: p.gap - radius,
+                    normal: p.normal,
+                    s,
+                    point: r[k - 1] + s * (r[k] - r[k - 1]),
+                },
+                None => Site::default(),
+            };
+            before = here;
+        }
+    }
+}
+
+/// The nodes and weights a slot's force acts at.
+fn shares(model: &RodModel, i: usize, site: &Site) -> [(usize, f64); 2] {
+    match slot(model, i).1 {
+        Place::Node(k) => [(k, 1.0), (k, 0.0)],
+        Place::Element(k) => [(k - 1, 1.0 - site.s), (k, site.s)],
+    }
+}
+
+/// Fill the forces on the rod besides the loads: the held points'
+/// reactions, then each active slot's `lambda nu` at its nodes.
+pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
+    let held = model.constraints().len();
+    let c = &mut w.kkt.contact;
+    c.force_nodes.clear();
+    c.force_vectors.clear();
+    c.force_nodes
+        .extend(model.constraints().iter().map(|constraint| constraint.node));
+    c.force_vectors.extend(&w.kkt.reactions[..held]);
+    let first = w.kkt.reactions.len() - c.sites.len();
+    for &i in &c.active {
+        let site = &c.sites[i];
+        let lambda = w.kkt.reactions[first + i].x;
+        for (node, weight) in shares(model, i, site) {
+            if weight != 0.0 {
+                c.force_nodes.push(node);
+                c.force_vectors.push(weight * lambda * site.normal);
+            }
+        }
+    }
+}
+
+/// The active rows' gaps into `gaps`.
+pub(crate) fn gather_gaps(w: &mut Workspace) {
+    let c = &mut w.kkt.contact;
+    c.gaps.clear();
+    c.gaps.extend(c.active.iter().map(|&i| c.sites[i].gap));
+}
+
+/// Update the active set from the last evaluation's sites and forces (see
+/// the module); a slot set free has its force zeroed. Returns whether the
+/// set changed. `force_floor` [N] and `gap_floor` [m] are the round-off a
+/// converged answer may leave (a held force that small below zero stays, a
+/// free slot that little inside does not enter).
+pub(crate) fn update_active_set(
+    model: &RodModel,
+    w: &mut Workspace,
+    force_floor: f64,
+    gap_floor: f64,
+) -> bool {
+    let first = offset(model, w);
+    let c = &mut w.kkt.contact;
+    let mut changed = false;
+    let mut k = 0;
+    let mut kept = Vec::with_capacity(c.active.len());
+    for i in 0..c.sites.len() {
+        let was = k < c.active.len() && c.active[k] == i;
+        if was {
+            k += 1;
+        }
+        let site = &c.sites[i];
+        let lambda = w.kkt.reactions[first + i].x;
+        let eligible = site.gap.is_finite();
+        let held = eligible
+            && if was {
+                lambda >= -force_floor
+            } else {
+                site.gap < -gap_floor
+            };
+        if held {
+            kept.push(i);
+        } else {
+            w.kkt.reactions[first + i] = Vector3::zeros();
+        }
+        changed |= held != was;
+    }
+    c.active = kept;
+    changed
+}
+
+/// The active rows of the KKT system, `nu^T ((1 - s) D_(k-1) + s D_k)` as
+/// `n` vectors each, appended to `rows` from index `from` (grown as needed).
+pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
+    let n = model.n();
+    let clamped = model.clamped_tip().is_some();
+    let active = std::mem::take(&mut w.kkt.contact.active);
+    for (a, &i) in active.iter().enumerate() {
+        let site = w.kkt.contact.sites[i];
+        let r = from + a;
+        if w.kkt.rows.len() <= r {
+            w.kkt.rows.push(vec![Vector3::zeros(); n]);
+        }
+        w.kkt.rows[r].iter_mut().for_each(|x| *x = Vector3::zeros());
+        for (node, weight) in shares(model, i, &site) {
+            if weight == 0.0 || node == 0 {
+                continue;
+            }
+            let d = &mut w.kkt.contact.position_jacobian;
+            model.position_jacobian(&w.q, node, &w.interior, d);
+            for (x, b) in w.kkt.rows[r].iter_mut().zip(d.iter()) {
+                *x += weight * b.transpose() * site.normal;
+            }
+        }
+        if clamped {
+            w.kkt.rows[r][n - 1] = Vector3::zeros();
+        }
+    }
+    w.kkt.contact.active = active;
+}
+
+/// A contact of a solution: where the rod touches an obstacle and how hard.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Contact {
+    /// Index of the obstacle in the scene's list.
+    pub obstacle: usize,
+    /// Arc length of the backbone point in contact [m].
+    pub arc_length: f64,
+    /// The point of the obstacle's surface the rod touches [m], world frame.
+    pub point: Vector3<f64>,
+    /// The obstacle's normal there (into free space): the force's direction.
+    pub normal: Vector3<f64>,
+    /// The contact force's magnitude [N] (`>= 0`).
+    pub force: f64,
+}
+
+/// The contacts at the last evaluation: the active slots, by arc length.
+pub(crate) fn contacts(model: &RodModel, w: &Workspace) -> Vec<Contact> {
+    let c = &w.kkt.contact;
+    let mut out: Vec<Contact> = c
+        .active
+        .iter()
+        .map(|&i| {
+            let site = &c.sites[i];
+            let (obstacle, place) = slot(model, i);
+            let arc_length = match place {
+                Place::Node(k) => model.arc(k),
+                Place::Element(k) => model.arc(k - 1) + site.s * model.h(k),
+            };
+            let distance = site.gap + model.contact_radius();
+            Contact {
+                obstacle,
+                arc_length,
+                point: site.point - distance * site.normal,
+                normal: site.normal,
+                force: force(model, w, i),
+            }
+        })
+        .collect();
+    out.sort_by(|a, b| a.arc_length.total_cmp(&b.arc_length));
+    out
+}

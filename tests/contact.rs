@@ -1,0 +1,99 @@
+//! Frictionless contact with rigid obstacles: closed forms and exact checks.
+
+use nalgebra::Vector3;
+use softspine::contact::Obstacle;
+use softspine::{solve, Gravity, Quat, Scene, Settings};
+
+fn settings(n: usize) -> Settings {
+    Settings {
+        n_elements: Some(n),
+        ..Settings::default()
+    }
+}
+
+/// A heavy rod (EI = 1, weight 1 a length) clamped horizontally at height
+/// `lift` above a frictionless table, along +x.
+fn lifted_rod(length: f64, lift: f64) -> Scene {
+    let mut s = Scene::new(length, 1.0, 1.0, 1.0);
+    s.gravity = Some(Gravity {
+        linear_density: 1.0,
+        vector: Vector3::new(0.0, 0.0, -1.0),
+    });
+    // The material z axis (the tangent) along world +x.
+    s.base_quaternion = Quat::new(
+        std::f64::consts::FRAC_1_SQRT_2,
+        0.0,
+        std::f64::consts::FRAC_1_SQRT_2,
+        0.0,
+    );
+    s.base_position = Vector3::new(0.0, 0.0, lift);
+    s.obstacles = vec![Obstacle::HalfSpace {
+        point: Vector3::zeros(),
+        normal: Vector3::z(),
+    }];
+    s
+}
+
+/// The arc length where the rod first touches the table.
+fn lift_off(sol: &softspine::Solution) -> f64 {
+    sol.contacts
+        .iter()
+        .map(|c| c.arc_length)
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn a_rod_held_horizontal_above_a_table_lifts_off_at_the_closed_form() {
+    let (length, lift): (f64, f64) = (2.0, 1e-4);
+    let a = (72.0 * lift).powf(0.25);
+    for n in [40, 80] {
+        let sol = solve(&lifted_rod(length, lift), settings(n), None).unwrap();
+        assert!(sol.converged(), "{}", sol.message);
+        assert!(sol.stable);
+        let h = length / n as f64;
+        let touch = lift_off(&sol);
+        eprintln!("n = {n}: lift-off {touch}, closed form {a}, iterations {}", sol.iterations);
+        assert!((touch - a).abs() <= h, "n = {n}: {touch} against {a}");
+        // Every contact pushes; every node stays above the table.
+        assert!(sol.contacts.iter().all(|c| c.force >= 0.0));
+        let lowest = sol.positions.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+        eprintln!("lowest {lowest:e}");
+        assert!(lowest >= -1e-12);
+        // The table carries the weight beyond the lift-off point, and the
+        // clamp the rest: the forces balance.
+        let table: f64 = sol.contacts.iter().map(|c| c.force).sum();
+        // `forces[0]` is what the rod exerts on its clamp.
+        let base = -sol.forces[0].z;
+        assert!((table + base - length).abs() < 1e-9, "{table} + {base}");
+    }
+}
+
+#[test]
+fn a_rod_lifted_by_a_force_at_its_end_lifts_off_at_the_closed_form() {
+    // Clamped flat on the table at the origin, its end lifted by a force
+    // alone: the lifted length is a = 2 F / w and the end rises by
+    // h = w a^4 / (24 EI) (small deflection).
+    let length = 2.0;
+    let a: f64 = 0.3;
+    let mut scene = lifted_rod(length, 0.0);
+    scene.tip_force = Vector3::new(0.0, 0.0, 0.5 * a);
+    let height = a.powi(4) / 24.0;
+    for n in [40, 80, 160] {
+        let sol = solve(&scene, settings(n), None).unwrap();
+        assert!(sol.converged(), "{}", sol.message);
+        let h = length / n as f64;
+        let last = sol
+            .contacts
+            .iter()
+            .map(|c| c.arc_length)
+            .fold(0.0, f64::max);
+        let tip = sol.tip_position().z;
+        eprintln!(
+            "n = {n}: lifted {}, closed form {a}; tip {tip:.6e} against {height:.6e}; iterations {}",
+            length - last,
+            sol.iterations
+        );
+        assert!((length - last - a).abs() <= h);
+    }
+}
+

@@ -18,6 +18,7 @@
 //! that evaluates the scheme takes it.
 
 use crate::blocktri::BlockTridiagonal;
+use crate::contact::Obstacle;
 pub use crate::disc::Scheme;
 use crate::disc::{for_scheme, Discretisation, Interior, NodeForces, Rod};
 use crate::mesh::Mesh;
@@ -25,7 +26,6 @@ use crate::quat::Quat;
 pub use crate::scene::reach::clamped_end_deficit;
 use crate::scene::{Scene, TipCondition};
 use crate::terms::Terms;
-use crate::contact::Obstacle;
 use nalgebra::{Matrix3, Vector3};
 
 /// A node held at a position (a pinned tip or a guide). Its reaction force is

@@ -52,11 +52,18 @@ fn a_rod_held_horizontal_above_a_table_lifts_off_at_the_closed_form() {
         assert!(sol.stable);
         let h = length / n as f64;
         let touch = lift_off(&sol);
-        eprintln!("n = {n}: lift-off {touch}, closed form {a}, iterations {}", sol.iterations);
+        eprintln!(
+            "n = {n}: lift-off {touch}, closed form {a}, iterations {}",
+            sol.iterations
+        );
         assert!((touch - a).abs() <= h, "n = {n}: {touch} against {a}");
         // Every contact pushes; every node stays above the table.
         assert!(sol.contacts.iter().all(|c| c.force >= 0.0));
-        let lowest = sol.positions.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+        let lowest = sol
+            .positions
+            .iter()
+            .map(|p| p.z)
+            .fold(f64::INFINITY, f64::min);
         eprintln!("lowest {lowest:e}");
         assert!(lowest >= -1e-12);
         // The table carries the weight beyond the lift-off point, and the
@@ -96,4 +103,3 @@ fn a_rod_lifted_by_a_force_at_its_end_lifts_off_at_the_closed_form() {
         assert!((length - last - a).abs() <= h);
     }
 }
-

@@ -153,6 +153,19 @@ impl PySolution {
     fn guide_reactions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         rows3(py, &self.inner.guide_reactions)
     }
+    /// Where the rod touches the obstacles, by arc length: a dict of arrays
+    /// ``obstacle`` (index in the scene's list, shape (k,)), ``arc_length``
+    /// (k,) m, ``point`` (the obstacle's surface point touched, (k, 3) m),
+    /// ``normal`` (into free space, the force's direction, (k, 3)) and
+    /// ``force`` (its magnitude, (k,) N, >= 0). Empty without obstacles.
+    #[getter]
+    fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (key, value) in contact_arrays(py, &self.inner.contacts) {
+            d.set_item(key, value)?;
+        }
+        Ok(d)
+    }
     /// Whether ``status`` is ``Status.CONVERGED``: the only ending that is an answer.
     #[getter]
     fn converged(&self) -> bool {
@@ -239,6 +252,9 @@ impl PySolution {
         d.set_item("tip_reaction_force", optional(s.tip_reaction_force))?;
         d.set_item("tip_reaction_moment", optional(s.tip_reaction_moment))?;
         d.set_item("guide_reactions", rows3(py, &s.guide_reactions))?;
+        for (key, value) in contact_arrays(py, &s.contacts) {
+            d.set_item(format!("contact_{key}"), value)?;
+        }
         d.set_item("status", s.status.name())?;
         d.set_item("iterations", s.iterations)?;
         d.set_item("continuation_steps", s.continuation_steps)?;
@@ -314,7 +330,7 @@ impl PySolution {
             tip_reaction_force: d.optional_vector("tip_reaction_force")?,
             tip_reaction_moment: d.optional_vector("tip_reaction_moment")?,
             guide_reactions: d.vectors("guide_reactions")?,
-            contacts: Vec::new(),
+            contacts: contacts_of(&d)?,
             status: str_arg("solution.status", &d.get("status")?)?.parse()?,
             iterations: int_arg("solution.iterations", &d.get("iterations")?)?,
             continuation_steps: int_arg(
@@ -362,7 +378,7 @@ impl PySolution {
 }
 
 /// The keys of `Solution.to_dict()`.
-const SOLUTION_KEYS: [&str; 26] = [
+const SOLUTION_KEYS: [&str; 31] = [
     "n_elements",
     "scheme",
     "length",
@@ -379,6 +395,11 @@ const SOLUTION_KEYS: [&str; 26] = [
     "tip_reaction_force",
     "tip_reaction_moment",
     "guide_reactions",
+    "contact_obstacle",
+    "contact_arc_length",
+    "contact_point",
+    "contact_normal",
+    "contact_force",
     "status",
     "iterations",
     "continuation_steps",
@@ -390,6 +411,68 @@ const SOLUTION_KEYS: [&str; 26] = [
     "extrapolated_tip",
     "solve_time",
 ];
+
+/// A solution's contacts as arrays, by field (see `PySolution::contacts`).
+fn contact_arrays<'py>(
+    py: Python<'py>,
+    contacts: &[crate::solver::Contact],
+) -> [(&'static str, Bound<'py, PyAny>); 5] {
+    let column = |f: fn(&crate::solver::Contact) -> f64| {
+        contacts
+            .iter()
+            .map(f)
+            .collect::<Vec<f64>>()
+            .into_pyarray(py)
+            .into_any()
+    };
+    let rows = |f: fn(&crate::solver::Contact) -> Vector3<f64>| {
+        rows3(py, &contacts.iter().map(f).collect::<Vec<_>>()).into_any()
+    };
+    let obstacles: Vec<usize> = contacts.iter().map(|c| c.obstacle).collect();
+    [
+        ("obstacle", obstacles.into_pyarray(py).into_any()),
+        ("arc_length", column(|c| c.arc_length)),
+        ("point", rows(|c| c.point)),
+        ("normal", rows(|c| c.normal)),
+        ("force", column(|c| c.force)),
+    ]
+}
+
+/// The contacts of a solution's dict (absent from earlier versions': none).
+fn contacts_of(d: &Fields) -> PyResult<Vec<crate::solver::Contact>> {
+    let obstacle = d.floats_or_empty("contact_obstacle")?;
+    let arc_length = d.floats_or_empty("contact_arc_length")?;
+    let point = d.rows_or_empty::<3>("contact_point")?;
+    let normal = d.rows_or_empty::<3>("contact_normal")?;
+    let force = d.floats_or_empty("contact_force")?;
+    let k = obstacle.len();
+    if [arc_length.len(), point.len(), normal.len(), force.len()] != [k; 4] {
+        return Err(crate::error::Error::argument(
+            "solution.contact_obstacle",
+            "the contact_* fields must have one row a contact each",
+        )
+        .into());
+    }
+    (0..k)
+        .map(|i| {
+            let o = obstacle[i];
+            if o.fract() != 0.0 || !(0.0..1e15).contains(&o) {
+                return Err(crate::error::Error::argument(
+                    "solution.contact_obstacle",
+                    format!("expected obstacle indices, got {o}"),
+                )
+                .into());
+            }
+            Ok(crate::solver::Contact {
+                obstacle: o as usize,
+                arc_length: arc_length[i],
+                point: Vector3::from(point[i]),
+                normal: Vector3::from(normal[i]),
+                force: force[i],
+            })
+        })
+        .collect()
+}
 
 /// Node quaternions: a Solution's, or an array of shape (n+1, 4).
 pub(super) fn quaternions_arg(name: &str, q: &Bound<'_, PyAny>) -> PyResult<Vec<Quat>> {

@@ -19,9 +19,9 @@
 //! for a free tip without guides.
 
 use super::contact::{self, ContactWork};
-use crate::disc::NodeForces;
 use super::{step_limit, Workspace};
 use crate::blocktri::BlockLu;
+use crate::disc::NodeForces;
 use crate::interrupt;
 use crate::model::RodModel;
 use nalgebra::{DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
@@ -150,13 +150,24 @@ pub(crate) fn evaluate(
             }
         }
     }
-    merit(model, &w.g, &w.kkt.h, &w.kkt.contact.gaps)
+    let contact = &w.kkt.contact;
+    let gaps = contact.gaps.iter().zip(&contact.held);
+    let contact_rows = gaps.map(|(x, held)| contact_error(*x, *held).powi(2)).sum();
+    merit(model, &w.g, &w.kkt.h, contact_rows)
 }
 
-fn merit(model: &RodModel, g: &[Vector3<f64>], h: &[Vector3<f64>], gaps: &[f64]) -> f64 {
+/// A candidate contact's error: a held one's gap, a free one's penetration.
+fn contact_error(gap: f64, held: bool) -> f64 {
+    if held {
+        gap
+    } else {
+        gap.min(0.0)
+    }
+}
+
+fn merit(model: &RodModel, g: &[Vector3<f64>], h: &[Vector3<f64>], contact_rows: f64) -> f64 {
     let wt = position_weight(model);
-    let rows = h.iter().map(|x| x.norm_squared()).sum::<f64>()
-        + gaps.iter().map(|x| x * x).sum::<f64>();
+    let rows = h.iter().map(|x| x.norm_squared()).sum::<f64>() + contact_rows;
     model.merit(g) + wt * wt * rows
 }
 
@@ -170,8 +181,9 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
         }
         h = h.max(r);
     }
-    for x in &w.kkt.contact.gaps {
-        let r = x.abs() * position_weight(model);
+    let contact = &w.kkt.contact;
+    for (x, held) in contact.gaps.iter().zip(&contact.held) {
+        let r = contact_error(*x, *held).abs() * position_weight(model);
         if !r.is_finite() {
             return f64::INFINITY;
         }
@@ -257,8 +269,34 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
         let mut block = w.kkt.schur.view_mut((0, 0), (held, held));
         block += e;
     }
-    if !solve_small_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
-        return false;
+    let candidates = w.kkt.contact.gaps.len();
+    if candidates == 0 {
+        if !solve_small_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
+            return false;
+        }
+    } else {
+        // The contact forces stay >= 0: a candidate's step is bounded below
+        // by minus its force, and the QP decides which are held.
+        let first = w.kkt.reactions.len() - w.kkt.contact.sites.len();
+        let lower: Vec<f64> = w
+            .kkt
+            .contact
+            .active
+            .iter()
+            .map(|&i| -w.kkt.reactions[first + i].x.max(0.0))
+            .collect();
+        let choose = w.kkt.contact.choose;
+        let Some(x) = bounded_qp(
+            &w.kkt.schur,
+            &w.kkt.rhs,
+            rows - candidates,
+            &lower,
+            &mut w.kkt.contact.held,
+            choose,
+        ) else {
+            return false;
+        };
+        w.kkt.rhs.copy_from(&x);
     }
     for (j, s) in w.step.iter_mut().enumerate() {
         let mut v = -w.scratch[j];
@@ -288,6 +326,97 @@ fn take_multiplier_step(model: &RodModel, w: &mut Workspace) {
             w.kkt.reaction_step[first + i] = Vector3::new(w.kkt.rhs[3 * held + a], 0.0, 0.0);
         }
     }
+}
+
+/// The step of the multipliers where some are bounded below: the QP
+/// `min 1/2 x^T S x - b^T x` with `x_i >= lower_i` for the rows from
+/// `equalities` on (the contact candidates; `held` says which are free of
+/// their bound). Its optimality conditions are the linearised contact's:
+/// the gap after the step, `w = S x - b`, vanishes where a force is free
+/// and is `>= 0` where it is at its bound (zero force). A primal active set
+/// from the held candidates, feasible throughout (`x = 0` is: the forces are
+/// `>= 0`): finite for `S` positive definite. With `choose` false the held
+/// set is kept and solved as it is (a tangent).
+fn bounded_qp(
+    s: &DMatrix<f64>,
+    b: &DVector<f64>,
+    equalities: usize,
+    lower: &[f64],
+    held: &mut [bool],
+    choose: bool,
+) -> Option<DVector<f64>> {
+    let m = b.len();
+    let bounded = |i: usize| i >= equalities;
+    let mut x = DVector::zeros(m);
+    let scale = b.amax().max(f64::MIN_POSITIVE);
+    // The row freed last: blocked again at once, it is a round-off choice
+    // (degenerate), and the iteration stops there rather than cycle.
+    let mut freed: Option<usize> = None;
+    for _ in 0..4 * m + 8 {
+        let free: Vec<usize> = (0..m)
+            .filter(|&i| !bounded(i) || held[i - equalities])
+            .collect();
+        // The subproblem: the bounded rows at their bounds, the rest solved.
+        let mut trial = x.clone();
+        for i in (equalities..m).filter(|&i| !held[i - equalities]) {
+            trial[i] = lower[i - equalities];
+        }
+        let mut sub = DMatrix::from_fn(free.len(), free.len(), |r, c| s[(free[r], free[c])]);
+        let mut rhs = DVector::from_fn(free.len(), |r, _| {
+            let i = free[r];
+            b[i] - (equalities..m)
+                .filter(|&j| !held[j - equalities])
+                .map(|j| s[(i, j)] * trial[j])
+                .sum::<f64>()
+        });
+        if !free.is_empty() && !solve_small_in_place(&mut sub, &mut rhs) {
+            return None;
+        }
+        for (r, &i) in free.iter().enumerate() {
+            trial[i] = rhs[r];
+        }
+        if !choose {
+            return Some(trial);
+        }
+        // A free force that would go below its bound stops the step there.
+        let mut step = 1.0;
+        let mut blocking = None;
+        for &i in free.iter().filter(|&&i| bounded(i)) {
+            let (lo, from, to) = (lower[i - equalities], x[i], trial[i]);
+            if to < lo && from > to {
+                let t = ((from - lo) / (from - to)).clamp(0.0, 1.0);
+                if t < step {
+                    step = t;
+                    blocking = Some(i);
+                }
+            }
+        }
+        if let Some(i) = blocking {
+            if freed == Some(i) && step <= 1e-12 {
+                held[i - equalities] = false;
+                return Some(x);
+            }
+            freed = None;
+            x += step * (&trial - &x);
+            x[i] = lower[i - equalities];
+            held[i - equalities] = false;
+            continue;
+        }
+        x = trial;
+        // A zero force whose gap would go negative is freed.
+        let gap = s * &x - b;
+        let worst = (equalities..m)
+            .filter(|&i| !held[i - equalities])
+            .min_by(|&i, &j| gap[i].total_cmp(&gap[j]));
+        match worst {
+            Some(i) if gap[i] < -1e-12 * scale => {
+                held[i - equalities] = true;
+                freed = Some(i);
+            }
+            _ => return Some(x),
+        }
+    }
+    None
 }
 
 /// Minimum-norm solution of the small Schur system by SVD. `S` is singular where
@@ -339,7 +468,10 @@ pub(crate) fn tangent(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool 
     }
     // The obstacles stay: the active contacts keep their gaps.
     w.kkt.contact.gaps.iter_mut().for_each(|x| *x = 0.0);
-    if !super::newton::damped_solve(model, w, kkt_step) {
+    w.kkt.contact.choose = false;
+    let solved = super::newton::damped_solve(model, w, kkt_step);
+    w.kkt.contact.choose = true;
+    if !solved {
         return false;
     }
     w.step.iter_mut().for_each(|x| *x = -*x);
@@ -361,16 +493,13 @@ pub(crate) fn newton(
     let mut merit_now = evaluate(model, w, lambda, true);
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
-        // The contacts held on their obstacles for this step (see
-        // `contact.rs`): a step that changes them certifies nothing.
-        let mut settled = true;
+        // The contact candidates of this step (see `contact.rs`); a step
+        // whose QP changes which are held certifies nothing.
+        let mut held_before = Vec::new();
         if model.has_obstacles() {
-            let (force_floor, gap_floor) = contact_floors(model, tol);
-            if contact::update_active_set(model, w, force_floor, gap_floor) {
-                settled = false;
-                merit_now = evaluate(model, w, lambda, true);
-            }
-
+            contact::select_candidates(model, w, contact_margin(model));
+            merit_now = evaluate(model, w, lambda, true);
+            held_before = contact::held_slots(w);
         }
         let norm = residual_norm(model, w);
         if !norm.is_finite() || interrupt::requested() {
@@ -381,6 +510,7 @@ pub(crate) fn newton(
         if !solved {
             return (false, it);
         }
+        let settled = !model.has_obstacles() || contact::held_slots(w) == held_before;
         if settled && super::newton::certified(norm, &w.step, tol) {
             return (true, it);
         }
@@ -424,13 +554,14 @@ pub(crate) fn newton(
     unreachable!("the loop returns at its last pass")
 }
 
-/// The round-off a converged contact may leave: a force this far below zero
-/// [N] (`tol` of the force scale `k / L^2`) and a gap this far inside [m]
-/// (`tol` of `L`).
-fn contact_floors(model: &RodModel, tol: f64) -> (f64, f64) {
-    let length = model.length();
-    let force = model.stiffness().min() / (length * length);
-    (tol * force, 1e-3 * tol * length)
+/// How near its obstacle a slot is a candidate of the next step [m]: the
+/// longest element.
+fn contact_margin(model: &RodModel) -> f64 {
+    model
+        .mesh()
+        .element_lengths()
+        .iter()
+        .fold(0.0, |a, b| a.max(*b))
 }
 
 /// Stability of a constrained equilibrium: the reduced Hessian `Z^T A Z` on the
@@ -443,15 +574,35 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     // takes that of the symmetric part; `w.scratch` holds the columns.
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let negative = lu.factor_symmetric_part(&w.jac);
-    let rows = w.kkt.row_count;
+    if negative == Some(0) && model.has_obstacles() {
+        // A positive definite Hessian is so on every subspace: however
+        // many contacts hold (their Schur complement, stiff for a long
+        // stretch on a surface, is then not needed).
+        w.lu = lu;
+        return true;
+    }
+    // The rows that hold: the held points' and the contacts held on their
+    // obstacles (a free candidate constrains nothing).
+    let contact = &w.kkt.contact;
+    let held_rows = w.kkt.row_count - contact.gaps.len();
+    let kept: Vec<usize> = (0..held_rows)
+        .chain(
+            contact
+                .held
+                .iter()
+                .enumerate()
+                .filter_map(|(a, h)| h.then_some(held_rows + a)),
+        )
+        .collect();
+    let rows = kept.len();
     let s = negative.map(|_| {
         let mut s = DMatrix::zeros(rows, rows);
         let col = &mut w.scratch;
-        for r2 in 0..rows {
+        for (c2, &r2) in kept.iter().enumerate() {
             col.copy_from_slice(&w.kkt.rows[r2]);
             lu.solve_in_place(col);
-            for r in 0..rows {
-                s[(r, r2)] = dot(&w.kkt.rows[r], col);
+            for (c, &r) in kept.iter().enumerate() {
+                s[(c, c2)] = dot(&w.kkt.rows[r], col);
             }
         }
         s

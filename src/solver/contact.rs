@@ -72,10 +72,17 @@ impl Default for Site {
 pub(crate) struct ContactWork {
     /// Every slot's site at the last evaluation.
     pub sites: Vec<Site>,
-    /// The slots held on their obstacles, increasing.
+    /// The candidate slots, increasing: the rows of the step's QP (those
+    /// held on their obstacles and those near one).
     pub active: Vec<usize>,
-    /// The active rows' residuals: their gaps (zero for a tangent).
+    /// Whether each candidate is held on its obstacle (its gap a row of
+    /// the merit, its force free); the others' forces are zero.
+    pub held: Vec<bool>,
+    /// The candidates' gaps (zero for a tangent).
     pub gaps: Vec<f64>,
+    /// Whether the step chooses which candidates are held (the QP); a
+    /// tangent keeps them.
+    pub choose: bool,
     /// The nodes and forces that act on the rod besides the loads: the held
     /// points' reactions, then the contacts' shares at nodes.
     pub force_nodes: Vec<usize>,
@@ -100,6 +107,7 @@ impl ContactWork {
         ContactWork {
             sites: vec![Site::default(); slot_count(model)],
             position_jacobian: vec![Matrix3::zeros(); model.n()],
+            choose: true,
             ..ContactWork::default()
         }
     }
@@ -235,52 +243,48 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
     }
 }
 
-/// The active rows' gaps into `gaps`.
+/// The candidates' gaps into `gaps`.
 pub(crate) fn gather_gaps(w: &mut Workspace) {
     let c = &mut w.kkt.contact;
     c.gaps.clear();
     c.gaps.extend(c.active.iter().map(|&i| c.sites[i].gap));
 }
 
-/// Update the active set from the last evaluation's sites and forces (see
-/// the module); a slot set free has its force zeroed. Returns whether the
-/// set changed. `force_floor` [N] and `gap_floor` [m] are the round-off a
-/// converged answer may leave (a held force that small below zero stays, a
-/// free slot that little inside does not enter).
-pub(crate) fn update_active_set(
-    model: &RodModel,
-    w: &mut Workspace,
-    force_floor: f64,
-    gap_floor: f64,
-) -> bool {
+/// Choose the candidates for the next step from the last evaluation's
+/// sites: every slot held, and every slot closer to its obstacle than
+/// `margin` [m] (a step moves the rod by less near the answer; one that
+/// goes farther finds the slots it pushed in at the next step). A slot that
+/// is no candidate has its force zeroed.
+pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64) {
     let first = offset(model, w);
     let c = &mut w.kkt.contact;
-    let mut changed = false;
-    let mut k = 0;
-    let mut kept = Vec::with_capacity(c.active.len());
+    let (mut k, mut next) = (0, 0);
+    let (old_active, old_held) = (std::mem::take(&mut c.active), std::mem::take(&mut c.held));
     for i in 0..c.sites.len() {
-        let was = k < c.active.len() && c.active[k] == i;
-        if was {
+        let was_held = k < old_active.len() && old_active[k] == i && old_held[k];
+        if k < old_active.len() && old_active[k] == i {
             k += 1;
         }
         let site = &c.sites[i];
-        let lambda = w.kkt.reactions[first + i].x;
-        let eligible = site.gap.is_finite();
-        let held = eligible
-            && if was {
-                lambda >= -force_floor
-            } else {
-                site.gap < -gap_floor
-            };
-        if held {
-            kept.push(i);
+        if site.gap.is_finite() && (was_held || site.gap < margin) {
+            c.active.push(i);
+            c.held.push(was_held);
+            next += 1;
         } else {
             w.kkt.reactions[first + i] = Vector3::zeros();
         }
-        changed |= held != was;
     }
-    c.active = kept;
-    changed
+    debug_assert_eq!(next, c.active.len());
+}
+
+/// The held candidates, to see whether a step changed them.
+pub(crate) fn held_slots(w: &Workspace) -> Vec<usize> {
+    let c = &w.kkt.contact;
+    c.active
+        .iter()
+        .zip(&c.held)
+        .filter_map(|(i, h)| h.then_some(*i))
+        .collect()
 }
 
 /// The active rows of the KKT system, `nu^T ((1 - s) D_(k-1) + s D_k)` as
@@ -328,13 +332,12 @@ pub struct Contact {
     pub force: f64,
 }
 
-/// The contacts at the last evaluation: the active slots, by arc length.
+/// The contacts at the last evaluation: the held slots, by arc length.
 pub(crate) fn contacts(model: &RodModel, w: &Workspace) -> Vec<Contact> {
     let c = &w.kkt.contact;
-    let mut out: Vec<Contact> = c
-        .active
-        .iter()
-        .map(|&i| {
+    let mut out: Vec<Contact> = held_slots(w)
+        .into_iter()
+        .map(|i| {
             let site = &c.sites[i];
             let (obstacle, place) = slot(model, i);
             let arc_length = match place {

@@ -32,12 +32,12 @@ mod workspace;
 
 pub(crate) use crate::read::check_tolerance;
 pub use adaptive::{solve_to_accuracy, Accuracy};
+pub use contact::Contact;
 pub use sensitivity::{Sensitivity, TipSensitivity};
 pub use settings::{
     default_elements, Engine, Local, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS,
     MAX_ELEMENTS, MAX_PAPER_ELEMENTS, RESIDUAL_TOL_RANGE,
 };
-pub use contact::Contact;
 pub use solution::{Solution, Status, MAX_RESOLVED_TURN};
 pub(crate) use workspace::{step_limit, LocalOutcome, LocalSolver, Workspace};
 

@@ -1,0 +1,190 @@
+"""Frictionless contact with rigid obstacles (issue 28): the solver against
+closed forms (docs/model.md, "Contact with obstacles") and against the
+shooting reference of tests/contact_reference.py, exact checks that need no
+reference (no point of any chord inside an obstacle, forces that push, the
+forces' balance), and the refusals of what is not supported yet."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+from contact_reference import lifted_rod
+
+import softspine
+
+# The material z axis (the tangent) along world +x.
+ALONG_X = [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0]
+TABLE = {"shape": "half_space", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}
+
+
+def heavy_rod(length: float, ei: float = 1.0, w: float = 1.0, **extra) -> dict:
+    """A heavy rod along +x from the origin above (or on) a table."""
+    scene = {
+        "length": length,
+        "stiffness": {"kx": ei, "ky": ei, "kz": ei},
+        "gravity": {"linear_density": w, "vector": [0.0, 0.0, -1.0]},
+        "base_quaternion": ALONG_X,
+        "obstacles": [TABLE],
+    }
+    scene.update(extra)
+    return scene
+
+
+def lift_off(sol) -> float:
+    """The arc length of the first contact."""
+    return float(sol.contacts["arc_length"].min())
+
+
+def test_a_rod_held_horizontal_above_a_table_meets_the_closed_form():
+    # Small lift: a = (72 EI h / w)^(1/4); the table carries what the
+    # clamp does not.
+    ei, w, lift, length = 2.0, 3.0, 1e-4, 2.0
+    a = (72.0 * ei * lift / w) ** 0.25
+    for n in (40, 80):
+        sol = softspine.solve(heavy_rod(length, ei, w, base_position=[0, 0, lift]),
+                              n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        assert abs(lift_off(sol) - a) <= length / n
+        # Forces push, the table carries the rest of the weight.
+        assert (sol.contacts["force"] >= 0.0).all()
+        assert sol.contacts["force"].sum() - sol.forces[0, 2] == pytest.approx(w * length,
+                                                                              rel=1e-9)
+        # The contacts lie on the table, the force along its normal.
+        np.testing.assert_allclose(sol.contacts["point"][:, 2], 0.0, atol=1e-12)
+        np.testing.assert_allclose(sol.contacts["normal"], [[0.0, 0.0, 1.0]] * len(
+            sol.contacts["force"]))
+        # Every node above the table, to the position rows' tolerance.
+        assert sol.positions[:, 2].min() >= -sol.residual_norm * length - 1e-10 * length
+
+
+@pytest.mark.parametrize("horizontal", [False, True])
+def test_a_large_lift_meets_the_shooting_reference(horizontal):
+    # h = 0.3 on a rod of 3 (the small-slope theory is 1 % off): the lifted
+    # length within a grid step, and the lifting force (the end's vertical
+    # force) at the scheme's second order.
+    ei, w, lift, length = 1.0, 1.0, 0.3, 3.0
+    a, force = lifted_rod(ei, w, lift, horizontal)
+    errors = []
+    for n in (60, 240):
+        if horizontal:
+            # The lifted end is the clamped base, held horizontal at h.
+            sol = softspine.solve(heavy_rod(length, ei, w, base_position=[0, 0, lift]),
+                                  n_elements=n)
+            lifted = lift_off(sol)
+            # What the clamp exerts on the rod, upwards.
+            end_force = -sol.forces[0, 2]
+            errors.append(abs(end_force - force))
+        else:
+            # The lifted end is the free tip, lifted by the reference's force.
+            sol = softspine.solve(heavy_rod(length, ei, w, tip_force=[0, 0, force]),
+                                  n_elements=n)
+            lifted = length - float(sol.contacts["arc_length"].max())
+            errors.append(abs(sol.tip_position[2] - lift))
+        assert sol.converged and sol.stable, sol.message
+        assert abs(lifted - a) <= length / n, (n, lifted, a)
+    # Second order away from the lift-off point, which sits on a node: the
+    # error falls by 15 and 19 over a factor 4 in n (measured), more than
+    # the first order's 4.
+    assert errors[1] < 1e-4 * lift
+    assert errors[0] / errors[1] > 8.0, errors
+
+
+def test_the_lifted_end_converges_at_second_order():
+    # Lifted by a force F alone: a = 2 F / w, h = w a^4 / (24 EI) in the
+    # small-deflection limit; the discrete tip height converges to the
+    # continuous rod's at order 2 (its own limit, not the linear theory's).
+    a = 0.3
+    heights = []
+    for n in (40, 80, 160):
+        sol = softspine.solve(heavy_rod(2.0, tip_force=[0, 0, 0.5 * a]), n_elements=n)
+        assert sol.converged, sol.message
+        heights.append(sol.tip_position[2])
+    ratio = (heights[1] - heights[0]) / (heights[2] - heights[1])
+    assert 3.5 < ratio < 4.5, heights
+    assert heights[2] == pytest.approx(a**4 / 24.0, rel=2e-3)
+
+
+def test_no_chord_passes_through_a_sphere_between_two_nodes():
+    # A coarse rod sags onto a small ball that fits between two nodes: the
+    # contact is inside an element, and no point of any chord is inside.
+    radius = 0.02
+    ball = {"shape": "sphere", "centre": [0.45, 0.0, -0.05 - radius], "radius": radius}
+    scene = {
+        "length": 1.0,
+        "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+        "gravity": {"linear_density": 1.0, "vector": [0.0, 0.0, -1.0]},
+        "base_quaternion": ALONG_X,
+        "obstacles": [ball],
+    }
+    sol = softspine.solve(scene, n_elements=10)
+    assert sol.converged and sol.stable, sol.message
+    contacts = sol.contacts
+    assert len(contacts["force"]) == 1
+    s = contacts["arc_length"][0]
+    assert not np.isclose(s * 10, np.round(s * 10), atol=1e-6), "inside an element"
+    assert contacts["force"][0] > 0.0
+    # Every chord keeps out of the ball, touching it at the contact.
+    p = sol.positions
+    t = np.linspace(0.0, 1.0, 2001)[:, None, None]
+    chords = p[:-1][None] + t * (p[1:] - p[:-1])[None]
+    distance = np.linalg.norm(chords - np.array(ball["centre"]), axis=-1)
+    assert distance.min() == pytest.approx(radius, abs=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(contacts["point"][0] - ball["centre"]), radius)
+    # Without the ball the rod sags through it.
+    free = softspine.solve({k: v for k, v in scene.items() if k != "obstacles"},
+                           n_elements=10)
+    assert np.linalg.norm(free.positions_at(np.array([s]))[0] - ball["centre"]) < radius
+
+
+def test_a_rod_of_radius_keeps_its_surface_off_the_table():
+    # The radius from a round rod's diameter, or given.
+    scene = heavy_rod(1.0, base_position=[0, 0, 0.01])
+    scene["stiffness"] = {"E": 1e6, "G": 4e5, "diameter": 0.01}
+    sol = softspine.solve(scene, n_elements=20)
+    assert sol.converged, sol.message
+    assert sol.positions[:, 2].min() == pytest.approx(0.005, abs=1e-12)
+    scene["radius"] = 0.008
+    sol = softspine.solve(scene, n_elements=20)
+    assert sol.positions[:, 2].min() == pytest.approx(0.008, abs=1e-12)
+
+
+def test_contacts_survive_a_round_trip():
+    sol = softspine.solve(heavy_rod(2.0, base_position=[0, 0, 1e-3]), n_elements=20)
+    back = softspine.Solution.from_dict(sol.to_dict())
+    for key, value in sol.contacts.items():
+        np.testing.assert_array_equal(back.contacts[key], value)
+    assert len(softspine.solve({"length": 1.0, "stiffness": {"kx": 1, "ky": 1, "kz": 1}},
+                               n_elements=4).contacts["force"]) == 0
+
+
+@pytest.mark.parametrize(("option", "field"), [({"scheme": "fe4"}, "scheme"),
+                                                ({"method": "lm"}, "method"),
+                                                ({"method": "shooting"}, "method"),
+                                                ({"method": "paper"}, "method")])
+def test_what_contact_does_not_support_yet_is_refused(option, field):
+    with pytest.raises(ValueError, match=field):
+        softspine.solve(heavy_rod(1.0), n_elements=10, **option)
+
+
+@pytest.mark.parametrize(("obstacle", "field", "reason"), [
+    ({"shape": "cone"}, "obstacles[0].shape", "unknown shape"),
+    ({"shape": "sphere", "centre": [0, 0, 0], "radius": -1.0}, "obstacles[0].radius",
+     "positive"),
+    ({"shape": "half_space", "point": [0, 0, 0], "normal": [0, 0, 0]},
+     "obstacles[0].normal", "zero"),
+    ({"shape": "sphere", "centre": [0, float("nan"), 0], "radius": 1.0},
+     "obstacles[0].centre", "finite"),
+])
+def test_bad_obstacles_are_refused_by_name(obstacle, field, reason):
+    scene = heavy_rod(1.0)
+    scene["obstacles"] = [obstacle]
+    with pytest.raises(ValueError, match=rf"{re.escape(field)}.*{reason}"):
+        softspine.solve(scene, n_elements=10)
+
+
+def test_a_negative_radius_is_refused():
+    with pytest.raises(ValueError, match="radius.*negative"):
+        softspine.solve(heavy_rod(1.0, radius=-0.1), n_elements=10)

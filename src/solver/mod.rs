@@ -341,10 +341,7 @@ impl Solver {
         let tol = self.model.effective_tol(self.settings.residual_tol);
         let (model, w) = (&self.model, &mut self.work);
         w.reached_load = 0.0;
-        w.kkt
-            .reactions
-            .iter_mut()
-            .for_each(|r| *r = Vector3::zeros());
+        w.kkt.clear_multipliers();
         if let Some(limit) = &self.reach_limit {
             w.q.copy_from_slice(&model.initial_guess());
             evaluate(model, w, 1.0);
@@ -396,10 +393,7 @@ impl Solver {
             }
             None => w.q.copy_from_slice(&model.initial_guess()),
         }
-        w.kkt
-            .reactions
-            .iter_mut()
-            .for_each(|r| *r = Vector3::zeros());
+        w.kkt.clear_multipliers();
         let direct =
             self.local
                 .attempt(model, w, 1.0, (budget - spent).min(DIRECT_ITERATIONS), tol);
@@ -444,10 +438,7 @@ impl Solver {
         {
             let mut lm = lm::LevenbergMarquardt::new(model);
             w.q.copy_from_slice(&model.initial_guess());
-            w.kkt
-                .reactions
-                .iter_mut()
-                .for_each(|r| *r = Vector3::zeros());
+            w.kkt.clear_multipliers();
             let direct = lm.run(model, w, 1.0, budget - iterations.min(budget), tol);
             iterations += direct.iterations;
             if direct.converged && is_stable(model, w) {

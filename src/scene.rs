@@ -1690,7 +1690,7 @@ fn tendons(v: &Value, length: f64, section_starts: &[f64]) -> Result<Vec<Tendon>
 }
 
 /// A list of obstacles (`obstacles[i]`), each a table with its `shape`.
-fn obstacles(v: &Value) -> Result<Vec<Obstacle>> {
+pub(crate) fn obstacles(v: &Value) -> Result<Vec<Obstacle>> {
     match v {
         Value::List(items) => items
             .iter()

@@ -103,3 +103,47 @@ fn a_rod_lifted_by_a_force_at_its_end_lifts_off_at_the_closed_form() {
         assert!((length - last - a).abs() <= h);
     }
 }
+
+/// A rod bent by rest curvature against a wall it presses on with its tip.
+fn pressed_rod(curvature: f64) -> Scene {
+    let mut s = Scene::new(1.0, 1.0, 1.0, 2.0);
+    s.rest_curvature = vec![[0.0, curvature], [0.0, curvature]];
+    s.obstacles = vec![Obstacle::HalfSpace {
+        point: Vector3::new(0.25, 0.0, 0.0),
+        normal: -Vector3::x(),
+    }];
+    s
+}
+
+#[test]
+fn the_tip_sensitivity_in_contact_holds_the_contacts_on_their_obstacles() {
+    use softspine::Solver;
+    let scene = pressed_rod(1.5);
+    let mut solver = Solver::new(&scene, settings(40)).unwrap();
+    let sol = solver.solve(None).unwrap();
+    assert!(sol.converged(), "{}", sol.message);
+    assert_eq!(sol.contacts.len(), 1, "{:?}", sol.contacts);
+    assert_eq!(sol.contacts[0].arc_length, 1.0);
+    let sensitivity = solver.tip_sensitivity(2).unwrap();
+    // The tip slides on the wall: it cannot move along its normal.
+    for column in sensitivity.position.column_iter() {
+        assert!(column.x.abs() < 1e-9 * column.norm().max(1.0), "{column:?}");
+    }
+    // Central differences of the forward solve in each section's curvature.
+    let step = 1e-6;
+    for column in 0..4 {
+        let tip = |delta: f64| {
+            let mut moved = scene.clone();
+            moved.rest_curvature[column / 2][column % 2] += delta;
+            let sol = solve(&moved, settings(40), Some(&sol.quaternions)).unwrap();
+            assert!(sol.converged() && sol.contacts.len() == 1);
+            sol.tip_position()
+        };
+        let difference = (tip(step) - tip(-step)) / (2.0 * step);
+        let exact = sensitivity.position.column(column);
+        assert!(
+            (difference - exact).norm() < 1e-6 * exact.norm().max(1e-3),
+            "column {column}: {difference:?} against {exact:?}"
+        );
+    }
+}

@@ -189,3 +189,68 @@ def test_bad_obstacles_are_refused_by_name(obstacle, field, reason):
 def test_a_negative_radius_is_refused():
     with pytest.raises(ValueError, match="radius.*negative"):
         softspine.solve(heavy_rod(1.0, radius=-0.1), n_elements=10)
+
+
+# The robot among obstacles: the seed's robot (hanging, 1 m) with 30 g.
+WALL = {"shape": "half_space", "point": [0.15, 0.0, 0.0], "normal": [-1.0, 0.0, 0.0]}
+
+
+def test_a_robot_bent_into_a_wall_leans_on_it():
+    robot = softspine.Robot({"obstacles": [WALL]})
+    bend = np.zeros((10, 2))
+    bend[:, 1] = 0.6
+    free = softspine.Robot().forward(bend, load=0.03)
+    sol = robot.forward(bend, load=0.03)
+    assert free.positions[:, 0].max() > 0.15
+    assert sol.converged and sol.stable, sol.message
+    # The surface (the muscles, 2 cm off the backbone) touches the wall.
+    assert sol.positions[:, 0].max() == pytest.approx(0.13, abs=1e-10)
+    assert len(sol.contacts["force"]) >= 1 and (sol.contacts["force"] > 0).all()
+    np.testing.assert_allclose(sol.contacts["point"][:, 0], 0.15, atol=1e-10)
+    # The robot's dict keeps its obstacles and radius.
+    again = softspine.Robot(softspine.Robot({"obstacles": [WALL], "radius": 0.03}).to_dict())
+    assert again.to_dict()["obstacles"] == [WALL] and again.to_dict()["radius"] == 0.03
+
+
+def test_a_target_inside_an_obstacle_is_refused_with_the_reason():
+    robot = softspine.Robot({"obstacles": [WALL]})
+    ik = robot.inverse([0.2, 0.0, -0.9], load=0.03)
+    assert not ik.reached and ik.ending == "out_of_reach"
+    assert "inside obstacle 0 (a half_space)" in ik.message
+    assert ik.starts == 1
+    # The same target without the wall is reached.
+    assert softspine.Robot().inverse([0.2, 0.0, -0.9], load=0.03).reached
+
+
+@pytest.mark.parametrize("target", [[0.13, 0.0, -0.95], [0.13, 0.05, -0.9]])
+def test_a_target_on_the_wall_is_reached_leaning_on_it(target):
+    robot = softspine.Robot({"obstacles": [WALL]})
+    ik = robot.inverse(target, load=0.03)
+    assert ik.reached, ik.message
+    sol = ik.solution
+    assert sol.converged and sol.stable
+    assert sol.positions[:, 0].max() <= 0.13 + 1e-9
+    # The answer is the forward solve of its own actuation.
+    again = robot.forward(ik.rest_curvature, load=0.03)
+    np.testing.assert_allclose(again.tip_position, target, atol=1e-9)
+
+
+def test_a_target_behind_a_ball_is_reached_around_it():
+    target = [0.25, 0.0, -0.85]
+    free = softspine.Robot().inverse(target, load=0.03)
+    # A ball across the free answer's path: 1 cm into its surface (the
+    # robot's is 2 cm off its backbone).
+    centre = free.solution.positions[12] + [0.06, 0.0, 0.0]
+    ball = {"shape": "sphere", "centre": centre.tolist(), "radius": 0.05}
+    assert np.linalg.norm(free.solution.positions - centre, axis=1).min() < 0.07 - 0.01
+    ik = softspine.Robot({"obstacles": [ball]}).inverse(target, load=0.03)
+    assert ik.reached, ik.message
+    sol = ik.solution
+    assert sol.converged and sol.stable
+    # No chord passes within the robot's radius of the ball.
+    p = sol.positions
+    chord = p[1:] - p[:-1]
+    t = np.clip(np.einsum("ij,ij->i", centre - p[:-1], chord)
+                / np.einsum("ij,ij->i", chord, chord), 0.0, 1.0)
+    distance = np.linalg.norm(p[:-1] + t[:, None] * chord - centre, axis=1)
+    assert distance.min() >= 0.07 - 1e-9

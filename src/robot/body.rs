@@ -46,6 +46,9 @@ pub struct Body {
     /// Where the tool's weight, and the payload it holds (the `load`), act:
     /// from the tip in its material frame [m] (default the tip itself).
     pub tool_offset: Vector3<f64>,
+    /// Outer radius of the body for contact [m] (default `None`: the
+    /// drive's, see [`super::Robot::contact_radius`]).
+    pub radius: Option<f64>,
 }
 
 /// What one section changes of the body's own properties (each `None`:
@@ -80,6 +83,7 @@ impl Default for Body {
             section_properties: Vec::new(),
             tool_mass: 0.0,
             tool_offset: Vector3::zeros(),
+            radius: None,
         }
     }
 }
@@ -256,7 +260,7 @@ impl Body {
 }
 
 /// The keys of a robot's body (see [`Body`]).
-pub(super) const BODY_KEYS: [&str; 11] = [
+pub(super) const BODY_KEYS: [&str; 12] = [
     "length",
     "stiffness",
     "linear_density",
@@ -268,6 +272,7 @@ pub(super) const BODY_KEYS: [&str; 11] = [
     "section_properties",
     "tool_mass",
     "tool_offset",
+    "radius",
 ];
 
 impl Body {
@@ -286,6 +291,13 @@ impl Body {
             "section_properties" => self.section_properties = section_specs(value)?,
             "tool_mass" => self.tool_mass = num(value)?,
             "tool_offset" => self.tool_offset = vec3(value, key)?,
+            "radius" => {
+                let r = num(value)?;
+                if r < 0.0 {
+                    return Err(Error::scene(key, format!("must not be negative, got {r}")));
+                }
+                self.radius = Some(r);
+            }
             other => unreachable!("{other} is not a body key"),
         }
         Ok(())
@@ -327,6 +339,9 @@ impl Body {
         if self.tool_mass != 0.0 || self.tool_offset != Vector3::zeros() {
             entries.push(("tool_mass".into(), num(self.tool_mass)));
             entries.push(("tool_offset".into(), list(self.tool_offset.as_slice())));
+        }
+        if let Some(r) = self.radius {
+            entries.push(("radius".into(), num(r)));
         }
         entries
     }

@@ -30,6 +30,7 @@ pub use ik::{
 };
 pub use load::Load;
 
+use crate::contact::Obstacle;
 use crate::error::{Error, Result};
 use crate::read::count;
 use crate::scene::{Gravity, PointLoad, Scene, Tendon};
@@ -58,6 +59,9 @@ pub struct Robot {
     pub body: Body,
     /// Muscles, tendons or a field.
     pub drive: Drive,
+    /// Rigid obstacles around the robot, world frame (frictionless
+    /// contact; default none).
+    pub obstacles: Vec<Obstacle>,
     /// Elements of the discretisation used by every solve (default: the
     /// smallest multiple of the sections that is at least 20, see
     /// [`crate::solver::default_elements`]).
@@ -130,6 +134,7 @@ impl Default for Robot {
             drive: Drive::Muscles(Muscles::for_sections_of(body.section_length())),
             n_elements: crate::solver::default_elements(body.sections),
             body,
+            obstacles: Vec::new(),
         }
     }
 }
@@ -142,7 +147,31 @@ impl Robot {
             n_elements: crate::solver::default_elements(body.sections),
             body,
             drive,
+            obstacles: Vec::new(),
         }
+    }
+
+    /// The robot's outer radius for contact [m]: the body's `radius`, else
+    /// the drive's reach from the backbone (the muscles' distance, the
+    /// farthest tendon's offset), else half a round backbone's diameter.
+    pub fn contact_radius(&self) -> f64 {
+        if let Some(r) = self.body.radius {
+            return r;
+        }
+        let backbone = match self.body.stiffness {
+            crate::scene::Stiffness::RoundRod { diameter, .. } => 0.5 * diameter,
+            crate::scene::Stiffness::Diagonal { .. } => 0.0,
+        };
+        let drive = match &self.drive {
+            Drive::Muscles(m) => m.radius,
+            Drive::Tendons(t) => t
+                .routes
+                .iter()
+                .map(|r| r.offset[0].hypot(r.offset[1]))
+                .fold(0.0, f64::max),
+            Drive::Field(_) => 0.0,
+        };
+        backbone.max(drive)
     }
 
     /// The muscles, or why the robot has none (`what` needs them).
@@ -390,6 +419,10 @@ impl Robot {
             s.tip_magnet = m.tip_magnet;
         }
         s.magnetic_field = field;
+        if !self.obstacles.is_empty() {
+            s.obstacles.clone_from(&self.obstacles);
+            s.radius = Some(self.contact_radius());
+        }
         Ok(s)
     }
 
@@ -531,6 +564,10 @@ impl Robot {
         let mut entries = self.body.entries();
         entries.push(("n_elements".into(), Value::Number(self.n_elements as f64)));
         entries.extend(self.drive.entries());
+        if !self.obstacles.is_empty() {
+            let list = self.obstacles.iter().map(Obstacle::to_value).collect();
+            entries.push(("obstacles".into(), Value::List(list)));
+        }
         Value::Map(entries)
     }
 
@@ -550,6 +587,7 @@ impl Robot {
         };
         let mut body = Body::default();
         let mut n_elements = None;
+        let mut obstacles = Vec::new();
         let mut drive_entries = Vec::new();
         for (key, value) in entries {
             let key = key.as_str();
@@ -557,6 +595,8 @@ impl Robot {
                 body.read_key(key, value)?;
             } else if key == "n_elements" {
                 n_elements = Some(count(value, key, MAX_ROBOT_ELEMENTS)?);
+            } else if key == "obstacles" {
+                obstacles = crate::scene::obstacles(value)?;
             } else if [&MUSCLE_KEYS[..], &TENDON_KEYS, &FIELD_KEYS]
                 .iter()
                 .any(|keys| keys.contains(&key))
@@ -565,7 +605,7 @@ impl Robot {
             } else {
                 let known: Vec<&str> = BODY_KEYS
                     .iter()
-                    .chain(["n_elements"].iter())
+                    .chain(["n_elements", "obstacles"].iter())
                     .chain(MUSCLE_KEYS.iter())
                     .chain(TENDON_KEYS.iter())
                     .chain(FIELD_KEYS.iter())
@@ -588,6 +628,7 @@ impl Robot {
             n_elements: n_elements.unwrap_or(crate::solver::default_elements(body.sections)),
             body,
             drive,
+            obstacles,
         };
         // A field defaulted from another is blamed on the one given.
         let rest_key = if given("muscle_rest_length") {

@@ -91,8 +91,11 @@ impl Solver {
     fn tip_sensitivity_with(&mut self, tangents: &[Loading]) -> Result<TipSensitivity> {
         let columns = tangents.len();
         let n = self.model.n();
-        if self.model.is_constrained() {
+        if self.model.is_constrained() && !self.model.has_obstacles() {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
+        }
+        if self.model.has_obstacles() {
+            return self.tip_sensitivity_in_contact(tangents);
         }
         let (model, w) = (&self.model, &mut self.work);
         self.state_tangents_at.clear();
@@ -140,6 +143,71 @@ impl Solver {
             out.tangent.set_column(column, &dt);
             // The tip turns by R d theta_n (body to world).
             out.rotation.set_column(column, &-(turn * w.step[n - 1]));
+        }
+        self.state_tangents_at.extend_from_slice(&w.q);
+        Ok(out)
+    }
+
+    /// [`Solver::tip_sensitivity_with`] of an equilibrium in contact: the
+    /// contacts held stay on their obstacles (their rows in the KKT system,
+    /// the obstacles fixed) and the others stay free, so the columns are
+    /// one-sided where a contact is about to open or close. Held points
+    /// (a pinned or clamped tip, guides) are refused as for a free rod.
+    fn tip_sensitivity_in_contact(&mut self, tangents: &[Loading]) -> Result<TipSensitivity> {
+        use super::constrained;
+        let (model, w) = (&self.model, &mut self.work);
+        if !model.constraints().is_empty() || model.clamped_tip().is_some() {
+            return Err(Error::argument("tip_sensitivity", "needs a free tip"));
+        }
+        let n = model.n();
+        self.state_tangents_at.clear();
+        self.state_tangents.clear();
+        self.jacobian_at_solution = false;
+        constrained::evaluate(model, w, 1.0, true);
+        constrained::load_constraint_jacobian(model, w);
+        if w.lu.factor(&w.jac, 0.0).is_err() {
+            return Err(Error::NotConverged {
+                status: Status::NotConverged,
+                iterations: 0,
+                residual: model.residual_norm(&w.g),
+                reason: "singular Jacobian: the equilibrium is at a bifurcation".into(),
+            });
+        }
+        let mut d_tip = vec![nalgebra::Matrix3::zeros(); n];
+        model.position_jacobian(&w.q, n, &w.interior, &mut d_tip);
+        let tip = w.q[n];
+        let d_tangent = -(tip.rotation() * crate::quat::skew(&Vector3::z()));
+        let mut out = TipSensitivity {
+            position: nalgebra::Matrix3xX::zeros(tangents.len()),
+            tangent: nalgebra::Matrix3xX::zeros(tangents.len()),
+            rotation: nalgebra::Matrix3xX::zeros(tangents.len()),
+        };
+        let turn = tip.rotation();
+        let mut shift = Vec::new();
+        let gaps = w.kkt.contact.gaps.clone();
+        w.kkt.contact.choose = false;
+        let mut solved = true;
+        for (column, t) in tangents.iter().enumerate() {
+            model.residual_derivative(&w.q, &[], t, &mut w.interior, &mut w.g, &mut shift);
+            w.kkt.contact.gaps.iter_mut().for_each(|x| *x = 0.0);
+            // d theta / dp: the KKT system's step for the residual dg/dp.
+            if !constrained::kkt_solve(w) {
+                solved = false;
+                break;
+            }
+            self.state_tangents.extend_from_slice(&w.step);
+            let dr: Vector3<f64> = d_tip.iter().zip(&w.step).map(|(b, x)| b * x).sum();
+            out.position.set_column(column, &dr);
+            out.tangent.set_column(column, &(d_tangent * w.step[n - 1]));
+            out.rotation.set_column(column, &(turn * w.step[n - 1]));
+        }
+        w.kkt.contact.choose = true;
+        w.kkt.contact.gaps = gaps;
+        // The residual and Jacobian of the equilibrium again, for the caller.
+        constrained::evaluate(model, w, 1.0, true);
+        if !solved {
+            self.state_tangents.clear();
+            return Err(Error::argument("tip_sensitivity", "singular KKT system"));
         }
         self.state_tangents_at.extend_from_slice(&w.q);
         Ok(out)

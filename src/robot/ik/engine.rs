@@ -284,7 +284,7 @@ impl InverseSolver {
             _ => self.last.clone(),
         };
         let first = self.reach(&goal, start, Pull::Reference, max_iterations)?;
-        let (mut best, starts) = if first.reached(&goal) || goal.beyond_length(self.base()) {
+        let (mut best, starts) = if first.reached(&goal) || goal.unreachable(self.base()) {
             (first, 1)
         } else {
             self.retry(&goal, first, max_iterations)?
@@ -379,7 +379,23 @@ impl InverseSolver {
             tol,
             length,
             offset: self.robot.body.tool_offset,
+            inside_obstacle: self.obstacle_at(target, tol),
         })
+    }
+
+    /// The obstacle a tip at `target` would be in (its surface within the
+    /// robot's radius, less `tol`); none for a tool off the tip, whose point
+    /// is not kept out of them.
+    fn obstacle_at(&self, target: Vector3<f64>, tol: f64) -> Option<(usize, &'static str)> {
+        if self.robot.body.tool_offset != Vector3::zeros() {
+            return None;
+        }
+        let radius = self.robot.contact_radius();
+        self.robot
+            .obstacles
+            .iter()
+            .position(|o| o.proximity(&target).gap < radius - tol)
+            .map(|k| (k, self.robot.obstacles[k].shape()))
     }
 
     /// One descent from `start` by minimum-norm Gauss-Newton within range, in
@@ -740,7 +756,7 @@ impl InverseSolver {
 
     /// Why a descent that did not reach the target ended.
     fn classify(&mut self, goal: &Goal, st: &mut State, phase: PhaseEnd) -> Result<IkEnding> {
-        if goal.beyond_length(self.base()) {
+        if goal.unreachable(self.base()) {
             return Ok(IkEnding::OutOfReach);
         }
         match phase {
@@ -1007,6 +1023,13 @@ impl InverseSolver {
                 "not reached: the target is out of reach, {:.4} m from the base of a {length} m robot; the closest tip found misses by {miss:.3e} m",
                 (goal.target - self.base()).norm()
             ),
+            IkEnding::OutOfReach if goal.inside_obstacle.is_some() => {
+                let (k, shape) = goal.inside_obstacle.expect("checked");
+                format!(
+                    "not reached: the target is inside obstacle {k} (a {shape}), where the tip cannot be (the robot's surface, {:.4} m off its backbone, keeps out of every obstacle); the closest tip found misses by {miss:.3e} m",
+                    self.robot.contact_radius()
+                )
+            }
             IkEnding::OutOfReach => format!(
                 "not reached: the target is out of reach{from}; the closest tip found misses by {miss:.3e} m, a local minimum of the miss with no drive at a limit"
             ),

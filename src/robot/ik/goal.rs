@@ -76,6 +76,9 @@ pub(super) struct Goal {
     pub length: f64,
     /// The point aimed, from the tip in its frame (the tool's; zero: the tip).
     pub offset: Vector3<f64>,
+    /// The obstacle (its index and shape) the aimed tip lies in, where the
+    /// backbone, kept its radius off every obstacle, cannot be.
+    pub inside_obstacle: Option<(usize, &'static str)>,
 }
 
 impl Goal {
@@ -182,8 +185,14 @@ impl Goal {
             } else {
                 self.tol
             },
+            inside_obstacle: if t < 1.0 { None } else { self.inside_obstacle },
             ..self.clone()
         }
+    }
+
+    /// Where no tip can be: beyond the robot's length or inside an obstacle.
+    pub fn unreachable(&self, base: Vector3<f64>) -> bool {
+        self.beyond_length(base) || self.inside_obstacle.is_some()
     }
 
     /// Farther from the base than an inextensible backbone (and the tool) reach.

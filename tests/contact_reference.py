@@ -55,3 +55,59 @@ def lifted_rod(ei: float, w: float, lift: float, horizontal: bool = False,
         raise RuntimeError(f"lifted_rod: shooting missed the end by {miss:.1e}")
     a, shear = found.x
     return abs(a), shear + w * abs(a)
+
+
+def knife_edge(ei: float, load: float, length: float, edge: float,
+               rtol: float = 1e-12) -> tuple[float, float, float, float]:
+    """A weightless cantilever, clamped at the origin along +x, with a
+    downward force `load` [N] at its tip, resting on a frictionless knife
+    edge at `(edge, 0)` [m] over which it may slide: the reaction's size [N],
+    the arc length where it touches, and the tip's `(x, z)` [m].
+
+    Planar (x, z up, the angle `theta` from +x), inextensible: `x' = cos
+    theta`, `z' = sin theta`, `theta' = m / EI`, with `F(s)` the force of the
+    distal part on the proximal one (the loads beyond s) and `m' = -(r' x F)`.
+    The edge pushes along the rod's normal `(-sin theta_c, cos theta_c)` at
+    the contact (frictionless). Unknowns: the base moment, the reaction, the
+    contact's arc length and the rod's angle there; conditions: the rod
+    passes through the edge at that arc length with that angle, no moment at
+    the tip. Found by `scipy.optimize.root` from the small-deflection answer
+    (the propped cantilever's `R = P (3 L - a) / (2 a)`)."""
+    tip_force = np.array([0.0, -load])
+
+    def cross(a: np.ndarray, b: np.ndarray) -> float:
+        return float(a[0] * b[1] - a[1] * b[0])
+
+    def integrate(z0: np.ndarray, s0: float, s1: float, force: np.ndarray) -> np.ndarray:
+        if s1 <= s0:
+            return z0
+
+        def rhs(_s: float, z: np.ndarray) -> list[float]:
+            _x, _z, theta, _m = z
+            tangent = np.array([np.cos(theta), np.sin(theta)])
+            return [tangent[0], tangent[1], z[3] / ei, -cross(tangent, force)]
+
+        return solve_ivp(rhs, (s0, s1), z0, rtol=rtol, atol=1e-14 * length,
+                         method="DOP853").y[:, -1]
+
+    def shoot(unknowns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        m0, reaction, s_c, theta_c = unknowns
+        normal = np.array([-np.sin(theta_c), np.cos(theta_c)])
+        before = integrate(np.array([0.0, 0.0, 0.0, m0]), 0.0, s_c,
+                           tip_force + reaction * normal)
+        after = integrate(before, s_c, length, tip_force)
+        return before, after, normal
+
+    def conditions(unknowns: np.ndarray) -> np.ndarray:
+        before, after, _ = shoot(unknowns)
+        return np.array([(before[0] - edge) / length, before[1] / length,
+                         before[2] - unknowns[3], after[3] * length / ei])
+
+    reaction0 = load * (3.0 * length - edge) / (2.0 * edge)
+    m0 = -load * length + reaction0 * edge
+    found = root(conditions, [m0, reaction0, edge, 0.0], tol=1e-14)
+    miss = np.abs(conditions(found.x)).max()
+    if not miss < 1e-10:
+        raise RuntimeError(f"knife_edge: shooting missed by {miss:.1e}")
+    _, after, _ = shoot(found.x)
+    return float(found.x[1]), float(found.x[2]), float(after[0]), float(after[1])

@@ -532,7 +532,22 @@ pub(crate) fn newton(
             return (false, it);
         }
         load_constraint_jacobian(model, w);
-        let solved = super::newton::damped_solve(model, w, kkt_step);
+        let mut solved = super::newton::damped_solve(model, w, kkt_step);
+        // A step that would carry the rod through an obstacle it is not
+        // yet near (a thin one, a large step) holds those slots too.
+        for _ in 0..CROSSING_PASSES {
+            if !solved || !model.has_obstacles() {
+                break;
+            }
+            let crossed = crossing_of_step(model, w, 1.0);
+            if crossed.is_empty() {
+                break;
+            }
+            contact::add_candidates(w, &crossed);
+            contact::gather_gaps(w);
+            load_constraint_jacobian(model, w);
+            solved = super::newton::damped_solve(model, w, kkt_step);
+        }
         if !solved {
             return (false, it);
         }
@@ -578,6 +593,23 @@ pub(crate) fn newton(
         merit_now = evaluate(model, w, lambda, true);
     }
     unreachable!("the loop returns at its last pass")
+}
+
+/// How often a Newton step is solved again with the slots it would carry
+/// through their obstacles.
+const CROSSING_PASSES: usize = 4;
+
+/// The slots that `scale` times the step in `w.step` (from `w.q`) carries
+/// across their obstacles (see [`contact::crossing`]).
+pub(crate) fn crossing_of_step(model: &RodModel, w: &mut Workspace, scale: f64) -> Vec<usize> {
+    let n = model.n();
+    let mut q = w.q.clone();
+    for j in 1..=n {
+        q[j] = w.q[j].perturbed(scale * w.step[j - 1]);
+    }
+    let mut moved = vec![Vector3::zeros(); n + 1];
+    model.positions(&q, &mut w.interior, &mut moved);
+    contact::crossing(model, w, &moved)
 }
 
 /// How near its obstacle a slot is a candidate of the next step [m]: a

@@ -173,7 +173,60 @@ fn nearest_inside(
         }
     }
     let s = 0.5 * (lo + hi);
+    // At a node to round-off: the node's slot holds it (not twice).
+    if !(NODE_SHARE..1.0 - NODE_SHARE).contains(&s) {
+        return None;
+    }
     Some((s, obstacle.proximity(&(a + s * chord))))
+}
+
+/// How near a node, as a share of its element, a chord's nearest point is
+/// that node's.
+const NODE_SHARE: f64 = 1e-9;
+
+/// The slots that the move of the backbone from the last evaluation's
+/// positions to `moved` (n + 1) carries across their obstacle's tangent
+/// plane (the plane at the slot's nearest point, which separates it from a
+/// convex obstacle): a move that ends beyond it passed through the obstacle
+/// or into it, however thin the obstacle is, and a step must hold those
+/// slots. Slots already candidates are left out.
+pub(crate) fn crossing(model: &RodModel, w: &Workspace, moved: &[Vector3<f64>]) -> Vec<usize> {
+    let c = &w.kkt.contact;
+    let before = &w.kkt.positions;
+    let mut k = 0;
+    let mut out = Vec::new();
+    for (i, site) in c.sites.iter().enumerate() {
+        let candidate = k < c.active.len() && c.active[k] == i;
+        if candidate {
+            k += 1;
+            continue;
+        }
+        if !site.gap.is_finite() {
+            continue;
+        }
+        let shift = match slot(model, i).1 {
+            Place::Node(j) => moved[j] - before[j],
+            Place::Element(j) => {
+                (1.0 - site.s) * (moved[j - 1] - before[j - 1]) + site.s * (moved[j] - before[j])
+            }
+        };
+        if site.gap + site.normal.dot(&shift) < 0.0 {
+            out.push(i);
+        }
+    }
+    out
+}
+
+/// Make `slots` candidates (free: the next step's QP decides).
+pub(crate) fn add_candidates(w: &mut Workspace, slots: &[usize]) {
+    let c = &mut w.kkt.contact;
+    for &i in slots {
+        let at = c.active.partition_point(|&j| j < i);
+        if c.active.get(at) != Some(&i) {
+            c.active.insert(at, i);
+            c.held.insert(at, false);
+        }
+    }
 }
 
 /// Every slot's site at the node positions `r` (`n + 1`).

@@ -177,6 +177,17 @@ fn continuation(
                     *r -= scale * d;
                 }
             }
+            // A prediction that carries the rod through an obstacle (it
+            // holds only the contacts already held) starts the corrector
+            // from the last equilibrium instead.
+            if predicted && model.has_obstacles() {
+                let mut moved = vec![Vector3::zeros(); n + 1];
+                model.positions(&w.q, &mut w.interior, &mut moved);
+                if !super::contact::crossing(model, w, &moved).is_empty() {
+                    w.q.copy_from_slice(&w.saved);
+                    w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+                }
+            }
         } else {
             for j in 1..=n {
                 let d = if predicted {

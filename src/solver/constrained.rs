@@ -604,8 +604,8 @@ const CROSSING_PASSES: usize = 4;
 pub(crate) fn crossing_of_step(model: &RodModel, w: &mut Workspace, scale: f64) -> Vec<usize> {
     let n = model.n();
     let mut q = w.q.clone();
-    for j in 1..=n {
-        q[j] = w.q[j].perturbed(scale * w.step[j - 1]);
+    for (moved, (start, step)) in q[1..].iter_mut().zip(w.q[1..].iter().zip(&w.step)) {
+        *moved = start.perturbed(scale * step);
     }
     let mut moved = vec![Vector3::zeros(); n + 1];
     model.positions(&q, &mut w.interior, &mut moved);

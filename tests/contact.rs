@@ -147,3 +147,40 @@ fn the_tip_sensitivity_in_contact_holds_the_contacts_on_their_obstacles() {
         );
     }
 }
+
+#[test]
+fn the_jacobian_turns_a_contact_force_with_a_curved_obstacle() {
+    // The rod of the test above pressed onto a ball instead of a wall, the
+    // contact inside an element: its force turns with the ball's normal as
+    // the rod moves, which the tip sensitivity (the KKT system's columns)
+    // sees only with the contacts' curvature in the Jacobian.
+    use softspine::Solver;
+    let mut scene = pressed_rod(1.5);
+    scene.obstacles = vec![Obstacle::Sphere {
+        centre: Vector3::new(0.45, 0.0, 0.55),
+        radius: 0.2,
+    }];
+    let mut solver = Solver::new(&scene, settings(20)).unwrap();
+    let sol = solver.solve(None).unwrap();
+    assert!(sol.converged(), "{}", sol.message);
+    assert_eq!(sol.contacts.len(), 1, "{:?}", sol.contacts);
+    let s = sol.contacts[0].arc_length * 20.0;
+    assert!((s - s.round()).abs() > 1e-3, "inside an element: {s}");
+    let sensitivity = solver.tip_sensitivity(2).unwrap();
+    let step = 1e-6;
+    for column in 0..4 {
+        let tip = |delta: f64| {
+            let mut moved = scene.clone();
+            moved.rest_curvature[column / 2][column % 2] += delta;
+            let sol = solve(&moved, settings(20), Some(&sol.quaternions)).unwrap();
+            assert!(sol.converged() && sol.contacts.len() == 1);
+            sol.tip_position()
+        };
+        let difference = (tip(step) - tip(-step)) / (2.0 * step);
+        let exact = sensitivity.position.column(column);
+        assert!(
+            (difference - exact).norm() < 1e-6 * exact.norm().max(1e-3),
+            "column {column}: {difference:?} against {exact:?}"
+        );
+    }
+}

@@ -54,6 +54,10 @@ pub(crate) struct Site {
     pub s: f64,
     /// The backbone point [m].
     pub point: Vector3<f64>,
+    /// An element's: whether its chord's nearest point lies strictly inside
+    /// it (else the site is the nearer node's, a held slot's continuation
+    /// until the node's slot takes its force over).
+    pub inside: bool,
 }
 
 impl Default for Site {
@@ -63,6 +67,7 @@ impl Default for Site {
             normal: Vector3::zeros(),
             s: 1.0,
             point: Vector3::zeros(),
+            inside: false,
         }
     }
 }
@@ -89,6 +94,12 @@ pub(crate) struct ContactWork {
     pub force_vectors: Vec<Vector3<f64>>,
     /// Scratch for one node's `D_k` (n blocks).
     pub position_jacobian: Vec<Matrix3<f64>>,
+    /// The held contacts' curvature terms (see [`curvature`]): the columns
+    /// `U` (`D_k^T e_a` of each node and axis, `n` vectors each) and the
+    /// block-diagonal `M` (one block a contact), so that the Jacobian of the
+    /// equations is `A + U M U^T`.
+    pub curvature_columns: Vec<Vec<Vector3<f64>>>,
+    pub curvature_blocks: Vec<nalgebra::DMatrix<f64>>,
 }
 
 impl ContactWork {
@@ -189,8 +200,14 @@ const NODE_SHARE: f64 = 1e-9;
 /// plane (the plane at the slot's nearest point, which separates it from a
 /// convex obstacle): a move that ends beyond it passed through the obstacle
 /// or into it, however thin the obstacle is, and a step must hold those
-/// slots. Slots already candidates are left out.
-pub(crate) fn crossing(model: &RodModel, w: &Workspace, moved: &[Vector3<f64>]) -> Vec<usize> {
+/// slots. With `skip_candidates` the step's candidates are left out (its
+/// QP keeps their linearised gaps >= 0).
+pub(crate) fn crossing(
+    model: &RodModel,
+    w: &Workspace,
+    moved: &[Vector3<f64>],
+    skip_candidates: bool,
+) -> Vec<usize> {
     let c = &w.kkt.contact;
     let before = &w.kkt.positions;
     let mut k = 0;
@@ -199,12 +216,15 @@ pub(crate) fn crossing(model: &RodModel, w: &Workspace, moved: &[Vector3<f64>]) 
         let candidate = k < c.active.len() && c.active[k] == i;
         if candidate {
             k += 1;
+            if skip_candidates {
+                continue;
+            }
+        }
+        let place = slot(model, i).1;
+        if !site.gap.is_finite() || (matches!(place, Place::Element(_)) && !site.inside) {
             continue;
         }
-        if !site.gap.is_finite() {
-            continue;
-        }
-        let shift = match slot(model, i).1 {
+        let shift = match place {
             Place::Node(j) => moved[j] - before[j],
             Place::Element(j) => {
                 (1.0 - site.s) * (moved[j - 1] - before[j - 1]) + site.s * (moved[j] - before[j])
@@ -243,6 +263,7 @@ pub(crate) fn locate(model: &RodModel, r: &[Vector3<f64>], sites: &mut [Site]) {
                 normal: here.normal,
                 s: 1.0,
                 point: r[k],
+                inside: false,
             };
             // Far from the obstacle no point of the chord can touch: the
             // gap changes by at most the distance moved along it.
@@ -257,8 +278,24 @@ pub(crate) fn locate(model: &RodModel, r: &[Vector3<f64>], sites: &mut [Site]) {
                     normal: p.normal,
                     s,
                     point: r[k - 1] + s * (r[k] - r[k - 1]),
+                    inside: true,
                 },
-                None => Site::default(),
+                // The nearer node: what the chord's nearest point becomes
+                // as it leaves the element (continuous while it is held).
+                None => {
+                    let (s, p) = if before.gap <= here.gap {
+                        (0.0, &before)
+                    } else {
+                        (1.0, &here)
+                    };
+                    Site {
+                        gap: p.gap - radius,
+                        normal: p.normal,
+                        s,
+                        point: r[k - 1] + s * (r[k] - r[k - 1]),
+                        inside: false,
+                    }
+                }
             };
             before = here;
         }
@@ -309,25 +346,51 @@ pub(crate) fn gather_gaps(w: &mut Workspace) {
 /// goes farther finds the slots it pushed in at the next step). A slot that
 /// is no candidate has its force zeroed.
 pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64) {
+    let n = model.n();
     let first = offset(model, w);
     let c = &mut w.kkt.contact;
-    let (mut k, mut next) = (0, 0);
     let (old_active, old_held) = (std::mem::take(&mut c.active), std::mem::take(&mut c.held));
-    for i in 0..c.sites.len() {
-        let was_held = k < old_active.len() && old_active[k] == i && old_held[k];
-        if k < old_active.len() && old_active[k] == i {
-            k += 1;
+    let mut held_before: Vec<usize> = old_active
+        .iter()
+        .zip(&old_held)
+        .filter_map(|(i, h)| h.then_some(*i))
+        .collect();
+    // A held element whose chord's nearest point reached a node hands its
+    // force to that node's slot (the base's goes into the clamp).
+    for i in held_before.clone() {
+        let (o, place) = slot(model, i);
+        let site = c.sites[i];
+        if let Place::Element(k) = place {
+            if !site.inside {
+                let lambda = w.kkt.reactions[first + i].x;
+                w.kkt.reactions[first + i] = Vector3::zeros();
+                held_before.retain(|&j| j != i);
+                let node = if site.s < 0.5 { k - 1 } else { k };
+                if node > 0 {
+                    let j = 2 * n * o + node - 1;
+                    w.kkt.reactions[first + j].x += lambda;
+                    if !held_before.contains(&j) {
+                        held_before.push(j);
+                    }
+                }
+            }
         }
+    }
+    held_before.sort_unstable();
+    for i in 0..c.sites.len() {
+        let was_held = held_before.binary_search(&i).is_ok();
         let site = &c.sites[i];
-        if site.gap.is_finite() && (was_held || site.gap < margin) {
+        let eligible = match slot(model, i).1 {
+            Place::Node(_) => site.gap.is_finite(),
+            Place::Element(_) => site.inside,
+        };
+        if eligible && (was_held || site.gap < margin) {
             c.active.push(i);
             c.held.push(was_held);
-            next += 1;
         } else {
             w.kkt.reactions[first + i] = Vector3::zeros();
         }
     }
-    debug_assert_eq!(next, c.active.len());
 }
 
 /// The held candidates, to see whether a step changed them.
@@ -368,6 +431,155 @@ pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
         }
     }
     w.kkt.contact.active = active;
+}
+
+/// The direction of each node's share of a unit contact force of slot `i`
+/// with its nodes at `ra` (node `k - 1`, an element's) and `rb`: `[nu]` for
+/// a node, `[(1 - s) nu, s nu]` at the chord's nearest point for an
+/// element. `None` where the element's nearest point is a node.
+fn unit_shares(
+    obstacle: &Obstacle,
+    place: Place,
+    ra: &Vector3<f64>,
+    rb: &Vector3<f64>,
+) -> Option<[Vector3<f64>; 2]> {
+    match place {
+        Place::Node(_) => Some([obstacle.proximity(rb).normal, Vector3::zeros()]),
+        Place::Element(_) => {
+            let (pa, pb) = (obstacle.proximity(ra), obstacle.proximity(rb));
+            let (s, p) = nearest_inside(obstacle, ra, rb, &pa, &pb)?;
+            Some([(1.0 - s) * p.normal, s * p.normal])
+        }
+    }
+}
+
+/// Relative step of the differences of a contact's force directions: a
+/// millionth of the element.
+const CURVATURE_STEP: f64 = 1e-6;
+
+/// The curvature terms of the contacts at the last evaluation: a
+/// contact force `lambda nu` turns with the obstacle's normal where the rod
+/// moves along a curved surface (and, inside an element, slides along the
+/// chord), which the Jacobian of point forces of fixed direction leaves out.
+/// Each candidate with a force adds `D^T M D` to the Jacobian, `D` the
+/// positions of its nodes (3 or 6 rows) and `M = -lambda dF/dr` the change
+/// of its nodes' shares of the force with their positions, by central
+/// differences (`CURVATURE_STEP` of the element), made symmetric (it is the
+/// Hessian of `-lambda` times the gap at the nearest point). Zero for a
+/// plane, and left out there. Fills the columns `U = D^T` and blocks `M`.
+pub(crate) fn curvature(model: &RodModel, w: &mut Workspace) {
+    let n = model.n();
+    let first = offset(model, w);
+    let clamped = model.clamped_tip().is_some();
+    let c = &mut w.kkt.contact;
+    let mut used = 0;
+    c.curvature_blocks.clear();
+    // Every candidate with a force, held or on its way out (its force
+    // still acts on the rod).
+    for &i in &c.active {
+        let lambda = w.kkt.reactions[first + i].x;
+        if lambda <= 0.0 {
+            continue;
+        }
+        let (o, place) = slot(model, i);
+        let obstacle = &model.obstacles()[o];
+        // A lumen's gap (to a polyline) is not smooth where its nearest
+        // segment changes, and its normal turns only around its axis: left out.
+        if matches!(obstacle, Obstacle::Lumen { .. }) {
+            continue;
+        }
+        let (a, b) = match place {
+            Place::Node(k) => (k, k),
+            Place::Element(k) => (k - 1, k),
+        };
+        let r = &w.kkt.positions;
+        let step = CURVATURE_STEP * model.h(b.max(1));
+        // The nodes that move: a clamped base (node 0) and a clamped tip
+        // do not.
+        let moving: Vec<usize> = match place {
+            Place::Node(_) => vec![b],
+            Place::Element(_) => vec![a, b],
+        }
+        .into_iter()
+        .filter(|&k| k > 0 && !(clamped && k == n))
+        .collect();
+        if moving.is_empty() {
+            continue;
+        }
+        let shares = match place {
+            Place::Node(_) => 1,
+            Place::Element(_) => 2,
+        };
+        // dF/dr: rows the nodes' shares (3 each), columns the moving nodes' coordinates.
+        let mut jac = nalgebra::DMatrix::zeros(3 * shares, 3 * moving.len());
+        let mut ok = true;
+        for (m, &k) in moving.iter().enumerate() {
+            for axis in 0..3 {
+                let shifted = |sign: f64| {
+                    let (mut ra, mut rb) = (r[a], r[b]);
+                    if k == a && shares == 2 {
+                        ra[axis] += sign * step;
+                    } else {
+                        rb[axis] += sign * step;
+                    }
+                    unit_shares(obstacle, place, &ra, &rb)
+                };
+                let (Some(plus), Some(minus)) = (shifted(1.0), shifted(-1.0)) else {
+                    ok = false;
+                    break;
+                };
+                for share in 0..shares {
+                    let d = (plus[share] - minus[share]) / (2.0 * step);
+                    jac.view_mut((3 * share, 3 * m + axis), (3, 1))
+                        .copy_from(&d);
+                }
+            }
+        }
+        if !ok {
+            continue;
+        }
+        // The shares act on the nodes in `moving` (a base node's share goes
+        // into the clamp): keep the rows of the moving nodes.
+        let rows: Vec<usize> = match place {
+            Place::Node(_) => vec![0],
+            Place::Element(_) => [(a, 0), (b, 1)]
+                .into_iter()
+                .filter(|(k, _)| moving.contains(k))
+                .map(|(_, share)| share)
+                .collect(),
+        };
+        let mut block = nalgebra::DMatrix::zeros(3 * moving.len(), 3 * moving.len());
+        for (row, &share) in rows.iter().enumerate() {
+            let part = jac.view((3 * share, 0), (3, 3 * moving.len()));
+            block
+                .view_mut((3 * row, 0), (3, 3 * moving.len()))
+                .copy_from(&part);
+        }
+        let block = -lambda * 0.5 * (&block + block.transpose());
+        if block.amax() == 0.0 {
+            continue;
+        }
+        for &k in &moving {
+            model.position_jacobian(&w.q, k, &w.interior, &mut c.position_jacobian);
+            for axis in 0..3 {
+                if c.curvature_columns.len() <= used {
+                    c.curvature_columns.push(vec![Vector3::zeros(); n]);
+                }
+                for (x, d) in c.curvature_columns[used]
+                    .iter_mut()
+                    .zip(&c.position_jacobian)
+                {
+                    *x = d.row(axis).transpose();
+                }
+                if clamped {
+                    c.curvature_columns[used][n - 1] = Vector3::zeros();
+                }
+                used += 1;
+            }
+        }
+        c.curvature_blocks.push(block);
+    }
+    c.curvature_columns.truncate(used);
 }
 
 /// A contact of a solution: where the rod touches an obstacle and how hard.

@@ -90,6 +90,9 @@ pub(crate) fn load_path(
 fn start_from_rest(model: &RodModel, w: &mut Workspace) {
     w.saved.copy_from_slice(&model.rest_shape());
     zero(&mut w.kkt.reactions_saved);
+    // No contact is held at the rest shape (an attempt before may have left some).
+    w.kkt.contact.active.clear();
+    w.kkt.contact.held.clear();
 }
 
 fn zero(v: &mut [Vector3<f64>]) {
@@ -183,7 +186,7 @@ fn continuation(
             if predicted && model.has_obstacles() {
                 let mut moved = vec![Vector3::zeros(); n + 1];
                 model.positions(&w.q, &mut w.interior, &mut moved);
-                if !super::contact::crossing(model, w, &moved).is_empty() {
+                if !super::contact::crossing(model, w, &moved, false).is_empty() {
                     w.q.copy_from_slice(&w.saved);
                     w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
                 }

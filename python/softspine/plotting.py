@@ -76,12 +76,136 @@ def plot_backbone(
     shown = _shown(ax)
     r = np.asarray(solution.positions)
     line.setdefault("lw", 2.5)
-    (drawn,) = ax.plot(r[:, 0], r[:, 1], r[:, 2], "-", label=label, **line)
+    if "ls" not in line and "linestyle" not in line:
+        line["ls"] = "-"
+    (drawn,) = ax.plot(r[:, 0], r[:, 1], r[:, 2], label=label, **line)
     colour = drawn.get_color()
     if nodes:
         ax.plot(r[:, 0], r[:, 1], r[:, 2], "o", ms=2.5, color=colour)
     ax.plot(*r[-1], "*", ms=12, color=colour)
     _equal_scales(ax, r, shown)
+    return ax
+
+
+def plot_obstacles(
+    obstacles: Sequence[dict[str, Any]],
+    ax: Axes3D | None = None,
+    *,
+    extent: float = 0.2,
+    **surface: Any,
+) -> Axes3D:
+    """Draw obstacles (as a scene or robot lists them: dicts with a
+    ``shape``) as translucent surfaces on 3D axes.
+
+    A half-space is drawn as a square of side ``2 * extent`` (m) of its
+    plane about its point; a sphere, capsule, cylinder and box as their
+    surfaces; a lumen as the tube about its centreline. ``**surface`` goes
+    to ``ax.plot_surface`` (``color``, ``alpha``).
+    """
+    require_matplotlib()
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        ax = plt.figure(figsize=(6.4, 6.4)).add_subplot(projection="3d")
+    surface.setdefault("color", "0.6")
+    surface.setdefault("alpha", 0.3)
+    surface.setdefault("linewidth", 0)
+    u, v = np.meshgrid(np.linspace(0.0, 2.0 * np.pi, 25), np.linspace(0.0, np.pi, 13))
+    for obstacle in obstacles:
+        for x, y, z in _obstacle_surfaces(obstacle, u, v, extent):
+            ax.plot_surface(x, y, z, **surface)
+    return ax
+
+
+def _frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors across the unit ``axis``."""
+    other = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(axis, other)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(axis, e1)
+
+
+def _tube(a: np.ndarray, b: np.ndarray, ra: float, rb: float, u: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The surface of a (conical) tube from ``a`` to ``b``."""
+    axis = (b - a) / np.linalg.norm(b - a)
+    e1, e2 = _frame(axis)
+    t = np.linspace(0.0, 1.0, 2)[:, None]
+    angles = u[0][None, :]
+    radius = ra + (rb - ra) * t
+    centre = a[None, None, :] + t[:, :, None] * (b - a)[None, None, :]
+    ring = np.cos(angles)[..., None] * e1 + np.sin(angles)[..., None] * e2
+    xyz = centre + radius[..., None] * ring
+    return xyz[..., 0], xyz[..., 1], xyz[..., 2]
+
+
+def _obstacle_surfaces(obstacle: dict[str, Any], u: np.ndarray, v: np.ndarray, extent: float
+                       ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    shape = obstacle["shape"]
+    sphere = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], axis=-1)
+    if shape == "half_space":
+        point = np.asarray(obstacle["point"], dtype=float)
+        normal = np.asarray(obstacle["normal"], dtype=float)
+        e1, e2 = _frame(normal / np.linalg.norm(normal))
+        s, t = np.meshgrid([-extent, extent], [-extent, extent])
+        xyz = point + s[..., None] * e1 + t[..., None] * e2
+        return [(xyz[..., 0], xyz[..., 1], xyz[..., 2])]
+    if shape == "sphere":
+        xyz = np.asarray(obstacle["centre"], dtype=float) + obstacle["radius"] * sphere
+        return [(xyz[..., 0], xyz[..., 1], xyz[..., 2])]
+    if shape in ("capsule", "cylinder"):
+        a = np.asarray(obstacle["a"], dtype=float)
+        b = np.asarray(obstacle["b"], dtype=float)
+        r = float(obstacle["radius"])
+        out = [_tube(a, b, r, r, u)]
+        if shape == "capsule":
+            for end in (a, b):
+                xyz = end + r * sphere
+                out.append((xyz[..., 0], xyz[..., 1], xyz[..., 2]))
+        return out
+    if shape == "box":
+        centre = np.asarray(obstacle["centre"], dtype=float)
+        half = np.asarray(obstacle["half_extents"], dtype=float)
+        q = np.asarray(obstacle.get("orientation", [1.0, 0.0, 0.0, 0.0]), dtype=float)
+        w, x, y, z = q / np.linalg.norm(q)
+        turn = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        out = []
+        for k in range(3):
+            for sign in (-1.0, 1.0):
+                i, j = [m for m in range(3) if m != k]
+                s, t = np.meshgrid([-half[i], half[i]], [-half[j], half[j]])
+                local = np.zeros(s.shape + (3,))
+                local[..., k] = sign * half[k]
+                local[..., i] = s
+                local[..., j] = t
+                xyz = centre + local @ turn.T
+                out.append((xyz[..., 0], xyz[..., 1], xyz[..., 2]))
+        return out
+    if shape == "lumen":
+        line = np.asarray(obstacle["centreline"], dtype=float)
+        radius = np.broadcast_to(np.asarray(obstacle["radius"], dtype=float), len(line))
+        return [_tube(line[k], line[k + 1], radius[k], radius[k + 1], u)
+                for k in range(len(line) - 1)]
+    raise ValueError(f"obstacles: unknown shape {shape!r}")
+
+
+def plot_contacts(solution: Solution, ax: Axes3D, *, scale: float | None = None,
+                  **arrows: Any) -> Axes3D:
+    """Draw a solution's contact forces as arrows at the points touched,
+    along the obstacles' normals; ``scale`` (m per N) defaults to drawing
+    the largest a tenth of the rod's length."""
+    contacts = solution.contacts
+    force = np.asarray(contacts["force"])
+    if len(force) == 0:
+        return ax
+    if scale is None:
+        scale = 0.1 * solution.length / max(float(force.max()), 1e-300)
+    points = np.asarray(contacts["point"])
+    vectors = np.asarray(contacts["normal"]) * (scale * force)[:, None]
+    arrows.setdefault("color", "tab:red")
+    ax.quiver(*points.T, *vectors.T, **arrows)
     return ax
 
 

@@ -38,10 +38,14 @@ pub enum Obstacle {
         orientation: Quat,
     },
     /// A channel the rod runs inside (a vessel, a guide tube): the points
-    /// within `radius` of the polyline `centreline`, the radius one for all
-    /// or one a vertex (linear along each segment). Free space is inside; the
-    /// gap is `radius(s) - |p - c(s)|` at the closest point `c(s)` of the
-    /// centreline (a true distance where the radius is constant).
+    /// within `radius` of its centreline, the smooth curve through the
+    /// points `centreline` (a Catmull-Rom spline: each piece a cubic between
+    /// two points, tangent to the chord of its neighbours, so the wall has
+    /// no crease at the points), the radius one for all or one a point
+    /// (linear along each piece). Free space is inside; the gap is
+    /// `radius(t) - |p - c(t)|` at the nearest point `c(t)` of the
+    /// centreline (a true distance where the radius is constant); its ends
+    /// are closed by half-spheres.
     Lumen {
         centreline: Vec<Vector3<f64>>,
         radius: Vec<f64>,
@@ -199,12 +203,48 @@ fn box_gap(local: &Vector3<f64>, half: &Vector3<f64>) -> (f64, Vector3<f64>) {
     (excess[k], normal)
 }
 
+/// The Catmull-Rom centreline through `points` at the global parameter
+/// `t` in `[0, pieces]` (piece `i` from point `i` to `i + 1`): its point and
+/// first and second derivatives in `t`. End tangents one-sided.
+fn spline(points: &[Vector3<f64>], t: f64) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+    let pieces = points.len() - 1;
+    let i = (t.floor() as usize).min(pieces - 1);
+    let u = t - i as f64;
+    let tangent = |k: usize| -> Vector3<f64> {
+        match k {
+            0 => points[1] - points[0],
+            k if k == pieces => points[pieces] - points[pieces - 1],
+            k => 0.5 * (points[k + 1] - points[k - 1]),
+        }
+    };
+    let (p0, p1, m0, m1) = (points[i], points[i + 1], tangent(i), tangent(i + 1));
+    let (u2, u3) = (u * u, u * u * u);
+    let point = (2.0 * u3 - 3.0 * u2 + 1.0) * p0
+        + (u3 - 2.0 * u2 + u) * m0
+        + (-2.0 * u3 + 3.0 * u2) * p1
+        + (u3 - u2) * m1;
+    let first = (6.0 * u2 - 6.0 * u) * p0
+        + (3.0 * u2 - 4.0 * u + 1.0) * m0
+        + (-6.0 * u2 + 6.0 * u) * p1
+        + (3.0 * u2 - 2.0 * u) * m1;
+    let second = (12.0 * u - 6.0) * p0
+        + (6.0 * u - 4.0) * m0
+        + (-12.0 * u + 6.0) * p1
+        + (6.0 * u - 2.0) * m1;
+    (point, first, second)
+}
+
+/// Newton steps for a lumen's nearest centreline point.
+const NEAREST_STEPS: usize = 30;
+
 /// A lumen's gap at the nearest point of its centreline (see
-/// [`Obstacle::Lumen`]). Its gradient is `-u + r' t / l` on a segment's
-/// inside (`u` from the centreline to `p`, `t` the segment's direction, `l`
-/// its length, `r'` the radius's change along it), `-u` at a vertex.
+/// [`Obstacle::Lumen`]): from the nearest point of the polyline through its
+/// points, Newton on `(c(t) - p) . c'(t) = 0` (clamped to the ends). The
+/// gradient of the gap is `-u + r'(t) grad t`, `u` the unit vector from
+/// `c(t)` to `p` and `grad t = c' / (|c'|^2 - (p - c) . c'')`.
 fn lumen(p: &Vector3<f64>, centreline: &[Vector3<f64>], radius: &[f64]) -> Proximity {
     let radius_at = |i: usize| radius[if radius.len() == 1 { 0 } else { i }];
+    let pieces = centreline.len() - 1;
     let mut best: Option<(f64, usize, f64)> = None;
     for (i, w) in centreline.windows(2).enumerate() {
         let s = segment_parameter(p, &w[0], &w[1]);
@@ -214,21 +254,43 @@ fn lumen(p: &Vector3<f64>, centreline: &[Vector3<f64>], radius: &[f64]) -> Proxi
         }
     }
     let (_, i, s) = best.expect("a lumen has a segment (checked when read)");
-    let (a, b) = (centreline[i], centreline[i + 1]);
-    let axis = b - a;
-    let t = unit_or(axis, Vector3::z());
-    let u = unit_or(p - (a + s * axis), perpendicular(&t));
-    let (ra, rb) = (radius_at(i), radius_at(i + 1));
-    let r = ra + s * (rb - ra);
-    let gap = r - (p - (a + s * axis)).norm();
-    let slope = if s > 0.0 && s < 1.0 {
-        (rb - ra) / axis.norm()
+    let mut t = i as f64 + s;
+    for _ in 0..NEAREST_STEPS {
+        let (c, d1, d2) = spline(centreline, t);
+        let f = (c - p).dot(&d1);
+        let slope = d1.norm_squared() + (c - p).dot(&d2);
+        let step = if slope > 0.0 {
+            -f / slope
+        } else {
+            -f.signum() * 0.25
+        };
+        let next = (t + step.clamp(-0.5, 0.5)).clamp(0.0, pieces as f64);
+        let done = (next - t).abs() <= 1e-15 * (1.0 + t.abs());
+        t = next;
+        if done {
+            break;
+        }
+    }
+    let (c, d1, d2) = spline(centreline, t);
+    let k = (t.floor() as usize).min(pieces - 1);
+    let u = t - k as f64;
+    let (ra, rb) = (radius_at(k), radius_at(k + 1));
+    let r = ra + u * (rb - ra);
+    let offset = p - c;
+    let distance = offset.norm();
+    let axis = unit_or(d1, Vector3::z());
+    let away = unit_or(offset, perpendicular(&axis));
+    // The radius's change moves the gap along the centreline only inside.
+    let inside = t > 0.0 && t < pieces as f64;
+    let slope = d1.norm_squared() - offset.dot(&d2);
+    let radius_gradient = if inside && slope > 0.0 {
+        (rb - ra) * d1 / slope
     } else {
-        0.0
+        Vector3::zeros()
     };
     Proximity {
-        gap,
-        normal: unit_or(slope * t - u, -u),
+        gap: r - distance,
+        normal: unit_or(radius_gradient - away, -away),
     }
 }
 
@@ -489,6 +551,35 @@ mod tests {
             }
             assert!(checked > 300, "{}: {checked} smooth points", shape.shape());
         }
+    }
+
+    #[test]
+    fn a_lumens_wall_has_no_crease_at_its_points() {
+        // A right-angled bend through three points: inside the bend, where
+        // the distance to the polyline has a crease on the bisector, the
+        // spline's normal turns smoothly (and the gap stays a distance).
+        let lumen = Obstacle::Lumen {
+            centreline: vec![
+                Vector3::zeros(),
+                Vector3::new(1.0, 0.0, 0.0),
+                Vector3::new(1.0, 1.0, 0.0),
+            ],
+            radius: vec![0.1],
+        };
+        let on_bisector = Vector3::new(0.95, 0.05, 0.0);
+        let h = 1e-6;
+        let across = Vector3::new(1.0, -1.0, 0.0).normalize() * h;
+        let (a, b) = (
+            lumen.proximity(&(on_bisector + across)),
+            lumen.proximity(&(on_bisector - across)),
+        );
+        assert!((a.normal - b.normal).norm() < 1e-4, "{a:?} {b:?}");
+        assert!(
+            (a.gap - b.gap).abs() < 2.0 * h * (1.0 + 1e-6),
+            "{} {}",
+            a.gap,
+            b.gap
+        );
     }
 
     #[test]

@@ -682,6 +682,93 @@ fn contact_margin(model: &RodModel) -> f64 {
     0.1 * longest
 }
 
+/// The inverse of `A + U M U^T` from `A`'s factorisation (the contacts'
+/// curvature, see `contact::curvature`), and the inertia it adds. Each block
+/// of `M` is reduced to its range, `M = V L V^T`, so that `U' = U V` and
+/// `H = A + U' L U'^T` with `L` invertible; then (Haynsworth, twice) the
+/// negative eigenvalues of `H` are those of `A`, plus those of `-L^{-1} -
+/// U'^T A^{-1} U'`, less the positive ones of `L`.
+struct CurvatureInverse {
+    /// `U'` and `A^{-1} U'` (one column a kept direction).
+    columns: Vec<Vec<Vector3<f64>>>,
+    y: Vec<Vec<Vector3<f64>>>,
+    /// `(L^{-1} + U'^T A^{-1} U')^{-1}`.
+    inverse: DMatrix<f64>,
+    negative_schur: usize,
+    positive_blocks: usize,
+}
+
+impl CurvatureInverse {
+    fn new(lu: &BlockLu, w: &Workspace) -> Option<CurvatureInverse> {
+        let contact = &w.kkt.contact;
+        if contact.curvature_blocks.is_empty() {
+            return None;
+        }
+        let n = w.g.len();
+        let (mut columns, mut values) = (Vec::new(), Vec::new());
+        let mut at = 0;
+        for block in &contact.curvature_blocks {
+            let size = block.nrows();
+            let eig = SymmetricEigen::new(block.clone());
+            let largest = eig.eigenvalues.amax();
+            for (k, value) in eig.eigenvalues.iter().enumerate() {
+                if value.abs() <= 1e-12 * largest {
+                    continue;
+                }
+                let mut column = vec![Vector3::zeros(); n];
+                for a in 0..size {
+                    let weight = eig.eigenvectors[(a, k)];
+                    for (x, u) in column.iter_mut().zip(&contact.curvature_columns[at + a]) {
+                        *x += weight * u;
+                    }
+                }
+                columns.push(column);
+                values.push(*value);
+            }
+            at += size;
+        }
+        let y: Vec<Vec<Vector3<f64>>> = columns
+            .iter()
+            .map(|c| {
+                let mut solved = c.clone();
+                lu.solve_in_place(&mut solved);
+                solved
+            })
+            .collect();
+        let k = values.len();
+        let kernel = DMatrix::from_fn(k, k, |a, b| {
+            let diagonal = if a == b { 1.0 / values[a] } else { 0.0 };
+            diagonal + dot(&columns[a], &y[b])
+        });
+        let kernel = 0.5 * (&kernel + kernel.transpose());
+        let negative_schur = SymmetricEigen::new(-kernel.clone())
+            .eigenvalues
+            .iter()
+            .filter(|v| **v < 0.0)
+            .count();
+        let positive_blocks = values.iter().filter(|v| **v > 0.0).count();
+        Some(CurvatureInverse {
+            columns,
+            y,
+            inverse: kernel.try_inverse()?,
+            negative_schur,
+            positive_blocks,
+        })
+    }
+
+    /// `v = A^{-1} d` becomes `(A + U M U^T)^{-1} d`.
+    fn correct(&self, v: &mut [Vector3<f64>]) {
+        let k = self.y.len();
+        let r = DVector::from_fn(k, |a, _| dot(&self.columns[a], v));
+        let t = &self.inverse * r;
+        for (column, coefficient) in self.y.iter().zip(t.iter()) {
+            for (x, c) in v.iter_mut().zip(column) {
+                *x -= *coefficient * c;
+            }
+        }
+    }
+}
+
 /// Stability of a constrained equilibrium: the reduced Hessian `Z^T A Z` on the
 /// null space of `D` is positive definite iff the KKT matrix has exactly 3m
 /// negative eigenvalues; by Haynsworth's inertia formula that number is
@@ -692,6 +779,14 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     // takes that of the symmetric part; `w.scratch` holds the columns.
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let negative = lu.factor_symmetric_part(&w.jac);
+    // The contacts' curvature: the Hessian is `A + U M U^T`.
+    let curvature = negative.and_then(|_| CurvatureInverse::new(&lu, w));
+    let negative = match (&curvature, negative) {
+        (_, None) => None,
+        (None, Some(k)) if w.kkt.contact.curvature_blocks.is_empty() => Some(k),
+        (None, Some(_)) => None,
+        (Some(c), Some(k)) => (k + c.negative_schur).checked_sub(c.positive_blocks),
+    };
     if negative == Some(0) && model.has_obstacles() {
         // A positive definite Hessian is so on every subspace: however
         // many contacts hold (their Schur complement, stiff for a long
@@ -719,6 +814,9 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
         for (c2, &r2) in kept.iter().enumerate() {
             col.copy_from_slice(&w.kkt.rows[r2]);
             lu.solve_in_place(col);
+            if let Some(c) = &curvature {
+                c.correct(col);
+            }
             for (c, &r) in kept.iter().enumerate() {
                 s[(c, c2)] = dot(&w.kkt.rows[r], col);
             }

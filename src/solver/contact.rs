@@ -483,11 +483,6 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace) {
         }
         let (o, place) = slot(model, i);
         let obstacle = &model.obstacles()[o];
-        // A lumen's gap (to a polyline) is not smooth where its nearest
-        // segment changes, and its normal turns only around its axis: left out.
-        if matches!(obstacle, Obstacle::Lumen { .. }) {
-            continue;
-        }
         let (a, b) = match place {
             Place::Node(k) => (k, k),
             Place::Element(k) => (k - 1, k),

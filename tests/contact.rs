@@ -129,18 +129,29 @@ fn the_tip_sensitivity_in_contact_holds_the_contacts_on_their_obstacles() {
     for column in sensitivity.position.column_iter() {
         assert!(column.x.abs() < 1e-9 * column.norm().max(1.0), "{column:?}");
     }
-    // Central differences of the forward solve in each section's curvature.
+    assert_matches_differences(&scene, &sol, &sensitivity.position, 40);
+}
+
+/// Each column of `position` (the tip's sensitivity to each section's rest
+/// curvature) against central differences of the forward solve, from the
+/// equilibrium `sol` of `scene` at `n` elements, its one contact held.
+fn assert_matches_differences(
+    scene: &Scene,
+    sol: &softspine::Solution,
+    position: &nalgebra::Matrix3xX<f64>,
+    n: usize,
+) {
     let step = 1e-6;
-    for column in 0..4 {
+    for column in 0..position.ncols() {
         let tip = |delta: f64| {
             let mut moved = scene.clone();
             moved.rest_curvature[column / 2][column % 2] += delta;
-            let sol = solve(&moved, settings(40), Some(&sol.quaternions)).unwrap();
+            let sol = solve(&moved, settings(n), Some(&sol.quaternions)).unwrap();
             assert!(sol.converged() && sol.contacts.len() == 1);
             sol.tip_position()
         };
         let difference = (tip(step) - tip(-step)) / (2.0 * step);
-        let exact = sensitivity.position.column(column);
+        let exact = position.column(column);
         assert!(
             (difference - exact).norm() < 1e-6 * exact.norm().max(1e-3),
             "column {column}: {difference:?} against {exact:?}"
@@ -167,20 +178,5 @@ fn the_jacobian_turns_a_contact_force_with_a_curved_obstacle() {
     let s = sol.contacts[0].arc_length * 20.0;
     assert!((s - s.round()).abs() > 1e-3, "inside an element: {s}");
     let sensitivity = solver.tip_sensitivity(2).unwrap();
-    let step = 1e-6;
-    for column in 0..4 {
-        let tip = |delta: f64| {
-            let mut moved = scene.clone();
-            moved.rest_curvature[column / 2][column % 2] += delta;
-            let sol = solve(&moved, settings(20), Some(&sol.quaternions)).unwrap();
-            assert!(sol.converged() && sol.contacts.len() == 1);
-            sol.tip_position()
-        };
-        let difference = (tip(step) - tip(-step)) / (2.0 * step);
-        let exact = sensitivity.position.column(column);
-        assert!(
-            (difference - exact).norm() < 1e-6 * exact.norm().max(1e-3),
-            "column {column}: {difference:?} against {exact:?}"
-        );
-    }
+    assert_matches_differences(&scene, &sol, &sensitivity.position, 20);
 }

@@ -270,8 +270,14 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     }
     // The contacts' curvature: the Jacobian is `A + U M U^T`, whose inverse
     // the Woodbury identity applies from `A`'s.
-    if !w.kkt.contact.curvature_blocks.is_empty() && !curvature_correction(lu, w, rows) {
-        return false;
+    if !w.kkt.contact.curvature_blocks.is_empty() {
+        let Some(curvature) = CurvatureInverse::new(lu, w) else {
+            return false;
+        };
+        curvature.correct(&mut w.scratch);
+        for col in &mut w.kkt.columns[..rows] {
+            curvature.correct(col);
+        }
     }
     if w.kkt.schur.nrows() != rows {
         w.kkt.schur = DMatrix::zeros(rows, rows);
@@ -325,54 +331,6 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
         *s = v;
     }
     true
-}
-
-/// Replace `A^{-1} g` (in `w.scratch`) and `A^{-1} D^T e_r` (the first
-/// `rows` columns) by the same with `A + U M U^T` (the contacts' curvature,
-/// see `contact::curvature`): `(A + U M U^T)^{-1} = A^{-1} - Y M (I + U^T Y
-/// M)^{-1} U^T A^{-1}` with `Y = A^{-1} U`, a few banded solves a contact.
-fn curvature_correction(lu: &BlockLu, w: &mut Workspace, rows: usize) -> bool {
-    let contact = &w.kkt.contact;
-    let u = &contact.curvature_columns;
-    let k = u.len();
-    let mut m = DMatrix::zeros(k, k);
-    let mut at = 0;
-    for block in &contact.curvature_blocks {
-        let size = block.nrows();
-        m.view_mut((at, at), (size, size)).copy_from(block);
-        at += size;
-    }
-    if at != k {
-        return false;
-    }
-    let y: Vec<Vec<Vector3<f64>>> = u
-        .iter()
-        .map(|column| {
-            let mut solved = column.clone();
-            lu.solve_in_place(&mut solved);
-            solved
-        })
-        .collect();
-    let t = DMatrix::from_fn(k, k, |a, b| dot(&u[a], &y[b]));
-    let Some(inverse) = (DMatrix::identity(k, k) + &t * &m).lu().try_inverse() else {
-        return false;
-    };
-    // v <- v - Y M K^{-1} U^T v
-    let correction = &m * inverse;
-    let correct = |v: &mut [Vector3<f64>]| {
-        let r = DVector::from_fn(k, |a, _| dot(&u[a], v));
-        let t = &correction * r;
-        for (column, coefficient) in y.iter().zip(t.iter()) {
-            for (x, c) in v.iter_mut().zip(column) {
-                *x -= *coefficient * c;
-            }
-        }
-    };
-    correct(&mut w.scratch);
-    for col in &mut w.kkt.columns[..rows] {
-        correct(col);
-    }
-    w.scratch.iter().all(|x| x.iter().all(|v| v.is_finite()))
 }
 
 /// The multipliers' step from the last KKT solve into `reaction_step`:

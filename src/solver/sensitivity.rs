@@ -20,6 +20,17 @@ pub struct TipSensitivity {
     pub rotation: nalgebra::Matrix3xX<f64>,
 }
 
+impl TipSensitivity {
+    /// `columns` columns of zeros.
+    fn zeros(columns: usize) -> TipSensitivity {
+        TipSensitivity {
+            position: nalgebra::Matrix3xX::zeros(columns),
+            tangent: nalgebra::Matrix3xX::zeros(columns),
+            rotation: nalgebra::Matrix3xX::zeros(columns),
+        }
+    }
+}
+
 impl Solver {
     /// Sensitivity of the tip of the last (converged, free-tip) equilibrium to the
     /// rest curvature of each of `sections` equal sections: columns `2s` and
@@ -108,24 +119,10 @@ impl Solver {
             self.jacobian_at_solution = true;
         }
         if !factored && w.lu.factor(&w.jac, 0.0).is_err() {
-            return Err(Error::NotConverged {
-                status: Status::NotConverged,
-                iterations: 0,
-                residual: model.residual_norm(&w.g),
-                reason: "singular Jacobian: the equilibrium is at a bifurcation".into(),
-            });
+            return Err(singular_jacobian(model, w));
         }
-        let mut d_tip = vec![nalgebra::Matrix3::zeros(); n];
-        model.position_jacobian(&w.q, n, &w.interior, &mut d_tip);
-        let tip = w.q[n];
-        // d T_n / d theta_n = -R [e3]x
-        let d_tangent = -(tip.rotation() * crate::quat::skew(&Vector3::z()));
-        let mut out = TipSensitivity {
-            position: nalgebra::Matrix3xX::zeros(columns),
-            tangent: nalgebra::Matrix3xX::zeros(columns),
-            rotation: nalgebra::Matrix3xX::zeros(columns),
-        };
-        let turn = tip.rotation();
+        let frame = TipFrame::new(model, w);
+        let mut out = TipSensitivity::zeros(columns);
         let mut shift = Vec::new();
         let mut moved = vec![Vector3::zeros(); n + 1];
         for (column, t) in tangents.iter().enumerate() {
@@ -133,16 +130,12 @@ impl Solver {
             if !shift.is_empty() {
                 model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
             }
-            w.lu.solve_in_place(&mut w.step);
-            self.state_tangents.extend(w.step.iter().map(|x| -x));
             // d theta / dp = -A^{-1} dg/dp; the tip also moves with the
             // interior at fixed nodes (fe4).
-            let dr: Vector3<f64> = d_tip.iter().zip(&w.step).map(|(b, x)| -(b * x)).sum();
-            let dt = -(d_tangent * w.step[n - 1]);
-            out.position.set_column(column, &(dr + moved[n]));
-            out.tangent.set_column(column, &dt);
-            // The tip turns by R d theta_n (body to world).
-            out.rotation.set_column(column, &-(turn * w.step[n - 1]));
+            w.lu.solve_in_place(&mut w.step);
+            w.step.iter_mut().for_each(|x| *x = -*x);
+            self.state_tangents.extend_from_slice(&w.step);
+            frame.fill(&mut out, column, &w.step, moved[n]);
         }
         self.state_tangents_at.extend_from_slice(&w.q);
         Ok(out)
@@ -159,30 +152,16 @@ impl Solver {
         if !model.constraints().is_empty() || model.clamped_tip().is_some() {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
         }
-        let n = model.n();
         self.state_tangents_at.clear();
         self.state_tangents.clear();
         self.jacobian_at_solution = false;
         constrained::evaluate(model, w, 1.0, true);
         constrained::load_constraint_jacobian(model, w);
         if w.lu.factor(&w.jac, 0.0).is_err() {
-            return Err(Error::NotConverged {
-                status: Status::NotConverged,
-                iterations: 0,
-                residual: model.residual_norm(&w.g),
-                reason: "singular Jacobian: the equilibrium is at a bifurcation".into(),
-            });
+            return Err(singular_jacobian(model, w));
         }
-        let mut d_tip = vec![nalgebra::Matrix3::zeros(); n];
-        model.position_jacobian(&w.q, n, &w.interior, &mut d_tip);
-        let tip = w.q[n];
-        let d_tangent = -(tip.rotation() * crate::quat::skew(&Vector3::z()));
-        let mut out = TipSensitivity {
-            position: nalgebra::Matrix3xX::zeros(tangents.len()),
-            tangent: nalgebra::Matrix3xX::zeros(tangents.len()),
-            rotation: nalgebra::Matrix3xX::zeros(tangents.len()),
-        };
-        let turn = tip.rotation();
+        let frame = TipFrame::new(model, w);
+        let mut out = TipSensitivity::zeros(tangents.len());
         let mut shift = Vec::new();
         let gaps = w.kkt.contact.gaps.clone();
         w.kkt.contact.choose = false;
@@ -196,10 +175,7 @@ impl Solver {
                 break;
             }
             self.state_tangents.extend_from_slice(&w.step);
-            let dr: Vector3<f64> = d_tip.iter().zip(&w.step).map(|(b, x)| b * x).sum();
-            out.position.set_column(column, &dr);
-            out.tangent.set_column(column, &(d_tangent * w.step[n - 1]));
-            out.rotation.set_column(column, &(turn * w.step[n - 1]));
+            frame.fill(&mut out, column, &w.step, Vector3::zeros());
         }
         w.kkt.contact.choose = true;
         w.kkt.contact.gaps = gaps;
@@ -234,6 +210,55 @@ impl Solver {
         let mut out = q.to_vec();
         super::newton::retract_along_chain(q, &turn, 1.0, &mut out);
         Some(out)
+    }
+}
+
+/// What the tip's outputs are of a state tangent `d theta / dp`: the tip's
+/// position Jacobian, `d T_n / d theta_n = -R [e3]x` and the tip's turn `R`.
+struct TipFrame {
+    d_tip: Vec<nalgebra::Matrix3<f64>>,
+    d_tangent: nalgebra::Matrix3<f64>,
+    turn: nalgebra::Matrix3<f64>,
+}
+
+impl TipFrame {
+    fn new(model: &RodModel, w: &super::Workspace) -> TipFrame {
+        let n = model.n();
+        let mut d_tip = vec![nalgebra::Matrix3::zeros(); n];
+        model.position_jacobian(&w.q, n, &w.interior, &mut d_tip);
+        let turn = w.q[n].rotation();
+        TipFrame {
+            d_tip,
+            d_tangent: -(turn * crate::quat::skew(&Vector3::z())),
+            turn,
+        }
+    }
+
+    /// Column `column` of `out` from the state tangent `dtheta`, the tip
+    /// also moved by `moved_tip` at fixed nodes (fe4's interior).
+    fn fill(
+        &self,
+        out: &mut TipSensitivity,
+        column: usize,
+        dtheta: &[Vector3<f64>],
+        moved_tip: Vector3<f64>,
+    ) {
+        let last = dtheta[dtheta.len() - 1];
+        let dr: Vector3<f64> = self.d_tip.iter().zip(dtheta).map(|(b, x)| b * x).sum();
+        out.position.set_column(column, &(dr + moved_tip));
+        out.tangent.set_column(column, &(self.d_tangent * last));
+        // The tip turns by R d theta_n (body to world).
+        out.rotation.set_column(column, &(self.turn * last));
+    }
+}
+
+/// The error of a singular Jacobian at an equilibrium.
+fn singular_jacobian(model: &RodModel, w: &super::Workspace) -> Error {
+    Error::NotConverged {
+        status: Status::NotConverged,
+        iterations: 0,
+        residual: model.residual_norm(&w.g),
+        reason: "singular Jacobian: the equilibrium is at a bifurcation".into(),
     }
 }
 

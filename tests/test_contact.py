@@ -348,3 +348,22 @@ def test_a_rod_pushed_into_a_bent_vessel_stays_inside_it():
         q = sol.quaternions
         distance = np.linalg.norm(sol.positions[:, None, :] - centreline[None], axis=2).min(1)
         assert distance.max() <= 0.004 - 0.0005 + 1e-7, (n, distance.max())
+
+
+def test_a_robots_sensitivity_in_contact_holds_the_contact():
+    # Pressed on the wall with its tip, the robot's sensitivities to its
+    # sections' curvature keep the tip on the wall (dx = 0) and match
+    # differences of the forward solve (the contact held throughout).
+    robot = softspine.Robot({"obstacles": [WALL]})
+    bend = np.zeros((10, 2))
+    bend[:, 1] = 0.6
+    sensitivity = robot.sensitivity(bend, load=0.03)
+    assert np.abs(sensitivity.tip_position[0]).max() < 1e-12
+    for j in (1, 3, 19):
+        step = 1e-6
+        plus, minus = bend.copy(), bend.copy()
+        plus.flat[j] += step
+        minus.flat[j] -= step
+        difference = (robot.forward(plus, load=0.03).tip_position
+                      - robot.forward(minus, load=0.03).tip_position) / (2 * step)
+        np.testing.assert_allclose(sensitivity.tip_position[:, j], difference, atol=1e-8)

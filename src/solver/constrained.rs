@@ -246,10 +246,17 @@ fn row_residual(w: &Workspace, r: usize) -> f64 {
 /// Solve the KKT system at the current state (Jacobian and `D` loaded, `lu`
 /// factored): the rotation step goes to `w.step`, the reaction step to `w.kkt.rhs`.
 /// [`kkt_step`] with `w.lu` factored, for the sensitivities: `w.step` and
-/// `w.kkt.rhs` (the reactions' step) from `w.g` and `w.kkt.h`.
+/// `w.kkt.rhs` (the reactions' step) from `w.g` and `w.kkt.h`. The contacts
+/// held stay on their obstacles, which do not move (their rows' residuals
+/// zero), and the others stay free: a derivative along the active set.
 pub(crate) fn kkt_solve(w: &mut Workspace) -> bool {
     let lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
+    let gaps = std::mem::take(&mut w.kkt.contact.gaps);
+    w.kkt.contact.gaps = vec![0.0; gaps.len()];
+    w.kkt.contact.choose = false;
     let ok = kkt_step(&lu, w);
+    w.kkt.contact.choose = true;
+    w.kkt.contact.gaps = gaps;
     w.lu = lu;
     ok
 }

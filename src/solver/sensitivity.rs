@@ -163,12 +163,9 @@ impl Solver {
         let frame = TipFrame::new(model, w);
         let mut out = TipSensitivity::zeros(tangents.len());
         let mut shift = Vec::new();
-        let gaps = w.kkt.contact.gaps.clone();
-        w.kkt.contact.choose = false;
         let mut solved = true;
         for (column, t) in tangents.iter().enumerate() {
             model.residual_derivative(&w.q, &[], t, &mut w.interior, &mut w.g, &mut shift);
-            w.kkt.contact.gaps.iter_mut().for_each(|x| *x = 0.0);
             // d theta / dp: the KKT system's step for the residual dg/dp.
             if !constrained::kkt_solve(w) {
                 solved = false;
@@ -177,8 +174,6 @@ impl Solver {
             self.state_tangents.extend_from_slice(&w.step);
             frame.fill(&mut out, column, &w.step, Vector3::zeros());
         }
-        w.kkt.contact.choose = true;
-        w.kkt.contact.gaps = gaps;
         // The residual and Jacobian of the equilibrium again, for the caller.
         constrained::evaluate(model, w, 1.0, true);
         if !solved {

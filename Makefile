@@ -53,3 +53,4 @@ bench:
 	cargo bench --bench accuracy
 	cargo bench --bench robot
 	cargo bench --bench paper
+	cargo bench --bench contact

@@ -1,0 +1,91 @@
+//! Frictionless contact (issue 28): a heavy rod lying on a floor (every node
+//! in contact) and lifted off it, a cantilever pressed on a knife edge, and
+//! the seed's robot bent into a wall, beside the same robot without it.
+//!
+//! `cargo bench --bench contact`; the medians go into docs/model.md's
+//! "Contact with obstacles" and the issue's notes.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use nalgebra::Vector3;
+use softspine::contact::Obstacle;
+use softspine::{Actuation, Gravity, Load, Quat, Robot, Scene, Settings, Solver};
+use std::hint::black_box;
+
+/// A heavy rod (EI = 1, 1 N/m, 1 m) along +x, clamped at `lift` above a floor.
+fn rod_on_floor(lift: f64) -> Scene {
+    let mut s = Scene::new(1.0, 1.0, 1.0, 1.0);
+    s.gravity = Some(Gravity {
+        linear_density: 1.0,
+        vector: Vector3::new(0.0, 0.0, -1.0),
+    });
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    s.base_quaternion = Quat::new(half, 0.0, half, 0.0);
+    s.base_position = Vector3::new(0.0, 0.0, lift);
+    s.obstacles = vec![Obstacle::HalfSpace {
+        point: Vector3::zeros(),
+        normal: Vector3::z(),
+    }];
+    s
+}
+
+/// A weightless cantilever pressed by its tip force onto a thin capsule
+/// across it at 0.6 L (P L^2 / EI = 0.5: the contact inside an element).
+fn knife_edge() -> Scene {
+    let mut s = Scene::new(1.0, 1.0, 1.0, 1.0);
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    s.base_quaternion = Quat::new(half, 0.0, half, 0.0);
+    s.tip_force = Vector3::new(0.0, 0.0, -0.5);
+    s.obstacles = vec![Obstacle::Capsule {
+        a: Vector3::new(0.6, -1.0, -1e-6),
+        b: Vector3::new(0.6, 1.0, -1e-6),
+        radius: 1e-6,
+    }];
+    s
+}
+
+fn scenes(c: &mut Criterion) {
+    let mut group = c.benchmark_group("contact");
+    for (name, scene, sizes) in [
+        ("rod_on_floor", rod_on_floor(0.0), &[20, 80, 320][..]),
+        ("rod_lifted_5cm", rod_on_floor(0.05), &[20, 80, 320][..]),
+        ("knife_edge", knife_edge(), &[20, 80][..]),
+    ] {
+        for &n in sizes {
+            let settings = Settings {
+                n_elements: Some(n),
+                ..Settings::default()
+            };
+            let mut solver = Solver::new(&scene, settings).unwrap();
+            assert!(solver.solve(None).unwrap().converged());
+            group.bench_with_input(BenchmarkId::new(name, n), &n, |b, _| {
+                b.iter(|| black_box(solver.solve(None).unwrap()))
+            });
+        }
+    }
+    // The seed's robot bent toward a wall 15 cm off its axis, 30 g.
+    let bend = Actuation::muscles(vec![[0.0, 0.6]; 10]);
+    let load = Load {
+        mass: 0.03,
+        ..Load::default()
+    };
+    let mut walled = Robot::default();
+    walled.obstacles = vec![Obstacle::HalfSpace {
+        point: Vector3::new(0.15, 0.0, 0.0),
+        normal: -Vector3::x(),
+    }];
+    for (name, robot) in [("robot_free", Robot::default()), ("robot_wall", walled)] {
+        let sol = robot.forward(&bend, &load, None).unwrap();
+        assert!(sol.converged());
+        group.bench_function(name, |b| {
+            b.iter(|| black_box(robot.forward(&bend, &load, None).unwrap()))
+        });
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30).warm_up_time(std::time::Duration::from_millis(300)).measurement_time(std::time::Duration::from_secs(1));
+    targets = scenes
+}
+criterion_main!(benches);

@@ -68,11 +68,13 @@ fn scenes(c: &mut Criterion) {
         mass: 0.03,
         ..Load::default()
     };
-    let mut walled = Robot::default();
-    walled.obstacles = vec![Obstacle::HalfSpace {
-        point: Vector3::new(0.15, 0.0, 0.0),
-        normal: -Vector3::x(),
-    }];
+    let walled = Robot {
+        obstacles: vec![Obstacle::HalfSpace {
+            point: Vector3::new(0.15, 0.0, 0.0),
+            normal: -Vector3::x(),
+        }],
+        ..Robot::default()
+    };
     for (name, robot) in [("robot_free", Robot::default()), ("robot_wall", walled)] {
         let sol = robot.forward(&bend, &load, None).unwrap();
         assert!(sol.converged());

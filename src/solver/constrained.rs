@@ -52,6 +52,9 @@ pub(crate) struct KktWorkspace {
     /// point, then one an active contact; `row_count` of them in use.
     pub rows: Vec<Vec<Vector3<f64>>>,
     pub row_count: usize,
+    /// How many leading entries of each row may be nonzero: a position
+    /// depends on the rotations up to its node only.
+    pub row_len: Vec<usize>,
     /// The contact rows' sites, active set and forces (see `contact.rs`).
     pub contact: ContactWork,
 }
@@ -88,6 +91,7 @@ impl KktWorkspace {
             compliance: None,
             rows: vec![vec![Vector3::zeros(); n]; 3 * m],
             row_count: 3 * m,
+            row_len: Vec::new(),
             contact: ContactWork::new(model),
         }
     }
@@ -222,6 +226,14 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     }
     contact::load_rows(model, w, 3 * held);
     w.kkt.row_count = 3 * held + w.kkt.contact.active.len();
+    let n = model.n();
+    w.kkt.row_len.clear();
+    for c in model.constraints() {
+        w.kkt.row_len.extend([c.node.min(n); 3]);
+    }
+    for &i in &w.kkt.contact.active {
+        w.kkt.row_len.push(contact::last_node(model, i).min(n));
+    }
     if model.has_obstacles() {
         contact::curvature(model, w);
     }
@@ -292,7 +304,8 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     }
     for r in 0..rows {
         for k in 0..rows {
-            w.kkt.schur[(r, k)] = dot(&w.kkt.rows[r], &w.kkt.columns[k]);
+            let len = w.kkt.row_len[r];
+            w.kkt.schur[(r, k)] = dot(&w.kkt.rows[r][..len], &w.kkt.columns[k][..len]);
         }
         w.kkt.rhs[r] = dot(&w.kkt.rows[r], &w.scratch) - row_residual(w, r);
     }
@@ -783,7 +796,8 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
                 c.correct(col);
             }
             for (c, &r) in kept.iter().enumerate() {
-                s[(c, c2)] = dot(&w.kkt.rows[r], col);
+                let len = w.kkt.row_len[r];
+                s[(c, c2)] = dot(&w.kkt.rows[r][..len], &col[..len]);
             }
         }
         s

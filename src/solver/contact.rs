@@ -302,6 +302,13 @@ pub(crate) fn locate(model: &RodModel, r: &[Vector3<f64>], sites: &mut [Site]) {
     }
 }
 
+/// The last node a slot's point depends on (its row's support).
+pub(crate) fn last_node(model: &RodModel, i: usize) -> usize {
+    match slot(model, i).1 {
+        Place::Node(k) | Place::Element(k) => k,
+    }
+}
+
 /// The nodes and weights a slot's force acts at.
 fn shares(model: &RodModel, i: usize, site: &Site) -> [(usize, f64); 2] {
     match slot(model, i).1 {

@@ -4,8 +4,9 @@
 //! turn it into [`Error::InvalidArgument`]).
 
 use crate::error::{Error, Result};
+use crate::quat::Quat;
 use crate::value::Value;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// A map with the path of its key, for error messages.
 pub(crate) struct Table<'a> {
@@ -222,4 +223,66 @@ pub(crate) fn check_tolerance(name: &str, value: f64, (min, max): (f64, f64)) ->
         name,
         format!("must lie in [{min:e}, {max:e}], got {value:e}"),
     ))
+}
+
+/// How far from unit norm a given quaternion may be (it is normalised): four
+/// printed digits, `[0.924, 0, 0.383, 0]` for a turn of 45 degrees, are 2e-4 off.
+pub const QUATERNION_NORM_TOL: f64 = 1e-3;
+
+/// How far from orthonormal a given rotation matrix may be, `|R^T R - I|`
+/// entrywise, and its determinant from 1.
+pub const ROTATION_MATRIX_TOL: f64 = 1e-6;
+
+/// An orientation: a quaternion `[w, x, y, z]` (scalar first; SciPy's
+/// `Rotation.as_quat()` is scalar last) within [`QUATERNION_NORM_TOL`] of unit
+/// norm, or a 3x3 rotation matrix `[[..], [..], [..]]` whose columns are the
+/// material axes in the world frame (`Rotation.as_matrix()`). Normalised.
+pub(crate) fn orientation(v: &Value, key: &str) -> Result<Quat> {
+    if let Value::List(rows) = v {
+        if rows.len() == 3 && rows.iter().all(|r| matches!(r, Value::List(_))) {
+            let mut m = Matrix3::zeros();
+            for (i, row) in rows.iter().enumerate() {
+                let r = numbers::<3>(row, &format!("{key}[{i}]"))?;
+                for (j, x) in r.iter().enumerate() {
+                    m[(i, j)] = *x;
+                }
+            }
+            return rotation_matrix(m, key);
+        }
+    }
+    let q = Quat::from_array(numbers::<4>(v, key).map_err(|_| {
+        Error::scene(
+            key,
+            "expected a quaternion [w, x, y, z] (scalar first) or a 3x3 rotation matrix",
+        )
+    })?);
+    let norm = q.norm();
+    if (norm - 1.0).abs() > QUATERNION_NORM_TOL {
+        return Err(Error::scene(
+            key,
+            format!(
+                "must be a unit quaternion [w, x, y, z] (scalar first; SciPy's as_quat() is \
+                 scalar last), within {QUATERNION_NORM_TOL} of norm 1: its norm is {norm}"
+            ),
+        ));
+    }
+    Ok(q.normalized())
+}
+
+/// The quaternion of a proper rotation matrix (checked).
+fn rotation_matrix(m: Matrix3<f64>, key: &str) -> Result<Quat> {
+    let off = (m.transpose() * m - Matrix3::identity()).amax();
+    let det = m.determinant();
+    if !(off <= ROTATION_MATRIX_TOL && (det - 1.0).abs() <= ROTATION_MATRIX_TOL) {
+        return Err(Error::scene(
+            key,
+            format!(
+                "must be a rotation matrix (orthonormal, determinant 1, to \
+                 {ROTATION_MATRIX_TOL}): |R^T R - I| = {off:.2e}, det R = {det}"
+            ),
+        ));
+    }
+    let r = Rotation3::from_matrix_unchecked(m);
+    let q = UnitQuaternion::from_rotation_matrix(&r);
+    Ok(Quat::new(q.w, q.i, q.j, q.k).normalized())
 }

@@ -380,7 +380,7 @@ impl Obstacle {
                     centre: point("centre")?,
                     half_extents,
                     orientation: match t.get("orientation") {
-                        Some(q) => crate::scene::orientation(q, &t.key("orientation"))?,
+                        Some(q) => crate::read::orientation(q, &t.key("orientation"))?,
                         None => Quat::IDENTITY,
                     },
                 }

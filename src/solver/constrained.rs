@@ -573,7 +573,7 @@ pub(crate) fn newton(
             if !solved || !model.has_obstacles() {
                 break;
             }
-            let crossed = crossing_of_step(model, w, 1.0);
+            let crossed = crossing_of_step(model, w);
             if crossed.is_empty() {
                 break;
             }
@@ -633,17 +633,19 @@ pub(crate) fn newton(
 /// through their obstacles.
 const CROSSING_PASSES: usize = 4;
 
-/// The slots that `scale` times the step in `w.step` (from `w.q`) carries
-/// across their obstacles (see [`contact::crossing`]).
-pub(crate) fn crossing_of_step(model: &RodModel, w: &mut Workspace, scale: f64) -> Vec<usize> {
-    let n = model.n();
-    let mut q = w.q.clone();
-    for (moved, (start, step)) in q[1..].iter_mut().zip(w.q[1..].iter().zip(&w.step)) {
-        *moved = start.perturbed(scale * step);
+/// The slots that the step in `w.step` (from `w.q`) carries across their
+/// obstacles (see [`contact::crossing`]). `w.trial` holds the stepped chain
+/// (scratch here: the line search sets it afterwards).
+pub(crate) fn crossing_of_step(model: &RodModel, w: &mut Workspace) -> Vec<usize> {
+    for ((moved, start), step) in w.trial[1..].iter_mut().zip(&w.q[1..]).zip(&w.step) {
+        *moved = start.perturbed(*step);
     }
-    let mut moved = vec![Vector3::zeros(); n + 1];
-    model.positions(&q, &mut w.interior, &mut moved);
-    contact::crossing(model, w, &moved, true)
+    w.trial[0] = w.q[0];
+    let mut moved = std::mem::take(&mut w.kkt.contact.moved);
+    model.positions(&w.trial, &mut w.interior, &mut moved);
+    let crossed = contact::crossing(model, w, &moved, true);
+    w.kkt.contact.moved = moved;
+    crossed
 }
 
 /// How near its obstacle a slot is a candidate of the next step [m]: a

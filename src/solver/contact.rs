@@ -92,8 +92,10 @@ pub(crate) struct ContactWork {
     /// points' reactions, then the contacts' shares at nodes.
     pub force_nodes: Vec<usize>,
     pub force_vectors: Vec<Vector3<f64>>,
-    /// Scratch for one node's `D_k` (n blocks).
+    /// Scratch for one node's `D_k` (n blocks) and for the node positions
+    /// a step or a prediction moves the rod to (n + 1).
     pub position_jacobian: Vec<Matrix3<f64>>,
+    pub moved: Vec<Vector3<f64>>,
     /// The held contacts' curvature terms (see [`curvature`]): the columns
     /// `U` (`D_k^T e_a` of each node and axis, `n` vectors each) and the
     /// block-diagonal `M` (one block a contact), so that the Jacobian of the
@@ -118,6 +120,7 @@ impl ContactWork {
         ContactWork {
             sites: vec![Site::default(); slot_count(model)],
             position_jacobian: vec![Matrix3::zeros(); model.n()],
+            moved: vec![Vector3::zeros(); model.n() + 1],
             choose: true,
             ..ContactWork::default()
         }

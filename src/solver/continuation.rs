@@ -184,9 +184,11 @@ fn continuation(
             // holds only the contacts already held) starts the corrector
             // from the last equilibrium instead.
             if predicted && model.has_obstacles() {
-                let mut moved = vec![Vector3::zeros(); n + 1];
+                let mut moved = std::mem::take(&mut w.kkt.contact.moved);
                 model.positions(&w.q, &mut w.interior, &mut moved);
-                if !super::contact::crossing(model, w, &moved, false).is_empty() {
+                let crossed = !super::contact::crossing(model, w, &moved, false).is_empty();
+                w.kkt.contact.moved = moved;
+                if crossed {
                     w.q.copy_from_slice(&w.saved);
                     w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
                 }

@@ -97,6 +97,8 @@ pub struct BlockLu {
     diag: Vec<Matrix3<f64>>,
     upper: Vec<Matrix3<f64>>,
     plain: bool,
+    /// The multiple of the identity added to the matrix factored.
+    shift: f64,
 }
 
 /// A pivot block was (numerically) singular.
@@ -112,6 +114,7 @@ impl BlockLu {
             diag: vec![Matrix3::zeros(); n],
             upper: vec![Matrix3::zeros(); n.saturating_sub(1)],
             plain: false,
+            shift: 0.0,
         }
     }
 
@@ -125,7 +128,14 @@ impl BlockLu {
             diag: zeros(n)?,
             upper: zeros(n.saturating_sub(1))?,
             plain: false,
+            shift: 0.0,
         })
+    }
+
+    /// The multiple of the identity the last [`BlockLu::factor`] added (a
+    /// damped step's): a solve of the same system in another form adds it too.
+    pub fn shift(&self) -> f64 {
+        self.shift
     }
 
     /// Whether this is the unshifted factorisation of `a` as `a` is now
@@ -139,6 +149,7 @@ impl BlockLu {
     pub fn factor(&mut self, a: &BlockTridiagonal, shift: f64) -> Result<(), SingularPivot> {
         let n = a.n();
         self.plain = false;
+        self.shift = shift;
         let scale = a.max_diagonal().max(shift.abs()).max(f64::MIN_POSITIVE);
         let mut pivot = a.diag[0] + Matrix3::identity() * shift;
         for j in 0..n {
@@ -173,6 +184,7 @@ impl BlockLu {
     pub fn factor_symmetric_part(&mut self, a: &BlockTridiagonal) -> Option<usize> {
         let n = a.n();
         self.plain = false;
+        self.shift = 0.0;
         let sym = |m: Matrix3<f64>| 0.5 * (m + m.transpose());
         let scale = a.max_diagonal().max(f64::MIN_POSITIVE);
         let mut negative = 0;

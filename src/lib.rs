@@ -28,6 +28,7 @@
 //! }
 //! ```
 
+mod banded;
 pub mod batch;
 pub mod blocktri;
 pub mod contact;

@@ -675,6 +675,13 @@ impl RodModel {
         self.disc.position_jacobian(&self.rod, q, k, interior, out);
     }
 
+    /// Every element's chord Jacobian, `(d/dtheta_(i-1), d/dtheta_i)` of
+    /// `r_i - r_(i-1)` (see `Discretisation::chord_jacobians`); `false` for
+    /// a scheme with interior unknowns.
+    pub fn chord_jacobians(&self, q: &[Quat], out: &mut [(Matrix3<f64>, Matrix3<f64>)]) -> bool {
+        self.disc.chord_jacobians(&self.rod, q, out)
+    }
+
     /// How the held points move with their reactions at fixed node
     /// rotations (`dh_c / dR_c'`, 3x3 blocks of a 3m x 3m matrix), through
     /// the interior unknowns the reactions load; `None` for `fd2`.

@@ -639,30 +639,50 @@ impl Discretisation for Fd2 {
         _interior: &Interior,
         out: &mut [Matrix3<f64>],
     ) {
+        // r_k is the sum of the chords up to k: node j moves its two
+        // elements' chords, the second only inside [1, k].
         for j in 1..=rod.n() {
-            if j > k {
-                out[j - 1] = Matrix3::zeros();
-                continue;
-            }
-            // Row c: gradient of e_c . r_k. T(q_j) counts once per element of node
-            // j inside [1, k] (element `i` weighted by `h_i / 3`); the bilinear
-            // terms pair it with its neighbours.
-            let before = rod.h(j) / 3.0;
-            let after = if j < k { rod.h(j + 1) / 3.0 } else { 0.0 };
-            let mut block = Matrix3::zeros();
-            for c in 0..3 {
-                let e = Vector3::ith(c, 1.0);
-                let f = q[j].inverse_rotate(e);
-                let mut row = (before + after) * Vector3::new(-f.y, f.x, 0.0);
-                row += (0.5 * before) * (q[j].conj() * tangent_form_apply(&e, q[j - 1])).v;
-                if j < k {
-                    row += (0.5 * after) * (q[j].conj() * tangent_form_apply(&e, q[j + 1])).v;
-                }
-                block.set_row(c, &row.transpose());
-            }
-            out[j - 1] = block;
+            out[j - 1] = if j > k {
+                Matrix3::zeros()
+            } else if j < k {
+                chord_jacobian(rod, q, j).1 + chord_jacobian(rod, q, j + 1).0
+            } else {
+                chord_jacobian(rod, q, j).1
+            };
         }
     }
+
+    fn chord_jacobians(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        out: &mut [(Matrix3<f64>, Matrix3<f64>)],
+    ) -> bool {
+        for (i, blocks) in out.iter_mut().enumerate() {
+            *blocks = chord_jacobian(rod, q, i + 1);
+        }
+        true
+    }
+}
+
+/// `d (r_i - r_(i-1)) / d theta` of element `i`'s chord `h_i mean_tangent(q_(i-1),
+/// q_i)`: the blocks of its start node and its end node. Row c is the gradient
+/// of `e_c . chord`: `T(q)` counts `h_i / 3` at each node, the bilinear term
+/// `h_i / 3` shared between them.
+pub(crate) fn chord_jacobian(rod: &Rod, q: &[Quat], i: usize) -> (Matrix3<f64>, Matrix3<f64>) {
+    let third = rod.h(i) / 3.0;
+    let block = |at: Quat, other: Quat| {
+        let mut block = Matrix3::zeros();
+        for c in 0..3 {
+            let e = Vector3::ith(c, 1.0);
+            let f = at.inverse_rotate(e);
+            let row = third * Vector3::new(-f.y, f.x, 0.0)
+                + (0.5 * third) * (at.conj() * tangent_form_apply(&e, other)).v;
+            block.set_row(c, &row.transpose());
+        }
+        block
+    };
+    (block(q[i - 1], q[i]), block(q[i], q[i - 1]))
 }
 
 /// Mean tangent of an element: the exact mean of `T` under linear interpolation of `q`.

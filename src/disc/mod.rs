@@ -323,6 +323,20 @@ pub trait Discretisation: std::fmt::Debug + Send + Sync {
         out: &mut [Matrix3<f64>],
     );
 
+    /// `d (r_i - r_(i-1)) / d theta` of every element's chord, the blocks
+    /// of its start node and of its end node (element `i` at index `i - 1`):
+    /// the banded form of the positions' Jacobian, for the KKT step with
+    /// many contacts. `false` where a chord is not a function of its two
+    /// nodes alone (interior unknowns).
+    fn chord_jacobians(
+        &self,
+        _rod: &Rod,
+        _q: &[Quat],
+        _out: &mut [(Matrix3<f64>, Matrix3<f64>)],
+    ) -> bool {
+        false
+    }
+
     /// How the held nodes `nodes` move with their reactions at fixed node
     /// rotations (`dh_c / dR_c'`, 3x3 blocks of a 3m x 3m matrix), through
     /// the interior unknowns the reactions load; `None` where they do not

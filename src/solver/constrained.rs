@@ -19,6 +19,7 @@
 //! for a free tip without guides.
 
 use super::contact::{self, ContactWork};
+use super::mixed::{self, Mixed, MixedWork};
 use super::{step_limit, Workspace};
 use crate::blocktri::BlockLu;
 use crate::disc::NodeForces;
@@ -57,6 +58,8 @@ pub(crate) struct KktWorkspace {
     pub row_len: Vec<usize>,
     /// The contact rows' sites, active set and forces (see `contact.rs`).
     pub contact: ContactWork,
+    /// The step in mixed form, for many rows (see `mixed.rs`).
+    pub mixed: MixedWork,
 }
 
 impl KktWorkspace {
@@ -93,6 +96,7 @@ impl KktWorkspace {
             row_count: 3 * m,
             row_len: Vec::new(),
             contact: ContactWork::new(model),
+            mixed: MixedWork::default(),
         }
     }
 }
@@ -207,24 +211,13 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
     model.residual_norm(&w.g).max(h)
 }
 
-/// Fill `D_c` at `w.q` (zero on a clamped tip node, which does not move).
+/// Load the KKT rows at `w.q`: the held points' `D_c` (zero on a clamped tip
+/// node, which does not move) and the contact candidates' rows, dense, or in
+/// mixed form where there are many (see `mixed.rs`; the dense rows then
+/// come from it on demand, [`mixed::densify`]).
 pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     w.kkt.compliance = model.held_point_compliance(&w.q, &w.interior);
-    for (c, d) in model.constraints().iter().zip(w.kkt.d.iter_mut()) {
-        model.position_jacobian(&w.q, c.node, &w.interior, d);
-        if model.clamped_tip().is_some() {
-            d[model.n() - 1] = Matrix3::zeros();
-        }
-    }
     let held = model.constraints().len();
-    for (c, d) in w.kkt.d[..held].iter().enumerate() {
-        for e in 0..3 {
-            for (x, b) in w.kkt.rows[3 * c + e].iter_mut().zip(d) {
-                *x = b.row(e).transpose();
-            }
-        }
-    }
-    contact::load_rows(model, w, 3 * held);
     w.kkt.row_count = 3 * held + w.kkt.contact.active.len();
     let n = model.n();
     w.kkt.row_len.clear();
@@ -234,8 +227,26 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     for &i in &w.kkt.contact.active {
         w.kkt.row_len.push(contact::last_node(model, i).min(n));
     }
+    mixed::load(model, w);
+    let dense = !w.kkt.mixed.in_use;
+    if dense {
+        for (c, d) in model.constraints().iter().zip(w.kkt.d.iter_mut()) {
+            model.position_jacobian(&w.q, c.node, &w.interior, d);
+            if model.clamped_tip().is_some() {
+                d[model.n() - 1] = Matrix3::zeros();
+            }
+        }
+        for (c, d) in w.kkt.d[..held].iter().enumerate() {
+            for e in 0..3 {
+                for (x, b) in w.kkt.rows[3 * c + e].iter_mut().zip(d) {
+                    *x = b.row(e).transpose();
+                }
+            }
+        }
+        contact::load_rows(model, w, 3 * held);
+    }
     if model.has_obstacles() {
-        contact::curvature(model, w);
+        contact::curvature(model, w, dense);
     }
 }
 
@@ -274,6 +285,15 @@ pub(crate) fn kkt_solve(w: &mut Workspace) -> bool {
 }
 
 fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
+    // Many contacts: the banded mixed form. Where its matrix is singular
+    // (a held point that cannot move to first order) the Schur
+    // complement's pseudo-inverse takes the step.
+    if w.kkt.mixed.in_use {
+        if mixed_step(lu.shift(), w) {
+            return true;
+        }
+        mixed::densify(w);
+    }
     let rows = w.kkt.row_count;
     // y = A^{-1} g  (in w.scratch)
     w.scratch.copy_from_slice(&w.g);
@@ -320,20 +340,14 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
             return false;
         }
     } else {
-        // The contact forces stay >= 0: a candidate's step is bounded below
-        // by minus its force, and the QP decides which are held.
-        let first = w.kkt.reactions.len() - w.kkt.contact.sites.len();
-        let lower: Vec<f64> = w
-            .kkt
-            .contact
-            .active
-            .iter()
-            .map(|&i| -w.kkt.reactions[first + i].x.max(0.0))
-            .collect();
+        let lower = contact_lower_bounds(w);
         let choose = w.kkt.contact.choose;
+        let mut schur = Schur {
+            s: &w.kkt.schur,
+            b: &w.kkt.rhs,
+        };
         let Some(x) = bounded_qp(
-            &w.kkt.schur,
-            &w.kkt.rhs,
+            &mut schur,
             rows - candidates,
             &lower,
             &mut w.kkt.contact.held,
@@ -351,6 +365,110 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
         *s = v;
     }
     true
+}
+
+/// The contact forces stay >= 0: each candidate's step is bounded below
+/// by minus its force.
+fn contact_lower_bounds(w: &Workspace) -> Vec<f64> {
+    let first = w.kkt.reactions.len() - w.kkt.contact.sites.len();
+    w.kkt
+        .contact
+        .active
+        .iter()
+        .map(|&i| -w.kkt.reactions[first + i].x.max(0.0))
+        .collect()
+}
+
+/// [`kkt_step`] in mixed form (see `mixed.rs`); `false`, the held set
+/// untouched, where its matrix is singular.
+fn mixed_step(shift: f64, w: &mut Workspace) -> bool {
+    let rows = w.kkt.row_count;
+    let candidates = w.kkt.contact.gaps.len();
+    w.kkt.mixed.residuals = (0..rows).map(|r| row_residual(w, r)).collect();
+    w.kkt.mixed.begin();
+    let lower = contact_lower_bounds(w);
+    let mut held = w.kkt.contact.held.clone();
+    let mut mixed = Mixed {
+        work: &mut w.kkt.mixed,
+        jac: &w.jac,
+        g: &w.g,
+        shift,
+        curvature: (
+            &w.kkt.contact.curvature_blocks,
+            &w.kkt.contact.curvature_nodes,
+        ),
+    };
+    let equalities = rows - candidates;
+    let x = if w.kkt.contact.choose {
+        let scale = match mixed.rows_at(&DVector::zeros(rows)) {
+            Some(gaps) => gaps.amax().max(f64::MIN_POSITIVE),
+            None => return false,
+        };
+        primal_dual_active_set(&mut mixed, equalities, &lower, &mut held, scale)
+    } else {
+        solve_held(&mut mixed, equalities, &lower, &held)
+    };
+    let Some(x) = x else {
+        return false;
+    };
+    w.kkt.contact.held = held;
+    w.kkt.rhs = x;
+    w.kkt.mixed.take_step(&mut w.step);
+    true
+}
+
+/// The equality-constrained subproblem of [`bounded_qp`], in whichever form
+/// the KKT system is solved.
+pub(crate) trait Subproblem {
+    /// Solve for the multipliers of the rows `free` marks, the others held
+    /// at their values in `x`; the solved ones go into `x`.
+    fn solve(&mut self, free: &[bool], x: &mut DVector<f64>) -> bool;
+    /// Each row's linearised value after the last solve's step (`S x - b`
+    /// for `x` that solve's): a held row's is zero, a free contact's is its
+    /// gap after the step.
+    fn rows_after(&self, x: &DVector<f64>) -> DVector<f64>;
+    /// `S x - b` for any multipliers `x` (the QP's gradient); the step of
+    /// `x` becomes the last solve's.
+    fn rows_at(&mut self, x: &DVector<f64>) -> Option<DVector<f64>>;
+}
+
+/// The subproblem over the Schur complement: `S x = b` on the free rows.
+struct Schur<'a> {
+    s: &'a DMatrix<f64>,
+    b: &'a DVector<f64>,
+}
+
+impl Subproblem for Schur<'_> {
+    fn solve(&mut self, free: &[bool], x: &mut DVector<f64>) -> bool {
+        let (s, b) = (self.s, self.b);
+        let rows: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+        if rows.is_empty() {
+            return true;
+        }
+        let mut sub = DMatrix::from_fn(rows.len(), rows.len(), |r, c| s[(rows[r], rows[c])]);
+        let mut rhs = DVector::from_fn(rows.len(), |r, _| {
+            let i = rows[r];
+            b[i] - (0..free.len())
+                .filter(|&j| !free[j])
+                .map(|j| s[(i, j)] * x[j])
+                .sum::<f64>()
+        });
+        if !solve_positive_in_place(&mut sub, &mut rhs) {
+            return false;
+        }
+        for (r, &i) in rows.iter().enumerate() {
+            x[i] = rhs[r];
+        }
+        true
+    }
+
+    fn rows_after(&self, x: &DVector<f64>) -> DVector<f64> {
+        self.s * x - self.b
+    }
+
+    fn rows_at(&mut self, x: &DVector<f64>) -> Option<DVector<f64>> {
+        Some(self.s * x - self.b)
+    }
 }
 
 /// The multipliers' step from the last KKT solve into `reaction_step`:
@@ -374,60 +492,135 @@ fn take_multiplier_step(model: &RodModel, w: &mut Workspace) {
 }
 
 /// The step of the multipliers where some are bounded below: the QP
-/// `min 1/2 x^T S x - b^T x` with `x_i >= lower_i` for the rows from
+/// `min q(x) = 1/2 x^T S x - b^T x` with `x_i >= lower_i` for the rows from
 /// `equalities` on (the contact candidates; `held` says which are free of
 /// their bound). Its optimality conditions are the linearised contact's:
 /// the gap after the step, `w = S x - b`, vanishes where a force is free
-/// and is `>= 0` where it is at its bound (zero force). A primal active set
-/// from the held candidates, feasible throughout (`x = 0` is: the forces are
-/// `>= 0`): finite for `S` positive definite. With `choose` false the held
-/// set is kept and solved as it is (a tangent).
+/// and is `>= 0` where it is at its bound (zero force). With `choose` false
+/// the held set is kept and solved as it is (a tangent).
+///
+/// A primal active set from the held candidates, feasible throughout (`x =
+/// 0` is: the forces are `>= 0`): finite for `S` positive definite.
 fn bounded_qp(
-    s: &DMatrix<f64>,
-    b: &DVector<f64>,
+    sub: &mut impl Subproblem,
     equalities: usize,
     lower: &[f64],
     held: &mut [bool],
     choose: bool,
 ) -> Option<DVector<f64>> {
-    let m = b.len();
+    if !choose {
+        return solve_held(sub, equalities, lower, held);
+    }
+    // The gaps of the step with the forces kept: the scale of the rows.
+    let m = equalities + lower.len();
+    let scale = sub
+        .rows_at(&DVector::zeros(m))?
+        .amax()
+        .max(f64::MIN_POSITIVE);
+    primal_active_set(sub, equalities, lower, held, scale)
+}
+
+/// The subproblem with the held set as it is (a tangent's).
+fn solve_held(
+    sub: &mut impl Subproblem,
+    equalities: usize,
+    lower: &[f64],
+    held: &[bool],
+) -> Option<DVector<f64>> {
+    let m = equalities + lower.len();
+    let free: Vec<bool> = (0..m)
+        .map(|i| i < equalities || held[i - equalities])
+        .collect();
+    let mut x = DVector::zeros(m);
+    for i in (equalities..m).filter(|&i| !free[i]) {
+        x[i] = lower[i - equalities];
+    }
+    sub.solve(&free, &mut x).then_some(x)
+}
+
+/// Passes of the primal-dual active set before the step is left to the
+/// Schur complement: a rod settling onto a floor takes 2 or 3; the QP of a
+/// rod 5 cm above a floor, stepping far through it, cycles.
+const ACTIVE_SET_PASSES: usize = 4;
+
+/// [`bounded_qp`]'s QP by a primal-dual active set (a semismooth Newton
+/// on the complementarity): each pass solves with the held rows free and
+/// the others at their bounds, then drops every held row whose force went
+/// below its bound and holds every row whose gap went negative, all at
+/// once, so that a rod settling onto a surface along a stretch costs a few
+/// solves, not one a row (in mixed form each factors a band). It can cycle
+/// (the rod's fourth-order operator makes the forces at a stretch's edge
+/// alternate in sign): `None` after [`ACTIVE_SET_PASSES`].
+fn primal_dual_active_set(
+    sub: &mut impl Subproblem,
+    equalities: usize,
+    lower: &[f64],
+    held: &mut [bool],
+    scale: f64,
+) -> Option<DVector<f64>> {
+    let m = equalities + lower.len();
+    let negative = -1e-12 * scale;
+    for _ in 0..ACTIVE_SET_PASSES {
+        let free: Vec<bool> = (0..m)
+            .map(|i| i < equalities || held[i - equalities])
+            .collect();
+        let mut x = DVector::zeros(m);
+        for i in (equalities..m).filter(|&i| !free[i]) {
+            x[i] = lower[i - equalities];
+        }
+        if !sub.solve(&free, &mut x) {
+            return None;
+        }
+        let gaps = sub.rows_after(&x);
+        let mut changed = false;
+        for i in equalities..m {
+            let keep = if free[i] {
+                x[i] >= lower[i - equalities]
+            } else {
+                gaps[i] < negative
+            };
+            changed |= keep != held[i - equalities];
+            held[i - equalities] = keep;
+        }
+        if !changed {
+            return Some(x);
+        }
+    }
+    None
+}
+
+/// [`bounded_qp`]'s primal active set, feasible throughout (`x = 0` is: the
+/// forces are `>= 0`), from the held set `held`.
+fn primal_active_set(
+    sub: &mut impl Subproblem,
+    equalities: usize,
+    lower: &[f64],
+    held: &mut [bool],
+    scale: f64,
+) -> Option<DVector<f64>> {
+    let m = equalities + lower.len();
     let bounded = |i: usize| i >= equalities;
     let mut x = DVector::zeros(m);
-    let scale = b.amax().max(f64::MIN_POSITIVE);
     // Rows freed and blocked again at once, with no step: a round-off
     // choice (degenerate), never freed again in this QP, so that it ends.
     let mut freed = vec![false; m];
     let mut frozen = vec![false; m];
     for _ in 0..4 * m + 8 {
-        let free: Vec<usize> = (0..m)
-            .filter(|&i| !bounded(i) || held[i - equalities])
+        let free: Vec<bool> = (0..m)
+            .map(|i| !bounded(i) || held[i - equalities])
             .collect();
         // The subproblem: the bounded rows at their bounds, the rest solved.
         let mut trial = x.clone();
-        for i in (equalities..m).filter(|&i| !held[i - equalities]) {
+        for i in (equalities..m).filter(|&i| !free[i]) {
             trial[i] = lower[i - equalities];
         }
-        let mut sub = DMatrix::from_fn(free.len(), free.len(), |r, c| s[(free[r], free[c])]);
-        let mut rhs = DVector::from_fn(free.len(), |r, _| {
-            let i = free[r];
-            b[i] - (equalities..m)
-                .filter(|&j| !held[j - equalities])
-                .map(|j| s[(i, j)] * trial[j])
-                .sum::<f64>()
-        });
-        if !free.is_empty() && !solve_positive_in_place(&mut sub, &mut rhs) {
+        if !sub.solve(&free, &mut trial) {
             return None;
-        }
-        for (r, &i) in free.iter().enumerate() {
-            trial[i] = rhs[r];
-        }
-        if !choose {
-            return Some(trial);
         }
         // A free force that would go below its bound stops the step there.
         let mut step = 1.0;
         let mut blocking = None;
-        for &i in free.iter().filter(|&&i| bounded(i)) {
+        for i in (equalities..m).filter(|&i| free[i]) {
             let (lo, from, to) = (lower[i - equalities], x[i], trial[i]);
             if to < lo && from > to {
                 let t = ((from - lo) / (from - to)).clamp(0.0, 1.0);
@@ -449,7 +642,7 @@ fn bounded_qp(
         }
         x = trial;
         // Every zero force whose gap would go negative is freed.
-        let gap = s * &x - b;
+        let gap = sub.rows_after(&x);
         freed.iter_mut().for_each(|f| *f = false);
         let mut any = false;
         for i in equalities..m {
@@ -755,6 +948,7 @@ impl CurvatureInverse {
 /// `neg(A) + pos(D A^{-1} D^T)` (symmetric parts, `A` nonsingular).
 pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     load_constraint_jacobian(model, w);
+    mixed::densify(w);
     // The workspace's factorisation is free (every use refactors first) and
     // takes that of the symmetric part; `w.scratch` holds the columns.
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
@@ -829,4 +1023,143 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
     }
     let positive = eig.eigenvalues.iter().filter(|v| **v > 0.0).count();
     negative + positive == rows
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::Obstacle;
+    use crate::quat::Quat;
+    use crate::scene::{Gravity, Scene};
+
+    /// A heavy rod of 40 elements (60 lying) bent down onto a floor and a ball, every
+    /// slot a candidate, every other one held with a force; or (`lying`)
+    /// straight on the floor, no slot held.
+    fn pressed_rod(lying: bool) -> (RodModel, Workspace) {
+        let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0);
+        scene.gravity = Some(Gravity {
+            linear_density: 1.0,
+            vector: Vector3::new(0.0, 0.0, -1.0),
+        });
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        scene.base_quaternion = Quat::new(half, 0.0, half, 0.0);
+        scene.radius = Some(0.005);
+        scene.obstacles = vec![
+            Obstacle::HalfSpace {
+                point: Vector3::new(0.0, 0.0, -0.05),
+                normal: Vector3::z(),
+            },
+            Obstacle::Sphere {
+                centre: Vector3::new(0.5, 0.03, -0.06),
+                radius: 0.03,
+            },
+        ];
+        if lying {
+            scene.obstacles.truncate(1);
+            scene.base_position = Vector3::new(0.0, 0.0, -0.045);
+        }
+        let model = RodModel::new(&scene, if lying { 60 } else { 40 });
+        let mut w = Workspace::new(&model).unwrap();
+        let n = model.n();
+        for j in (1..=n).filter(|_| !lying) {
+            // Down about y, and a little about x: a rod out of plane.
+            let s = j as f64 / n as f64;
+            let (pitch, roll) = (0.15 * s * s, 0.05 * s);
+            let turn = Quat::new((0.5 * pitch).cos(), 0.0, (0.5 * pitch).sin(), 0.0)
+                * Quat::new((0.5 * roll).cos(), (0.5 * roll).sin(), 0.0, 0.0);
+            w.q[j] = (turn * w.q[0]).normalized();
+        }
+        evaluate(&model, &mut w, 1.0, true);
+        contact::select_candidates(&model, &mut w, 10.0);
+        let first = contact::offset(&model, &w);
+        let active = w.kkt.contact.active.clone();
+        for (a, &i) in active.iter().enumerate().filter(|_| !lying) {
+            w.kkt.contact.held[a] = a % 2 == 0;
+            w.kkt.reactions[first + i].x = if a % 2 == 0 { 0.1 } else { 0.0 };
+        }
+        evaluate(&model, &mut w, 1.0, true);
+        (model, w)
+    }
+
+    /// The step in mixed form is the Schur complement's: the rows built from
+    /// the chords against those from `position_jacobian`, and the step and
+    /// the multipliers with the held set kept (the ball's curvature in them).
+    #[test]
+    fn the_mixed_step_is_the_schur_complements() {
+        let (model, mut w) = pressed_rod(false);
+        load_constraint_jacobian(&model, &mut w);
+        let rows = w.kkt.row_count;
+        assert!(w.kkt.mixed.in_use, "{rows} rows");
+        assert!(!w.kkt.contact.curvature_blocks.is_empty());
+        mixed::densify(&mut w);
+        let from_chords = w.kkt.rows[..rows].to_vec();
+        let columns = w.kkt.contact.curvature_columns.clone();
+        contact::load_rows(&model, &mut w, 0);
+        contact::curvature(&model, &mut w, true);
+        let largest = from_chords
+            .iter()
+            .flatten()
+            .fold(0.0f64, |a, v| a.max(v.amax()));
+        let pairs = from_chords.iter().zip(&w.kkt.rows);
+        for (a, b) in pairs.chain(columns.iter().zip(&w.kkt.contact.curvature_columns)) {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).amax() <= 1e-13 * largest, "{x} against {y}");
+            }
+        }
+        w.kkt.contact.choose = false;
+        compare_steps(&mut w, 1e-9);
+    }
+
+    /// A rod lying straight on a floor under its weight: the QP in mixed
+    /// form (primal-dual) holds every node, as the Schur complement's
+    /// (primal) does, with the same forces.
+    #[test]
+    fn the_mixed_qp_settles_a_rod_on_a_floor_as_the_schur_qp() {
+        let (model, mut w) = pressed_rod(true);
+        load_constraint_jacobian(&model, &mut w);
+        assert!(w.kkt.mixed.in_use && w.kkt.contact.held.iter().all(|h| !h));
+        mixed::densify(&mut w);
+        w.kkt.contact.choose = true;
+        // The floor carries each node's weight w h = 1/60 N (the tip's half).
+        // The Schur complement squares the rod's condition (~n^4): its
+        // forces are off by 2e-6 of it, the mixed form's by 1e-7.
+        let forces = compare_steps(&mut w, 1e-5);
+        assert!(w.kkt.contact.held.iter().all(|h| *h));
+        for (k, f) in forces.iter().enumerate() {
+            let weight = if k + 1 == 60 { 0.5 / 60.0 } else { 1.0 / 60.0 };
+            assert!((f - weight).abs() <= 1e-6 * weight, "node {}: {f}", k + 1);
+        }
+    }
+
+    /// Solve the step at `w`'s state in mixed form and by the Schur
+    /// complement (the rows dense in `w`) from the same held set: the same
+    /// held set, step and multipliers (to `tol`); the mixed multipliers.
+    fn compare_steps(w: &mut Workspace, tol: f64) -> DVector<f64> {
+        assert!(w.lu.factor(&w.jac, 0.0).is_ok());
+        let lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
+        let held = w.kkt.contact.held.clone();
+        assert!(mixed_step(0.0, w));
+        let (step, x, chosen) = (
+            w.step.clone(),
+            w.kkt.rhs.clone(),
+            w.kkt.contact.held.clone(),
+        );
+        w.kkt.contact.held.copy_from_slice(&held);
+        w.kkt.mixed.in_use = false;
+        assert!(kkt_step(&lu, w));
+        w.kkt.mixed.in_use = true;
+        assert_eq!(chosen, w.kkt.contact.held);
+        // (A rod held flat on the floor does not turn: its step is round-off.)
+        let scale = step.iter().fold(0.0f64, |a, v| a.max(v.amax()));
+        for (a, b) in step.iter().zip(&w.step) {
+            assert!((a - b).amax() <= 1e-9 * scale + 1e-12, "{a} against {b}");
+        }
+        let error = (&x - &w.kkt.rhs).amax();
+        assert!(
+            x.amax() > 0.0 && error <= tol * x.amax(),
+            "{error:e} of {:e}",
+            x.amax()
+        );
+        x
+    }
 }

@@ -102,6 +102,8 @@ pub(crate) struct ContactWork {
     /// equations is `A + U M U^T`.
     pub curvature_columns: Vec<Vec<Vector3<f64>>>,
     pub curvature_blocks: Vec<nalgebra::DMatrix<f64>>,
+    /// The nodes each block of `M` moves (its rows: 3 a node).
+    pub curvature_nodes: Vec<Vec<usize>>,
 }
 
 impl ContactWork {
@@ -313,7 +315,7 @@ pub(crate) fn last_node(model: &RodModel, i: usize) -> usize {
 }
 
 /// The nodes and weights a slot's force acts at.
-fn shares(model: &RodModel, i: usize, site: &Site) -> [(usize, f64); 2] {
+pub(crate) fn shares(model: &RodModel, i: usize, site: &Site) -> [(usize, f64); 2] {
     match slot(model, i).1 {
         Place::Node(k) => [(k, 1.0), (k, 0.0)],
         Place::Element(k) => [(k - 1, 1.0 - site.s), (k, site.s)],
@@ -477,13 +479,14 @@ const CURVATURE_STEP: f64 = 1e-6;
 /// differences (`CURVATURE_STEP` of the element), made symmetric (it is the
 /// Hessian of `-lambda` times the gap at the nearest point). Zero for a
 /// plane, and left out there. Fills the columns `U = D^T` and blocks `M`.
-pub(crate) fn curvature(model: &RodModel, w: &mut Workspace) {
+pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool) {
     let n = model.n();
     let first = offset(model, w);
     let clamped = model.clamped_tip().is_some();
     let c = &mut w.kkt.contact;
     let mut used = 0;
     c.curvature_blocks.clear();
+    c.curvature_nodes.clear();
     // Every candidate with a force, held or on its way out (its force
     // still acts on the rod).
     for &i in &c.active {
@@ -564,7 +567,7 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace) {
         if block.amax() == 0.0 {
             continue;
         }
-        for &k in &moving {
+        for &k in moving.iter().filter(|_| with_columns) {
             model.position_jacobian(&w.q, k, &w.interior, &mut c.position_jacobian);
             for axis in 0..3 {
                 if c.curvature_columns.len() <= used {
@@ -583,6 +586,7 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace) {
             }
         }
         c.curvature_blocks.push(block);
+        c.curvature_nodes.push(moving);
     }
     c.curvature_columns.truncate(used);
 }

@@ -10,6 +10,7 @@
 //! newton.rs        damped Newton on the block-tridiagonal system
 //! lm.rs            Levenberg-Marquardt (dense, faer)
 //! constrained.rs   held points: the KKT system by Schur complement
+//! mixed.rs         the same system banded, for many contacts
 //! continuation.rs  the load path from the rest shape
 //! nested.rs        the coarse rod of nested iteration
 //! adaptive.rs      accuracy on demand
@@ -22,6 +23,7 @@ mod constrained;
 mod contact;
 mod continuation;
 mod lm;
+mod mixed;
 mod nested;
 mod newton;
 mod report;

@@ -561,20 +561,11 @@ fn primal_dual_active_set(
     let m = equalities + lower.len();
     let negative = -1e-12 * scale;
     for _ in 0..ACTIVE_SET_PASSES {
-        let free: Vec<bool> = (0..m)
-            .map(|i| i < equalities || held[i - equalities])
-            .collect();
-        let mut x = DVector::zeros(m);
-        for i in (equalities..m).filter(|&i| !free[i]) {
-            x[i] = lower[i - equalities];
-        }
-        if !sub.solve(&free, &mut x) {
-            return None;
-        }
+        let x = solve_held(sub, equalities, lower, held)?;
         let gaps = sub.rows_after(&x);
         let mut changed = false;
         for i in equalities..m {
-            let keep = if free[i] {
+            let keep = if held[i - equalities] {
                 x[i] >= lower[i - equalities]
             } else {
                 gaps[i] < negative
@@ -599,28 +590,18 @@ fn primal_active_set(
     scale: f64,
 ) -> Option<DVector<f64>> {
     let m = equalities + lower.len();
-    let bounded = |i: usize| i >= equalities;
-    let mut x = DVector::zeros(m);
+    let mut x: DVector<f64> = DVector::zeros(m);
     // Rows freed and blocked again at once, with no step: a round-off
     // choice (degenerate), never freed again in this QP, so that it ends.
     let mut freed = vec![false; m];
     let mut frozen = vec![false; m];
     for _ in 0..4 * m + 8 {
-        let free: Vec<bool> = (0..m)
-            .map(|i| !bounded(i) || held[i - equalities])
-            .collect();
         // The subproblem: the bounded rows at their bounds, the rest solved.
-        let mut trial = x.clone();
-        for i in (equalities..m).filter(|&i| !free[i]) {
-            trial[i] = lower[i - equalities];
-        }
-        if !sub.solve(&free, &mut trial) {
-            return None;
-        }
+        let trial = solve_held(sub, equalities, lower, held)?;
         // A free force that would go below its bound stops the step there.
         let mut step = 1.0;
         let mut blocking = None;
-        for i in (equalities..m).filter(|&i| free[i]) {
+        for i in (equalities..m).filter(|&i| held[i - equalities]) {
             let (lo, from, to) = (lower[i - equalities], x[i], trial[i]);
             if to < lo && from > to {
                 let t = ((from - lo) / (from - to)).clamp(0.0, 1.0);

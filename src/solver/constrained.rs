@@ -400,9 +400,8 @@ fn mixed_step(shift: f64, w: &mut Workspace) -> bool {
     };
     let equalities = rows - candidates;
     let x = if w.kkt.contact.choose {
-        let scale = match mixed.rows_at(&DVector::zeros(rows)) {
-            Some(gaps) => gaps.amax().max(f64::MIN_POSITIVE),
-            None => return false,
+        let Some(scale) = row_scale(&mut mixed, rows) else {
+            return false;
         };
         primal_dual_active_set(&mut mixed, equalities, &lower, &mut held, scale)
     } else {
@@ -511,13 +510,18 @@ fn bounded_qp(
     if !choose {
         return solve_held(sub, equalities, lower, held);
     }
-    // The gaps of the step with the forces kept: the scale of the rows.
-    let m = equalities + lower.len();
-    let scale = sub
-        .rows_at(&DVector::zeros(m))?
-        .amax()
-        .max(f64::MIN_POSITIVE);
+    let scale = row_scale(sub, equalities + lower.len())?;
     primal_active_set(sub, equalities, lower, held, scale)
+}
+
+/// The scale of the QP's rows, for its round-off tolerance: the gaps of
+/// the step with the forces kept.
+fn row_scale(sub: &mut impl Subproblem, rows: usize) -> Option<f64> {
+    Some(
+        sub.rows_at(&DVector::zeros(rows))?
+            .amax()
+            .max(f64::MIN_POSITIVE),
+    )
 }
 
 /// The subproblem with the held set as it is (a tangent's).

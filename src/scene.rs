@@ -472,7 +472,11 @@ impl Scene {
 
     /// Read a `.json` or `.toml` file.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
-        Scene::from_value(&Value::from_file(path)?)
+        let mut value = Value::from_file(path)?;
+        if let Some(dir) = path.parent() {
+            crate::contact::files_beside(&mut value, dir);
+        }
+        Scene::from_value(&value)
     }
 
     /// Validate and build a scene from a value tree.

@@ -367,3 +367,154 @@ def test_a_robots_sensitivity_in_contact_holds_the_contact():
         difference = (robot.forward(plus, load=0.03).tip_position
                       - robot.forward(minus, load=0.03).tip_position) / (2 * step)
         np.testing.assert_allclose(sensitivity.tip_position[:, j], difference, atol=1e-8)
+
+
+# Triangle meshes (anatomy, fixtures): the signed distance of parry3d's tree
+# against the shapes it triangulates exactly, read from STL and OBJ files.
+def box_mesh(lower, upper) -> tuple[np.ndarray, np.ndarray]:
+    """A box's surface as 12 triangles wound outwards (corner i has bit 0
+    for x, 1 for y, 2 for z at the upper side)."""
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    corners = np.array([[(upper if i >> k & 1 else lower)[k] for k in range(3)]
+                        for i in range(8)])
+    faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2],
+             [1, 3, 7, 5]]
+    triangles = [t for f in faces for t in ([f[0], f[1], f[2]], [f[0], f[2], f[3]])]
+    return corners, np.array(triangles)
+
+
+def write_binary_stl(path, vertices, triangles) -> None:
+    record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("extra", "<u2")])
+    data = np.zeros(len(triangles), record)
+    data["corners"] = vertices[triangles]
+    with open(path, "wb") as f:
+        f.write(b"solid made by the tests".ljust(80))
+        f.write(np.uint32(len(triangles)).tobytes())
+        f.write(data.tobytes())
+
+
+def write_obj(path, vertices, triangles) -> None:
+    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in vertices]
+    lines += ["f " + " ".join(str(i + 1) for i in t) for t in triangles]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_a_floor_read_from_an_stl_file_in_millimetres_is_the_table(tmp_path):
+    # The slab's top face is z = 0 exactly: the lifted rod lies on it as on
+    # the half-space, node for node; the file given as a Path.
+    vertices, triangles = box_mesh([-1000.0, -1000.0, -200.0], [3000.0, 1000.0, 0.0])
+    write_binary_stl(tmp_path / "slab.stl", vertices, triangles)
+    slab = {"shape": "mesh", "file": tmp_path / "slab.stl", "scale": 0.001}
+    table = softspine.solve(heavy_rod(2.0, base_position=[0, 0, 1e-3]), n_elements=40)
+    mesh = softspine.solve(heavy_rod(2.0, base_position=[0, 0, 1e-3], obstacles=[slab]),
+                           n_elements=40)
+    assert mesh.converged and mesh.stable, mesh.message
+    np.testing.assert_allclose(mesh.positions, table.positions, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mesh.contacts["force"], table.contacts["force"], rtol=1e-9)
+
+
+def test_a_rod_on_a_tilted_box_mesh_is_the_rod_on_the_box():
+    # A box turned 45 degrees about y shows the rod an edge across its path;
+    # the mesh (placed by position and orientation) and the box shape have
+    # the same signed distance, so the same equilibrium. The rod has a
+    # radius: its surface rounds the edge (a backbone of no radius across a
+    # sharp edge has no unique normal at the contact).
+    turn = [math.cos(math.pi / 8), 0.0, math.sin(math.pi / 8), 0.0]
+    half = np.array([0.05, 0.2, 0.05])
+    centre = [0.5, 0.0, -0.02 - 0.05 * math.sqrt(2.0)]
+    box = {"shape": "box", "centre": centre, "half_extents": half.tolist(),
+           "orientation": turn}
+    vertices, triangles = box_mesh(-half, half)
+    mesh = {"shape": "mesh", "vertices": vertices, "triangles": triangles,
+            "position": centre, "orientation": turn}
+    on_box = softspine.solve(heavy_rod(1.0, obstacles=[box], radius=0.005), n_elements=20)
+    on_mesh = softspine.solve(heavy_rod(1.0, obstacles=[mesh], radius=0.005), n_elements=20)
+    assert on_mesh.converged and on_mesh.stable, on_mesh.message
+    assert len(on_mesh.contacts["force"]) == 1 and on_mesh.contacts["force"][0] > 0.0
+    np.testing.assert_allclose(on_mesh.positions, on_box.positions, rtol=0, atol=1e-10)
+    for key in ("arc_length", "point", "normal", "force"):
+        np.testing.assert_allclose(on_mesh.contacts[key], on_box.contacts[key], rtol=1e-8,
+                                   atol=1e-10)
+
+
+def test_a_rod_inside_a_tube_mesh_lies_as_in_the_lumen():
+    # A closed 64-sided prism, free inside, with a face at the bottom: near
+    # the bottom its gap is that of a round lumen of the inscribed radius,
+    # so the sagging rod rests on it the same way.
+    sides, radius = 64, 0.01
+    angles = -np.pi / 2 + np.pi / sides + 2 * np.pi * np.arange(sides) / sides
+    ring = np.c_[0 * angles, radius * np.cos(angles), radius * np.sin(angles)]
+    vertices = np.vstack([ring + [-0.05, 0, 0], ring + [0.5, 0, 0]])
+    sides_ = [[k, (k + 1) % sides, sides + (k + 1) % sides] for k in range(sides)]
+    sides_ += [[k, sides + (k + 1) % sides, sides + k] for k in range(sides)]
+    caps = [[0, k + 1, k] for k in range(1, sides - 1)]
+    caps += [[sides, sides + k, sides + k + 1] for k in range(1, sides - 1)]
+    tube = {"shape": "mesh", "vertices": vertices, "triangles": sides_ + caps,
+            "free": "inside"}
+    assert softspine.read_obstacle(tube)["free"] == "inside"
+    lumen = {"shape": "lumen", "centreline": [[-0.05, 0, 0], [0.5, 0, 0]],
+             "radius": radius * math.cos(math.pi / sides)}
+    scene = {"length": 0.3, "stiffness": {"E": 2e6, "G": 8e5, "diameter": 0.002},
+             "gravity": {"linear_density": 0.05, "vector": [0.0, 0.0, -9.81]},
+             "base_quaternion": ALONG_X}
+    in_lumen = softspine.solve({**scene, "obstacles": [lumen]}, n_elements=30)
+    in_mesh = softspine.solve({**scene, "obstacles": [tube]}, n_elements=30)
+    assert in_mesh.converged and in_mesh.stable, in_mesh.message
+    assert len(in_mesh.contacts["force"]) >= 1
+    np.testing.assert_allclose(in_mesh.positions, in_lumen.positions, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(in_mesh.contacts["force"], in_lumen.contacts["force"],
+                               rtol=1e-7)
+
+
+def test_a_scene_file_finds_its_mesh_beside_it(tmp_path, monkeypatch):
+    vertices, triangles = box_mesh([-1.0, -1.0, -0.2], [3.0, 1.0, 0.0])
+    write_obj(tmp_path / "slab.obj", vertices, triangles)
+    (tmp_path / "scene.toml").write_text(
+        "length = 2.0\nbase_position = [0.0, 0.0, 0.001]\n"
+        f"base_quaternion = {ALONG_X}\n"
+        "[stiffness]\nkx = 1.0\nky = 1.0\nkz = 1.0\n"
+        "[gravity]\nlinear_density = 1.0\nvector = [0.0, 0.0, -1.0]\n"
+        "[[obstacles]]\nshape = \"mesh\"\nfile = \"slab.obj\"\n")
+    monkeypatch.chdir("/")
+    sol = softspine.solve(tmp_path / "scene.toml", n_elements=20)
+    table = softspine.solve(heavy_rod(2.0, base_position=[0, 0, 1e-3]), n_elements=20)
+    np.testing.assert_allclose(sol.positions, table.positions, rtol=0, atol=1e-12)
+
+
+TETRAHEDRON = {"shape": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]],
+               "triangles": [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]}
+
+
+@pytest.mark.parametrize(("change", "field", "reason"), [
+    ({"triangles": [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]}, "triangles",
+     "wound inwards"),
+    ({"triangles": [[0, 1, 4]]}, "triangles", "names a vertex past"),
+    ({"vertices": [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]]}, "triangles",
+     "no triangle of non-zero area"),
+    ({"free": "nowhere"}, "free", "inside"),
+    ({"file": "no-such-mesh.stl"}, "file", "not both"),
+])
+def test_bad_meshes_are_refused_by_name(change, field, reason):
+    mesh = {**TETRAHEDRON, **change}
+    with pytest.raises(ValueError, match=rf"^obstacle\.{field}: .*{reason}"):
+        softspine.read_obstacle(mesh)
+    with pytest.raises(ValueError, match=rf"obstacles\[0\]\.{field}: .*{reason}"):
+        softspine.solve(heavy_rod(1.0, obstacles=[mesh]), n_elements=10)
+
+
+def test_a_missing_mesh_file_is_refused_with_its_path(tmp_path):
+    with pytest.raises(ValueError, match=r"obstacles\[0\]\.file.*nothing\.stl.*cannot be read"):
+        softspine.solve(heavy_rod(1.0, obstacles=[{"shape": "mesh",
+                                                   "file": str(tmp_path / "nothing.stl")}]),
+                        n_elements=10)
+
+
+def test_a_mesh_is_plotted_from_its_file(tmp_path):
+    figure = pytest.importorskip("matplotlib.figure")
+    from softspine.plotting import plot_obstacles
+
+    vertices, triangles = box_mesh([0.0, 0.0, 0.0], [1.0, 2.0, 3.0])
+    write_binary_stl(tmp_path / "box.stl", vertices, triangles)
+    ax = figure.Figure().add_subplot(projection="3d")
+    plot_obstacles([{"shape": "mesh", "file": str(tmp_path / "box.stl")}], ax)
+    assert len(ax.collections) == 1

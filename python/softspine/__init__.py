@@ -36,6 +36,7 @@ from ._core import (
     SolverError,
     Status,
     __version__,
+    read_obstacle,
 )
 from ._core import solve as _solve
 from .batch import BatchResult, IkBatchResult, solve_batch
@@ -63,6 +64,7 @@ __all__ = [
     "Status",
     "calibrate",
     "load_scene",
+    "read_obstacle",
     "solve",
     "solve_batch",
     "trajectories",

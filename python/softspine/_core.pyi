@@ -39,6 +39,7 @@ __all__ = [
     "_calibrate",
     "_solve_batch",
     "jacobian",
+    "read_obstacle",
     "residual",
     "solve",
     "trajectory_points",
@@ -686,4 +687,4 @@ def _calibrate(
 def residual(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def jacobian(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def trajectory_points(name: str, points: int = 60, robot: Robot | None = None) -> _Array: ...
-
+def read_obstacle(obstacle: dict[str, Any]) -> dict[str, Any]: ...

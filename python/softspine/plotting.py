@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._core import read_obstacle
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
     from mpl_toolkits.mplot3d.axes3d import Axes3D
@@ -99,8 +101,9 @@ def plot_obstacles(
 
     A half-space is drawn as a square of side ``2 * extent`` (m) of its
     plane about its point; a sphere, capsule, cylinder and box as their
-    surfaces; a lumen as the tube about its centreline. ``**surface`` goes
-    to ``ax.plot_surface`` (``color``, ``alpha``).
+    surfaces; a lumen as the tube about its centreline; a mesh as its
+    triangles. ``**surface`` goes to ``ax.plot_surface`` (``color``,
+    ``alpha``) and ``ax.plot_trisurf``.
     """
     require_matplotlib()
     if ax is None:
@@ -112,6 +115,13 @@ def plot_obstacles(
     surface.setdefault("linewidth", 0)
     u, v = np.meshgrid(np.linspace(0.0, 2.0 * np.pi, 25), np.linspace(0.0, np.pi, 13))
     for obstacle in obstacles:
+        if obstacle["shape"] == "mesh":
+            # The core reads a mesh's file and places it.
+            placed = read_obstacle(obstacle)
+            vertices = np.asarray(placed["vertices"], dtype=float)
+            ax.plot_trisurf(*vertices.T, triangles=np.asarray(placed["triangles"]),
+                            **surface)
+            continue
         for x, y, z in _obstacle_surfaces(obstacle, u, v, extent):
             ax.plot_surface(x, y, z, **surface)
     return ax

@@ -10,6 +10,10 @@
 //! Every shape's gap is a true signed distance, so `|grad g| = 1` wherever it
 //! is smooth, except a lumen of varying radius (see [`Obstacle::Lumen`]).
 
+pub mod mesh_file;
 mod obstacle;
+mod triangle_mesh;
 
+pub(crate) use obstacle::files_beside;
 pub use obstacle::{Obstacle, Proximity};
+pub use triangle_mesh::{MeshError, TriangleMesh};

@@ -1,6 +1,8 @@
 //! Obstacle shapes, their signed gaps and normals, and their value-tree form
 //! (`{shape = "sphere", centre = [...], radius = ...}`).
 
+use super::mesh_file;
+use super::triangle_mesh::TriangleMesh;
 use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::read::{finite, string, vec3, Table};
@@ -50,6 +52,12 @@ pub enum Obstacle {
         centreline: Vec<Vector3<f64>>,
         radius: Vec<f64>,
     },
+    /// A triangle mesh (anatomy from an STL or OBJ file, a fixture): the
+    /// solid its outward-wound triangles enclose, or, with
+    /// `free = "inside"`, the space outside it (the rod runs inside). The
+    /// gap is the signed distance from the surface, so the rod's surface,
+    /// `radius` off it, rounds its edges and corners.
+    Mesh(TriangleMesh),
 }
 
 /// Where a point stands with respect to an obstacle.
@@ -140,6 +148,7 @@ impl Obstacle {
                 }
             }
             Obstacle::Lumen { centreline, radius } => lumen(p, centreline, radius),
+            Obstacle::Mesh(mesh) => mesh.proximity(p),
         }
     }
 
@@ -152,6 +161,7 @@ impl Obstacle {
             Obstacle::Cylinder { .. } => "cylinder",
             Obstacle::Box { .. } => "box",
             Obstacle::Lumen { .. } => "lumen",
+            Obstacle::Mesh(_) => "mesh",
         }
     }
 }
@@ -295,13 +305,25 @@ fn lumen(p: &Vector3<f64>, centreline: &[Vector3<f64>], radius: &[f64]) -> Proxi
 }
 
 /// The keys of each shape.
-const SHAPES: [(&str, &[&str]); 6] = [
+const SHAPES: [(&str, &[&str]); 7] = [
     ("half_space", &["point", "normal"]),
     ("sphere", &["centre", "radius"]),
     ("capsule", &["a", "b", "radius"]),
     ("cylinder", &["a", "b", "radius"]),
     ("box", &["centre", "half_extents", "orientation"]),
     ("lumen", &["centreline", "radius"]),
+    (
+        "mesh",
+        &[
+            "file",
+            "vertices",
+            "triangles",
+            "scale",
+            "position",
+            "orientation",
+            "free",
+        ],
+    ),
 ];
 
 fn positive(key: &str, x: f64) -> Result<f64> {
@@ -385,6 +407,7 @@ impl Obstacle {
                     },
                 }
             }
+            "mesh" => mesh(&t)?,
             _ => {
                 let key = t.key("centreline");
                 let centreline: Vec<Vector3<f64>> = match t.require("centreline")? {
@@ -470,9 +493,171 @@ impl Obstacle {
                     },
                 );
             }
+            Obstacle::Mesh(mesh) => {
+                add(
+                    "vertices",
+                    Value::List(mesh.vertices().iter().map(point).collect()),
+                );
+                let index = |i: &u32| num(f64::from(*i));
+                add(
+                    "triangles",
+                    Value::List(
+                        mesh.triangles()
+                            .iter()
+                            .map(|t| Value::List(t.iter().map(index).collect()))
+                            .collect(),
+                    ),
+                );
+                if mesh.free_inside() {
+                    add("free", Value::String("inside".into()));
+                }
+            }
         }
         Value::Map(entries)
     }
+}
+
+/// A mesh's entry: its triangles from `file` (an STL or OBJ path, relative
+/// to the working directory, or to a scene file's folder) or from `vertices` and `triangles` (indices
+/// from 0), placed in the world as `position + orientation * (scale * v)`
+/// (`scale` 0.001 for a file in millimetres), the free side `"outside"`
+/// (the default) or `"inside"`.
+fn mesh(t: &Table) -> Result<Obstacle> {
+    let (vertices, triangles) = match (t.get("file"), t.get("vertices"), t.get("triangles")) {
+        (Some(file), None, None) => {
+            let path = string(file, &t.key("file"))?;
+            mesh_file::read(std::path::Path::new(path))
+                .map_err(|reason| Error::scene(t.key("file"), format!("{path:?} {reason}")))?
+        }
+        (None, Some(vertices), Some(triangles)) => (
+            points(vertices, &t.key("vertices"))?,
+            indices(triangles, &t.key("triangles"))?,
+        ),
+        (Some(_), _, _) => {
+            return Err(Error::scene(
+                t.key("file"),
+                "give a file or vertices and triangles, not both",
+            ))
+        }
+        (None, None, _) => {
+            return Err(Error::scene(
+                t.key("file"),
+                "missing (or vertices and triangles)",
+            ))
+        }
+        (None, Some(_), None) => return Err(Error::scene(t.key("triangles"), "missing")),
+    };
+    let scale = match t.get("scale") {
+        Some(s) => positive(&t.key("scale"), finite(s, &t.key("scale"))?)?,
+        None => 1.0,
+    };
+    let position = match t.get("position") {
+        Some(p) => vec3(p, &t.key("position"))?,
+        None => Vector3::zeros(),
+    };
+    let orientation = match t.get("orientation") {
+        Some(q) => crate::read::orientation(q, &t.key("orientation"))?,
+        None => Quat::IDENTITY,
+    };
+    let free_inside = match t.get("free") {
+        None => false,
+        Some(v) => match string(v, &t.key("free"))? {
+            "outside" => false,
+            "inside" => true,
+            other => {
+                return Err(Error::scene(
+                    t.key("free"),
+                    format!("expected \"outside\" or \"inside\", got {other:?}"),
+                ))
+            }
+        },
+    };
+    // Placed only when asked, so that a mesh written back reads the same.
+    let placed: Vec<Vector3<f64>> =
+        if scale == 1.0 && position == Vector3::zeros() && orientation == Quat::IDENTITY {
+            vertices
+        } else {
+            vertices
+                .iter()
+                .map(|v| position + orientation.rotate(scale * v))
+                .collect()
+        };
+    let key = match t.get("file") {
+        Some(_) => t.key("file"),
+        None => t.key("triangles"),
+    };
+    TriangleMesh::new(&placed, &triangles, free_inside)
+        .map(Obstacle::Mesh)
+        .map_err(|e| Error::scene(key, e.to_string()))
+}
+
+/// Make each mesh's relative `file` in the `obstacles` of a scene or robot
+/// read from a file relative to that file's folder `dir` (where a user
+/// keeps the meshes a scene file names), not to the working directory.
+pub(crate) fn files_beside(value: &mut Value, dir: &std::path::Path) {
+    let Value::Map(entries) = value else { return };
+    let Some((_, Value::List(obstacles))) = entries.iter_mut().find(|(k, _)| k == "obstacles")
+    else {
+        return;
+    };
+    for obstacle in obstacles {
+        let Value::Map(keys) = obstacle else { continue };
+        let is_mesh = keys
+            .iter()
+            .any(|(k, v)| k == "shape" && *v == Value::String("mesh".into()));
+        for (k, v) in keys.iter_mut() {
+            if let (true, "file", Value::String(file)) = (is_mesh, k.as_str(), &mut *v) {
+                if std::path::Path::new(file.as_str()).is_relative() {
+                    *file = dir.join(&*file).to_string_lossy().into_owned();
+                }
+            }
+        }
+    }
+}
+
+/// A list of `[x, y, z]` points at `key`.
+fn points(v: &Value, key: &str) -> Result<Vec<Vector3<f64>>> {
+    match v {
+        Value::List(items) => items
+            .iter()
+            .enumerate()
+            .map(|(i, x)| vec3(x, &format!("{key}[{i}]")))
+            .collect(),
+        other => Err(Error::scene(
+            key,
+            format!("expected a list of [x, y, z] points, got {}", other.kind()),
+        )),
+    }
+}
+
+/// A list of `[i, j, k]` vertex indices at `key`.
+fn indices(v: &Value, key: &str) -> Result<Vec<[u32; 3]>> {
+    let Value::List(items) = v else {
+        return Err(Error::scene(
+            key,
+            format!(
+                "expected a list of [i, j, k] vertex indices, got {}",
+                v.kind()
+            ),
+        ));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(t, x)| {
+            let k = format!("{key}[{t}]");
+            let [a, b, c] = crate::read::numbers::<3>(x, &k)?;
+            let mut out = [0u32; 3];
+            for (o, (i, value)) in out.iter_mut().zip([a, b, c].into_iter().enumerate()) {
+                *o = crate::read::whole(
+                    &Value::Number(value),
+                    &format!("{k}[{i}]"),
+                    f64::from(u32::MAX),
+                )? as u32;
+            }
+            Ok(out)
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -489,7 +674,11 @@ mod tests {
             {"shape": "box", "centre": [0, 0.1, 0], "half_extents": [0.1, 0.05, 0.2],
              "orientation": [0.9238795, 0.3826834, 0, 0]},
             {"shape": "lumen", "centreline": [[0, 0, 0], [0, 0, -0.3], [0.1, 0, -0.5]],
-             "radius": [0.02, 0.025, 0.015]}
+             "radius": [0.02, 0.025, 0.015]},
+            {"shape": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]],
+             "triangles": [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+             "scale": 0.3, "position": [-0.1, 0, -0.3],
+             "orientation": [0.9238795, 0, 0.3826834, 0]}
         ]"#;
         match Value::from_json_str(text).unwrap() {
             Value::List(items) => items
@@ -705,6 +894,35 @@ mod tests {
             (
                 r#"{"shape": "lumen", "centreline": [[0, 0, 0], [0, 0, 1]], "radius": [1, 0]}"#,
                 "obstacles[0].radius[1]",
+            ),
+            (r#"{"shape": "mesh"}"#, "obstacles[0].file"),
+            (
+                r#"{"shape": "mesh", "file": "no such file.stl"}"#,
+                "obstacles[0].file",
+            ),
+            (
+                r#"{"shape": "mesh", "file": "a.stl", "vertices": [], "triangles": []}"#,
+                "obstacles[0].file",
+            ),
+            (
+                r#"{"shape": "mesh", "vertices": [[0, 0, 0]]}"#,
+                "obstacles[0].triangles",
+            ),
+            (
+                r#"{"shape": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2.5]]}"#,
+                "obstacles[0].triangles[0][2]",
+            ),
+            (
+                r#"{"shape": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 3]]}"#,
+                "obstacles[0].triangles",
+            ),
+            (
+                r#"{"shape": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2]], "free": "both"}"#,
+                "obstacles[0].free",
+            ),
+            (
+                r#"{"shape": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2]], "scale": 0}"#,
+                "obstacles[0].scale",
             ),
         ];
         for (text, key) in cases {

@@ -229,6 +229,14 @@ pub(super) fn to_value(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
         let list = obj.call_method0("tolist")?;
         return to_value(&list, &path.child(Step::Same));
     }
+    // A file's path (a mesh's `file`) as its text.
+    if obj.hasattr("__fspath__")? {
+        let text = obj.py().import("os")?.call_method1("fspath", (obj,))?;
+        return text
+            .extract::<String>()
+            .map(Value::String)
+            .map_err(|_| path.error("a path must be text, not bytes"));
+    }
     Err(unsupported(obj, path))
 }
 

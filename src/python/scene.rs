@@ -136,3 +136,13 @@ impl PyScene {
 pub(super) fn scene_arg(scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
     Ok(PyScene::new(scene)?.inner)
 }
+
+/// An obstacle as the core reads it: checked, a mesh's ``file`` read and
+/// placed (its ``vertices`` and ``triangles`` in the world frame), as a
+/// dict. Invalid input raises ``ValueError`` naming the key.
+#[pyfunction]
+pub(super) fn read_obstacle<'py>(obstacle: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    let value = to_value(obstacle, &Path::argument("obstacle"))?;
+    let read = crate::contact::Obstacle::from_value(&value, "obstacle")?;
+    from_value(obstacle.py(), &read.to_value())
+}

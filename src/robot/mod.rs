@@ -555,7 +555,11 @@ impl Robot {
 
     /// Read a `.json` or `.toml` file.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
-        Robot::from_value(&Value::from_file(path)?)
+        let mut value = Value::from_file(path)?;
+        if let Some(dir) = path.parent() {
+            crate::contact::files_beside(&mut value, dir);
+        }
+        Robot::from_value(&value)
     }
 
     /// Every field as a value tree (`Robot::from_value` of it is the same

@@ -111,3 +111,77 @@ def knife_edge(ei: float, load: float, length: float, edge: float,
         raise RuntimeError(f"knife_edge: shooting missed by {miss:.1e}")
     _, after, _ = shoot(found.x)
     return float(found.x[1]), float(found.x[2]), float(after[0]), float(after[1])
+
+
+def _planar(ei: float, force: tuple[float, float], start: np.ndarray, s0: float, s1: float,
+            rtol: float = 1e-12):
+    """A weightless planar elastica from `start = (x, y, theta, m)` at `s0`
+    to `s1` under the constant internal force `force` (of the distal part
+    on the proximal one): the dense solution of `solve_ivp`."""
+    n_x, n_y = force
+
+    def rhs(_s: float, z: np.ndarray) -> list[float]:
+        _x, _y, theta, m = z
+        return [np.cos(theta), np.sin(theta), m / ei, n_x * np.sin(theta) - n_y * np.cos(theta)]
+
+    return solve_ivp(rhs, (s0, s1), start, rtol=rtol, atol=1e-15, method="DOP853",
+                     dense_output=True)
+
+
+def between_walls(ei: float, length: float, span: float, gap: float) -> dict:
+    """A weightless elastica clamped at both ends, at `(0, 0)` and `(span, 0)`
+    along +x, compressed (`span < length`) between the frictionless walls
+    `y = gap` and `y = -gap`, buckled towards `+y`: the clamped-clamped case
+    of Domokos, Holmes and Royce (1997), by shooting over half the rod (it
+    is symmetric about its middle), in its first two regimes.
+
+    Free until the first mode's middle reaches the upper wall; then a point
+    contact at the middle, whose force `-2 n_y` is the jump of the shear
+    there, while the middle's curvature bends away from the wall. Unknowns
+    the internal force `(n_x, n_y)` and the clamp's moment; conditions at
+    the middle: `x = span / 2`, `y = gap` and `theta = 0`. Past the point
+    contact (the middle's moment reaching zero) the symmetric states are not
+    covered: a `RuntimeError`. Returns `regime` ("free" or "point"),
+    `contacts` (arc length, force), `compression` (`-n_x`) and `y(s)`, the
+    deflection at arc lengths `s`."""
+    half = 0.5 * length
+
+    def end(force, m0):
+        return _planar(ei, force, np.array([0.0, 0.0, 0.0, m0]), 0.0, half)
+
+    def solved(equations, guess, name):
+        found = root(equations, guess, tol=1e-14)
+        miss = np.abs(equations(found.x)).max()
+        if not miss < 1e-10:
+            raise RuntimeError(f"between_walls ({name}): shooting missed by {miss:.1e}")
+        return found.x
+
+    def shape(sol):
+        return lambda s: sol.sol(np.minimum(s, length - s))[1]
+
+    # The free first mode whose middle reaches the wall: the first contact.
+    def touching(u):
+        e = end((u[0], 0.0), u[1]).y[:, -1]
+        return [e[1] - gap, e[2]]
+
+    first = solved(touching, [-4.0 * np.pi**2 * ei / length**2,
+                              8.0 * np.pi**2 * ei * gap / length**2], "first contact")
+    if span >= 2.0 * end((first[0], 0.0), first[1]).y[0, -1]:
+        def free(u):
+            e = end((u[0], 0.0), u[1]).y[:, -1]
+            return [e[0] - 0.5 * span, e[2]]
+
+        u = solved(free, first, "free")
+        return {"regime": "free", "contacts": [], "compression": -u[0],
+                "y": shape(end((u[0], 0.0), u[1]))}
+
+    def point(u):
+        e = end((u[0], u[1]), u[2]).y[:, -1]
+        return [e[0] - 0.5 * span, e[1] - gap, e[2]]
+
+    u = solved(point, [first[0], 0.0, first[1]], "point")
+    sol = end((u[0], u[1]), u[2])
+    if sol.y[3, -1] > 0.0:
+        raise RuntimeError("between_walls: past the point contact (not covered)")
+    return {"regime": "point", "contacts": [(half, -2.0 * u[1])], "compression": -u[0],
+            "y": shape(sol)}

@@ -11,7 +11,7 @@ import re
 
 import numpy as np
 import pytest
-from contact_reference import lifted_rod
+from contact_reference import between_walls, lifted_rod
 
 import softspine
 
@@ -189,6 +189,58 @@ def test_bad_obstacles_are_refused_by_name(obstacle, field, reason):
 def test_a_negative_radius_is_refused():
     with pytest.raises(ValueError, match="radius.*negative"):
         softspine.solve(heavy_rod(1.0, radius=-0.1), n_elements=10)
+
+
+def along_x_turned(theta: np.ndarray) -> np.ndarray:
+    """The frames of a planar backbone whose tangent makes the angles
+    `theta` with +x in the x-y plane: ALONG_X turned about z."""
+    c, s = np.cos(theta / 2), np.sin(theta / 2)
+    w, x, y, z = ALONG_X
+    # [c, 0, 0, s] * ALONG_X (Hamilton product).
+    return np.stack([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w], axis=1)
+
+
+# The compressive load at which a clamped-clamped column buckles
+# antisymmetrically (its second mode), over EI / L^2.
+SECOND_MODE = 8.183 * math.pi**2
+
+
+@pytest.mark.parametrize("span", [0.974, 0.9735])
+def test_an_elastica_pressed_between_walls_meets_the_shooting_reference(span):
+    # Domokos, Holmes and Royce's elastica between two walls 0.2 apart,
+    # clamped at both ends: compressed to `span`, it touches the upper wall
+    # at its middle. The force and shape against the shooting reference at
+    # second order; and its stability: the middle held on the wall, each
+    # half is a clamped-pinned column, so the state turns unstable where the
+    # compression passes the column's antisymmetric buckling load 80.76
+    # EI / L^2 (75.1 at span 0.974: stable; 89.3 at 0.9735: unstable, which
+    # a solve used to report as not converged, its contacts lost). Stiff out
+    # of the plane (ky): an isotropic rod leaves it, the walls only in y.
+    gap = 0.1
+    ref = between_walls(1.0, 1.0, span, gap)
+    assert ref["regime"] == "point"
+    (s_ref, force_ref), = ref["contacts"]
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 100.0, "kz": 1.0},
+             "base_quaternion": ALONG_X,
+             "tip": {"type": "clamped", "position": [span, 0.0, 0.0], "quaternion": ALONG_X},
+             "obstacles": [{"shape": "half_space", "point": [0, gap, 0], "normal": [0, -1, 0]},
+                           {"shape": "half_space", "point": [0, -gap, 0], "normal": [0, 1, 0]}]}
+    force_errors, shape_errors = [], []
+    for n in (20, 40, 80):
+        s = np.linspace(0.0, 1.0, n + 1)
+        # A start bent towards the upper wall picks the branch.
+        start = along_x_turned(np.arctan(gap * np.pi * np.sin(2 * np.pi * s)))
+        sol = softspine.solve(scene, n_elements=n, initial=start)
+        assert sol.converged, sol.message
+        assert sol.stable == (ref["compression"] < SECOND_MODE), (n, sol.message)
+        contacts = sol.contacts
+        assert contacts["obstacle"].tolist() == [0]
+        assert contacts["arc_length"][0] == pytest.approx(s_ref)
+        force_errors.append(abs(contacts["force"][0] - force_ref))
+        shape_errors.append(np.abs(sol.positions[:, 1] - ref["y"](s)).max())
+    assert force_errors[-1] < 1e-2 * force_ref and shape_errors[-1] < 2e-5
+    for errors in (force_errors, shape_errors):
+        assert errors[0] / errors[1] > 3.5 and errors[1] / errors[2] > 3.5, errors
 
 
 # The robot among obstacles: the seed's robot (hanging, 1 m) with 30 g.

@@ -408,9 +408,7 @@ impl Solver {
         }
         // The direct attempt failed or found an unstable equilibrium: follow the
         // load path from the rest shape, which stays on the stable branch.
-        let direct_state = direct
-            .converged
-            .then(|| (w.q.clone(), w.kkt.reactions.clone()));
+        let direct_state = direct.converged.then(|| Snapshot::take(w));
         let remaining = budget - iterations.min(budget);
         let min_step = self.settings.min_continuation_step;
         let (cont, steps) =
@@ -427,8 +425,7 @@ impl Solver {
         {
             return Ok(self.finish(Ending::Continuation, iterations, steps));
         }
-        let path_state = (cont.converged && direct_state.is_none())
-            .then(|| (w.q.clone(), w.kkt.reactions.clone()));
+        let path_state = (cont.converged && direct_state.is_none()).then(|| Snapshot::take(w));
         // Newton's undamped steps can fail where Levenberg-Marquardt's damping
         // gets there: held points that only a strongly bent (buckled) rod
         // reaches, torsion far stiffer than bending. LM is dense, so it is only
@@ -458,9 +455,8 @@ impl Solver {
             (path_state, Ending::Continuation),
             (direct_state, Ending::DirectUnstable),
         ] {
-            if let Some((q, reactions)) = state {
-                w.q.copy_from_slice(&q);
-                w.kkt.reactions.copy_from_slice(&reactions);
+            if let Some(state) = state {
+                state.restore(w);
                 evaluate(model, w, 1.0);
                 return Ok(self.finish(ending, iterations, steps));
             }
@@ -614,6 +610,34 @@ impl Ending {
             } => format!("converged from the equilibrium at n = {coarse_elements}"),
             Ending::Refused(_, m) | Ending::Failed(m) => m.clone(),
         }
+    }
+}
+
+/// A state of the solve to come back to: the unknowns, the multipliers and
+/// the contact set they go with (a contact's force acts only while its slot
+/// is active, so the multipliers alone lose it).
+struct Snapshot {
+    q: Vec<Quat>,
+    reactions: Vec<Vector3<f64>>,
+    active: Vec<usize>,
+    held: Vec<bool>,
+}
+
+impl Snapshot {
+    fn take(w: &Workspace) -> Snapshot {
+        Snapshot {
+            q: w.q.clone(),
+            reactions: w.kkt.reactions.clone(),
+            active: w.kkt.contact.active.clone(),
+            held: w.kkt.contact.held.clone(),
+        }
+    }
+
+    fn restore(self, w: &mut Workspace) {
+        w.q.copy_from_slice(&self.q);
+        w.kkt.reactions.copy_from_slice(&self.reactions);
+        w.kkt.contact.active = self.active;
+        w.kkt.contact.held = self.held;
     }
 }
 

@@ -25,6 +25,7 @@ use crate::blocktri::BlockLu;
 use crate::disc::NodeForces;
 use crate::interrupt;
 use crate::model::RodModel;
+use crate::quat::Quat;
 use nalgebra::{DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
 
 /// Buffers of the constrained solve, sized once (empty for free scenes).
@@ -74,6 +75,31 @@ impl KktWorkspace {
         self.contact.held.clear();
     }
 
+    /// Keep the multipliers and the contact set as the last equilibrium
+    /// (a contact's force acts only while its slot is a candidate, so the
+    /// multipliers alone do not say which act).
+    pub fn save(&mut self) {
+        self.reactions_saved.copy_from_slice(&self.reactions);
+        self.contact.saved_active.clone_from(&self.contact.active);
+        self.contact.saved_held.clone_from(&self.contact.held);
+    }
+
+    /// Go back to the kept multipliers and contact set.
+    pub fn restore_saved(&mut self) {
+        self.reactions.copy_from_slice(&self.reactions_saved);
+        self.contact.active.clone_from(&self.contact.saved_active);
+        self.contact.held.clone_from(&self.contact.saved_held);
+    }
+
+    /// Keep the rest shape's: no multiplier, no contact.
+    pub fn clear_saved(&mut self) {
+        self.reactions_saved
+            .iter_mut()
+            .for_each(|r| *r = Vector3::zeros());
+        self.contact.saved_active.clear();
+        self.contact.saved_held.clear();
+    }
+
     pub fn new(model: &RodModel) -> Self {
         let (n, m) = (model.n(), model.constraints().len());
         let positions = if model.is_constrained() { n + 1 } else { 0 };
@@ -98,6 +124,33 @@ impl KktWorkspace {
             contact: ContactWork::new(model),
             mixed: MixedWork::default(),
         }
+    }
+}
+
+/// A state of a solve to come back to: the unknowns, the multipliers and
+/// the contact set they go with (see [`KktWorkspace::save`]).
+pub(crate) struct Snapshot {
+    q: Vec<Quat>,
+    reactions: Vec<Vector3<f64>>,
+    active: Vec<usize>,
+    held: Vec<bool>,
+}
+
+impl Snapshot {
+    pub fn take(w: &Workspace) -> Snapshot {
+        Snapshot {
+            q: w.q.clone(),
+            reactions: w.kkt.reactions.clone(),
+            active: w.kkt.contact.active.clone(),
+            held: w.kkt.contact.held.clone(),
+        }
+    }
+
+    pub fn restore(self, w: &mut Workspace) {
+        w.q.copy_from_slice(&self.q);
+        w.kkt.reactions.copy_from_slice(&self.reactions);
+        w.kkt.contact.active = self.active;
+        w.kkt.contact.held = self.held;
     }
 }
 

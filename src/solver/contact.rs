@@ -83,6 +83,10 @@ pub(crate) struct ContactWork {
     /// Whether each candidate is held on its obstacle (its gap a row of
     /// the merit, its force free); the others' forces are zero.
     pub held: Vec<bool>,
+    /// The candidates and their held flags at the continuation's last
+    /// equilibrium (with `reactions_saved`).
+    pub saved_active: Vec<usize>,
+    pub saved_held: Vec<bool>,
     /// The candidates' gaps (zero for a tangent).
     pub gaps: Vec<f64>,
     /// Whether the step chooses which candidates are held (the QP); a

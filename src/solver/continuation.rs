@@ -11,6 +11,7 @@
 //! with a small lateral load was not found that way. The single leg stays as
 //! the fallback.
 
+use super::constrained::Snapshot;
 use super::{evaluate, is_stable, LocalOutcome, LocalSolver, Workspace};
 use crate::interrupt;
 use crate::model::RodModel;
@@ -43,7 +44,7 @@ pub(crate) fn load_path(
             // Second leg: the held points from where the loaded rod puts them.
             let holding = model.holding_from(&w.q, &mut w.interior);
             w.saved.copy_from_slice(&w.q);
-            zero(&mut w.kkt.reactions_saved);
+            w.kkt.clear_saved();
             let (second, second_steps) = continuation(
                 local,
                 &holding,
@@ -89,14 +90,10 @@ pub(crate) fn load_path(
 
 fn start_from_rest(model: &RodModel, w: &mut Workspace) {
     w.saved.copy_from_slice(&model.rest_shape());
-    zero(&mut w.kkt.reactions_saved);
+    w.kkt.clear_saved();
     // No contact is held at the rest shape (an attempt before may have left some).
     w.kkt.contact.active.clear();
     w.kkt.contact.held.clear();
-}
-
-fn zero(v: &mut [Vector3<f64>]) {
-    v.iter_mut().for_each(|r| *r = Vector3::zeros());
 }
 
 /// Continuation steps shorter than this may end on an unstable equilibrium.
@@ -131,7 +128,7 @@ fn continuation(
         let target = (lambda + dlambda).min(1.0);
         // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last
         // equilibrium (a held scene: the KKT system's, reactions included).
-        w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+        w.kkt.restore_saved();
         let predicted = if model.is_constrained() {
             w.q.copy_from_slice(&w.saved);
             super::constrained::tangent(model, w, lambda)
@@ -190,7 +187,7 @@ fn continuation(
                 w.kkt.contact.moved = moved;
                 if crossed {
                     w.q.copy_from_slice(&w.saved);
-                    w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+                    w.kkt.restore_saved();
                 }
             }
         } else {
@@ -252,7 +249,7 @@ fn continuation(
             lambda = target;
             w.reached_load = w.reached_load.max(lambda);
             w.saved.copy_from_slice(&w.q);
-            w.kkt.reactions_saved.copy_from_slice(&w.kkt.reactions);
+            w.kkt.save();
             if out.iterations <= 6 {
                 dlambda = (dlambda * 2.0).min(1.0);
             }
@@ -260,7 +257,7 @@ fn continuation(
             dlambda *= 0.5;
             if dlambda < min_step || iterations >= budget {
                 w.q.copy_from_slice(&w.saved);
-                w.kkt.reactions.copy_from_slice(&w.kkt.reactions_saved);
+                w.kkt.restore_saved();
                 evaluate(model, w, 1.0);
                 return (
                     LocalOutcome {
@@ -322,7 +319,7 @@ fn better_branch(
         )
     };
     let first_rank = rank(&first, w);
-    let kept = (w.q.clone(), w.kkt.reactions.clone(), prediction.to_vec());
+    let kept = (Snapshot::take(w), prediction.to_vec());
     prediction.copy_from_slice(&q);
     w.q.copy_from_slice(&q);
     w.kkt.reactions.copy_from_slice(&reactions);
@@ -333,9 +330,8 @@ fn better_branch(
     if better {
         return (second, second.iterations);
     }
-    w.q.copy_from_slice(&kept.0);
-    w.kkt.reactions.copy_from_slice(&kept.1);
-    prediction.copy_from_slice(&kept.2);
+    kept.0.restore(w);
+    prediction.copy_from_slice(&kept.1);
     evaluate(model, w, lambda);
     (first, second.iterations)
 }

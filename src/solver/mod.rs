@@ -43,6 +43,7 @@ pub use settings::{
 pub use solution::{Solution, Status, MAX_RESOLVED_TURN};
 pub(crate) use workspace::{step_limit, LocalOutcome, LocalSolver, Workspace};
 
+use constrained::Snapshot;
 use solution::judge;
 use workspace::residual_norm;
 pub(crate) use workspace::{evaluate, is_stable};
@@ -610,34 +611,6 @@ impl Ending {
             } => format!("converged from the equilibrium at n = {coarse_elements}"),
             Ending::Refused(_, m) | Ending::Failed(m) => m.clone(),
         }
-    }
-}
-
-/// A state of the solve to come back to: the unknowns, the multipliers and
-/// the contact set they go with (a contact's force acts only while its slot
-/// is active, so the multipliers alone lose it).
-struct Snapshot {
-    q: Vec<Quat>,
-    reactions: Vec<Vector3<f64>>,
-    active: Vec<usize>,
-    held: Vec<bool>,
-}
-
-impl Snapshot {
-    fn take(w: &Workspace) -> Snapshot {
-        Snapshot {
-            q: w.q.clone(),
-            reactions: w.kkt.reactions.clone(),
-            active: w.kkt.contact.active.clone(),
-            held: w.kkt.contact.held.clone(),
-        }
-    }
-
-    fn restore(self, w: &mut Workspace) {
-        w.q.copy_from_slice(&self.q);
-        w.kkt.reactions.copy_from_slice(&self.reactions);
-        w.kkt.contact.active = self.active;
-        w.kkt.contact.held = self.held;
     }
 }
 

@@ -185,3 +185,88 @@ def between_walls(ei: float, length: float, span: float, gap: float) -> dict:
         raise RuntimeError("between_walls: past the point contact (not covered)")
     return {"regime": "point", "contacts": [(half, -2.0 * u[1])], "compression": -u[0],
             "y": shape(sol)}
+
+
+def rod_in_bend(ei: float, length: float, bend: float, clearance: float,
+                inner: bool) -> dict:
+    """A weightless rod clamped at the origin along +x, at the start of a
+    rigid planar tube that bends towards +y about the centre `C = (0,
+    bend)`; the backbone keeps within `clearance` of the tube's centreline
+    (the tube's radius less the rod's). Pushed in to `length`, its tip rides
+    the outer wall, `|r - C| = bend + clearance`, and, once long enough, a
+    point of it the inner one, `|r - C| = bend - clearance`, tangentially.
+    Frictionless: each force along the wall's normal, through `C`.
+
+    Shooting from the clamp, the internal force constant between the
+    contacts. Tip contact alone (`inner=False`): unknowns the clamp's moment
+    and the tip force's size and angle; conditions the tip on the wall, the
+    force through `C`, no moment at the tip. With the inner contact too: its
+    arc length and force besides, conditions on the inner wall and tangent
+    to it. Returns `contacts` (arc length, force, wall: "outer"/"inner") in
+    order along the rod, `path(s)`, the backbone's (x, y) at `s`, and the
+    shooting's `unknowns`."""
+    centre = np.array([0.0, bend])
+    outer, inner_radius = bend + clearance, bend - clearance
+
+    def shoot(u):
+        m0, f_tip, angle = u[:3]
+        tip_force = f_tip * np.array([np.cos(angle), np.sin(angle)])
+        if inner:
+            s_1, f_1 = u[3], u[4]
+            s_1 = np.clip(s_1, 1e-9, length)
+            before = _planar(ei, tuple(tip_force), np.array([0.0, 0.0, 0.0, m0]), 0.0, s_1)
+            at = before.y[:, -1]
+            away = (at[:2] - centre) / np.linalg.norm(at[:2] - centre)
+            # The distal part's loads: the tip force and, before s_1, the inner wall's.
+            before = _planar(ei, tuple(tip_force + f_1 * away), np.array([0.0, 0.0, 0.0, m0]),
+                             0.0, s_1)
+            after = _planar(ei, tuple(tip_force), before.y[:, -1], s_1, length)
+            return [before, after], tip_force
+        return [_planar(ei, tuple(tip_force), np.array([0.0, 0.0, 0.0, m0]), 0.0, length)], \
+            tip_force
+
+    def conditions(u):
+        parts, tip_force = shoot(u)
+        tip = parts[-1].y[:, -1]
+        to_centre = centre - tip[:2]
+        out = [(np.linalg.norm(to_centre) - outer) / bend,
+               float(to_centre[0] * tip_force[1] - to_centre[1] * tip_force[0])
+               / max(abs(u[1]), 1e-300) / bend,
+               tip[3] * bend / ei]
+        if inner:
+            at = parts[0].y[:, -1]
+            radial = at[:2] - centre
+            out += [(np.linalg.norm(radial) - inner_radius) / bend,
+                    float(radial @ np.array([np.cos(at[2]), np.sin(at[2])])) / bend]
+        return out
+
+    if inner:
+        # From the tip contact alone: the inner contact where that comes
+        # nearest the inner wall, with a tenth of the tip's force.
+        alone = rod_in_bend(ei, length, bend, clearance, inner=False)
+        s = np.linspace(0.0, length, 401)
+        nearest = s[np.argmin(np.linalg.norm(alone["path"](s) - centre, axis=1))]
+        guess = [*alone["unknowns"], nearest, 0.1 * alone["unknowns"][1]]
+    else:
+        # Small deflection: a cantilever pushed up at its tip by the wall.
+        rise = np.sqrt(length**2 + bend**2) - outer
+        f0 = 3.0 * ei * max(rise, 1e-6) / length**3
+        guess = [f0 * length, f0, np.arctan2(bend, -length)]
+    found = root(conditions, guess, tol=1e-14)
+    miss = np.abs(conditions(found.x)).max()
+    if not miss < 1e-10:
+        raise RuntimeError(f"rod_in_bend: shooting missed by {miss:.1e}")
+    parts, _ = shoot(found.x)
+    contacts = [(length, float(found.x[1]), "outer")]
+    if inner:
+        contacts.insert(0, (float(found.x[3]), float(found.x[4]), "inner"))
+
+    def path(s):
+        s = np.asarray(s, dtype=float)
+        if not inner:
+            return parts[0].sol(s)[:2].T
+        s_1 = contacts[0][0]
+        return np.where((s < s_1)[:, None], parts[0].sol(np.minimum(s, s_1))[:2].T,
+                        parts[1].sol(np.maximum(s, s_1))[:2].T)
+
+    return {"contacts": contacts, "path": path, "unknowns": found.x}

@@ -11,7 +11,7 @@ import re
 
 import numpy as np
 import pytest
-from contact_reference import between_walls, lifted_rod
+from contact_reference import between_walls, lifted_rod, rod_in_bend
 
 import softspine
 
@@ -400,6 +400,52 @@ def test_a_rod_pushed_into_a_bent_vessel_stays_inside_it():
         q = sol.quaternions
         distance = np.linalg.norm(sol.positions[:, None, :] - centreline[None], axis=2).min(1)
         assert distance.max() <= 0.004 - 0.0005 + 1e-7, (n, distance.max())
+
+
+@pytest.mark.parametrize(("length", "inner"), [(0.06, False), (0.12, True)])
+def test_a_rod_pushed_into_a_curved_tube_meets_the_shooting_reference(length, inner):
+    # A 1 mm steel rod clamped on the axis of an 8 mm tube where it starts
+    # to bend (radius 80 mm, half a turn): pushed in 60 mm its tip rides the
+    # outer wall; 120 mm, a point of it also rides the inner wall. Against
+    # shooting with the contacts' arc lengths and forces unknowns
+    # (tests/contact_reference.rod_in_bend). The tube is a lumen through
+    # points 2 mm apart on the circle (its spline is off the circle by 7e-10 m
+    # at most inside the bend).
+    # Shape and tip force at second order; the inner contact, inside an
+    # element, its force at first order or better (the shear's kink).
+    E, diameter, bend, radius = 50e9, 0.001, 0.08, 0.004
+    ei = E * math.pi * diameter**4 / 64.0
+    step = bend * (math.pi / 2) / 64
+    turn = np.linspace(0.0, math.pi, 129)
+    centreline = np.vstack([np.c_[np.arange(-6, 0) * step, np.zeros((6, 2))],
+                            np.c_[bend * np.sin(turn), bend * (1 - np.cos(turn)), 0 * turn],
+                            np.c_[-np.arange(1, 7) * step, np.full(6, 2 * bend), np.zeros(6)]])
+    scene = {"length": length, "stiffness": {"E": E, "G": E / 2.6, "diameter": diameter},
+             "base_quaternion": ALONG_X,
+             "obstacles": [{"shape": "lumen", "centreline": centreline, "radius": radius}]}
+    ref = rod_in_bend(ei, length, bend, radius - diameter / 2, inner)
+    shape_errors, tip_errors, inner_errors = [], [], []
+    for n in (20, 40, 80, 160):
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        contacts = sol.contacts
+        assert len(contacts["force"]) == len(ref["contacts"]), contacts
+        assert (contacts["force"] > 0).all()
+        shape_errors.append(np.abs(sol.positions[:, :2]
+                                   - ref["path"](np.linspace(0.0, length, n + 1))).max())
+        tip_errors.append(abs(contacts["force"][-1] - ref["contacts"][-1][1]))
+        assert contacts["arc_length"][-1] == pytest.approx(length)
+        if inner:
+            s_ref, force_ref, _ = ref["contacts"][0]
+            assert abs(contacts["arc_length"][0] - s_ref) <= length / n
+            inner_errors.append(abs(contacts["force"][0] - force_ref))
+    assert shape_errors[-1] < 1e-6 and tip_errors[-1] < 5e-4 * ref["contacts"][-1][1]
+    for errors in (shape_errors, tip_errors) if not inner else (shape_errors,):
+        ratios = np.array(errors[:-1]) / np.array(errors[1:])
+        assert (ratios > 3.3).all(), errors
+    if inner:
+        assert (np.diff(inner_errors) < 0).all(), inner_errors
+        assert inner_errors[-1] < 5e-3 * ref["contacts"][0][1]
 
 
 def test_a_robots_sensitivity_in_contact_holds_the_contact():

@@ -152,6 +152,17 @@ impl Obstacle {
         }
     }
 
+    /// Whether its surface has sharp edges or corners (a box's, a finite
+    /// cylinder's rims, a mesh's), where the gap of a point on them has no
+    /// unique gradient: a rod of no radius touching one has no unique
+    /// contact normal.
+    pub fn has_edges(&self) -> bool {
+        matches!(
+            self,
+            Obstacle::Box { .. } | Obstacle::Cylinder { .. } | Obstacle::Mesh(_)
+        )
+    }
+
     /// The shape's name in its value tree.
     pub fn shape(&self) -> &'static str {
         match self {

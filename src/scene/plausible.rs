@@ -147,6 +147,17 @@ impl Scene {
                 ));
             }
         }
+        if self.contact_radius() == 0.0 {
+            if let Some(i) = self.obstacles.iter().position(|o| o.has_edges()) {
+                out.push(format!(
+                    "obstacles[{i}] ({}) has sharp edges and the rod no radius: where the \
+                     backbone meets an edge its contact normal is not unique and the solve may \
+                     not converge; give the rod its radius (\"radius\", or a round rod's \
+                     \"diameter\")",
+                    self.obstacles[i].shape()
+                ));
+            }
+        }
         let loads = self.load_parameters();
         let (key, what, largest) = loads.iter().fold(
             (super::LoadKey::Named(""), "", 0.0),

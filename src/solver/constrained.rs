@@ -823,41 +823,86 @@ pub(crate) fn newton(
         if it == max_iter {
             return (false, it);
         }
-        take_multiplier_step(model, w);
-        // The start is kept in `w.trial` and `reactions_start`; trials go in place.
-        w.trial.copy_from_slice(&w.q);
-        w.kkt.reactions_start.copy_from_slice(&w.kkt.reactions);
-        let alpha = step_limit(&w.step, 1.0, 0.3);
-        let accepted = super::newton::backtrack(
-            w,
-            alpha,
-            merit_now,
-            |w, alpha, _| {
-                for j in 1..=n {
-                    w.q[j] = w.trial[j].perturbed(alpha * w.step[j - 1]);
-                }
-                for ((r, r0), d) in w
-                    .kkt
-                    .reactions
-                    .iter_mut()
-                    .zip(&w.kkt.reactions_start)
-                    .zip(&w.kkt.reaction_step)
-                {
-                    *r = r0 + alpha * d;
-                }
-                evaluate(model, w, lambda, false)
-            },
-            |w| residual_norm(model, w) <= tol,
-        );
-        if accepted.is_none() {
-            w.q.copy_from_slice(&w.trial);
-            w.kkt.reactions.copy_from_slice(&w.kkt.reactions_start);
-            evaluate(model, w, lambda, true);
-            return (false, it + 1);
+        if !search_along_step(model, w, lambda, merit_now, tol) {
+            merit_now = evaluate(model, w, lambda, true);
+            // A step whose QP changed the held set and that the merit
+            // refuses: the contact set has cycled into a bad guess. Step
+            // once with the held set the iteration began with, unchosen.
+            if settled || !hold_and_step(model, w, lambda, &held_before, merit_now) {
+                return (false, it + 1);
+            }
         }
         merit_now = evaluate(model, w, lambda, true);
     }
     unreachable!("the loop returns at its last pass")
+}
+
+/// Take the step in `w.step` (the multipliers' too) from `w.q` by
+/// backtracking on the merit from `merit_now`, or, refused, go back to the
+/// start (evaluated, its Jacobian loaded): whether it was taken.
+fn search_along_step(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    merit_now: f64,
+    tol: f64,
+) -> bool {
+    let n = model.n();
+    take_multiplier_step(model, w);
+    // The start is kept in `w.trial` and `reactions_start`; trials go in place.
+    w.trial.copy_from_slice(&w.q);
+    w.kkt.reactions_start.copy_from_slice(&w.kkt.reactions);
+    let alpha = step_limit(&w.step, 1.0, 0.3);
+    let accepted = super::newton::backtrack(
+        w,
+        alpha,
+        merit_now,
+        |w, alpha, _| {
+            for j in 1..=n {
+                w.q[j] = w.trial[j].perturbed(alpha * w.step[j - 1]);
+            }
+            for ((r, r0), d) in w
+                .kkt
+                .reactions
+                .iter_mut()
+                .zip(&w.kkt.reactions_start)
+                .zip(&w.kkt.reaction_step)
+            {
+                *r = r0 + alpha * d;
+            }
+            evaluate(model, w, lambda, false)
+        },
+        |w| residual_norm(model, w) <= tol,
+    );
+    if accepted.is_none() {
+        w.q.copy_from_slice(&w.trial);
+        w.kkt.reactions.copy_from_slice(&w.kkt.reactions_start);
+        evaluate(model, w, lambda, true);
+        return false;
+    }
+    true
+}
+
+/// A Newton step with the contacts `held` held and the other candidates
+/// free (no QP choosing), searched on the merit from `merit_now`: whether
+/// it was taken.
+fn hold_and_step(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    held: &[usize],
+    merit_now: f64,
+) -> bool {
+    let c = &mut w.kkt.contact;
+    for (i, h) in c.active.iter().zip(c.held.iter_mut()) {
+        *h = held.binary_search(i).is_ok();
+    }
+    load_constraint_jacobian(model, w);
+    w.kkt.contact.choose = false;
+    let solved = super::newton::damped_solve(model, w, kkt_step);
+    w.kkt.contact.choose = true;
+    // No tolerance to meet early: the next iteration certifies.
+    solved && search_along_step(model, w, lambda, merit_now, 0.0)
 }
 
 /// How often a Newton step is solved again with the slots it would carry

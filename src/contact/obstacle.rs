@@ -672,7 +672,7 @@ fn indices(v: &Value, key: &str) -> Result<Vec<[u32; 3]>> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// One of each shape.
@@ -702,7 +702,7 @@ mod tests {
     }
 
     /// Points spread around the shapes (a fixed generator).
-    fn points() -> Vec<Vector3<f64>> {
+    pub(crate) fn points() -> Vec<Vector3<f64>> {
         let mut state = 12345u64;
         let mut uniform = move || {
             state = state

@@ -263,15 +263,7 @@ mod tests {
             half_extents: half,
             orientation: crate::quat::Quat::IDENTITY,
         };
-        let mut state = 7u64;
-        let mut uniform = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        for _ in 0..500 {
-            let p = Vector3::new(uniform(), uniform(), uniform());
+        for p in super::super::obstacle::tests::points() {
             let (a, b) = (mesh.proximity(&p), solid.proximity(&p));
             assert!((a.gap - b.gap).abs() < 1e-14, "at {p}: {a:?} {b:?}");
             assert!((a.normal - b.normal).norm() < 1e-12, "at {p}: {a:?} {b:?}");

@@ -196,9 +196,7 @@ def along_x_turned(theta: np.ndarray) -> np.ndarray:
     """The frames of a planar backbone whose tangent makes the angles
     `theta` with +x in the x-y plane: ALONG_X turned about z."""
     c, s = np.cos(theta / 2), np.sin(theta / 2)
-    w, x, y, z = ALONG_X
-    # [c, 0, 0, s] * ALONG_X (Hamilton product).
-    return np.stack([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w], axis=1)
+    return quaternion_product([c, 0 * c, 0 * c, s], ALONG_X).T
 
 
 # The compressive load at which a clamped-clamped column buckles
@@ -472,6 +470,8 @@ def test_a_catheter_advanced_through_a_3d_vessel_converges_at_every_step():
 
 
 def quaternion_product(a, b) -> np.ndarray:
+    """The Hamilton product of quaternions [w, x, y, z] (each component may
+    be an array)."""
     w1, x1, y1, z1 = a
     w2, x2, y2, z2 = b
     return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,

@@ -421,12 +421,8 @@ impl Obstacle {
             "mesh" => mesh(&t)?,
             _ => {
                 let key = t.key("centreline");
-                let centreline: Vec<Vector3<f64>> = match t.require("centreline")? {
-                    Value::List(items) if items.len() >= 2 => items
-                        .iter()
-                        .enumerate()
-                        .map(|(i, x)| vec3(x, &format!("{key}[{i}]")))
-                        .collect::<Result<_>>()?,
+                let centreline = match t.require("centreline")? {
+                    v @ Value::List(items) if items.len() >= 2 => points(v, &key)?,
                     _ => {
                         return Err(Error::scene(
                             key,

@@ -823,12 +823,11 @@ pub(crate) fn newton(
         if it == max_iter {
             return (false, it);
         }
-        if !search_along_step(model, w, lambda, merit_now, tol) {
-            merit_now = evaluate(model, w, lambda, true);
+        if let Err(merit_back) = search_along_step(model, w, lambda, merit_now, tol) {
             // A step whose QP changed the held set and that the merit
             // refuses: the contact set has cycled into a bad guess. Step
             // once with the held set the iteration began with, unchosen.
-            if settled || !hold_and_step(model, w, lambda, &held_before, merit_now) {
+            if settled || !hold_and_step(model, w, lambda, &held_before, merit_back) {
                 return (false, it + 1);
             }
         }
@@ -839,14 +838,14 @@ pub(crate) fn newton(
 
 /// Take the step in `w.step` (the multipliers' too) from `w.q` by
 /// backtracking on the merit from `merit_now`, or, refused, go back to the
-/// start (evaluated, its Jacobian loaded): whether it was taken.
+/// start (evaluated, its Jacobian loaded) and return its merit as the error.
 fn search_along_step(
     model: &RodModel,
     w: &mut Workspace,
     lambda: f64,
     merit_now: f64,
     tol: f64,
-) -> bool {
+) -> Result<(), f64> {
     let n = model.n();
     take_multiplier_step(model, w);
     // The start is kept in `w.trial` and `reactions_start`; trials go in place.
@@ -877,10 +876,9 @@ fn search_along_step(
     if accepted.is_none() {
         w.q.copy_from_slice(&w.trial);
         w.kkt.reactions.copy_from_slice(&w.kkt.reactions_start);
-        evaluate(model, w, lambda, true);
-        return false;
+        return Err(evaluate(model, w, lambda, true));
     }
-    true
+    Ok(())
 }
 
 /// A Newton step with the contacts `held` held and the other candidates
@@ -902,7 +900,7 @@ fn hold_and_step(
     let solved = super::newton::damped_solve(model, w, kkt_step);
     w.kkt.contact.choose = true;
     // No tolerance to meet early: the next iteration certifies.
-    solved && search_along_step(model, w, lambda, merit_now, 0.0)
+    solved && search_along_step(model, w, lambda, merit_now, 0.0).is_ok()
 }
 
 /// How often a Newton step is solved again with the slots it would carry

@@ -70,7 +70,7 @@ pub use scene::{
     Gravity, Guide, PointLoad, Scene, SectionProperties, Stiffness, Tendon, TipCondition,
 };
 pub use solver::{
-    default_elements, solve, solve_to_accuracy, Accuracy, Method, Sensitivity, Settings, Solution,
-    Solver, Status, TipSensitivity, DEFAULT_ELEMENTS,
+    default_elements, solve, solve_to_accuracy, Accuracy, Contact, Method, PortReaction,
+    Sensitivity, Settings, Solution, Solver, Status, TipSensitivity, DEFAULT_ELEMENTS,
 };
 pub use value::Value;

@@ -18,7 +18,7 @@
 //! that evaluates the scheme takes it.
 
 use crate::blocktri::BlockTridiagonal;
-use crate::contact::Obstacle;
+use crate::contact::{Crossing, Obstacle, Port};
 pub use crate::disc::Scheme;
 use crate::disc::{for_scheme, Discretisation, Interior, NodeForces, Rod};
 use crate::mesh::Mesh;
@@ -44,6 +44,31 @@ impl PointConstraint {
     /// Both ends are within reach, and so is every point between (convexity).
     pub fn target_at(&self, lambda: f64) -> Vector3<f64> {
         self.rest + lambda * (self.target - self.rest)
+    }
+}
+
+/// A port the backbone slides through (see `contact::Port`), with the
+/// start of its load path: where the rest shape crosses its plane.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PortConstraint {
+    pub port: Port,
+    /// Where the unloaded rest shape crosses the port's plane; `None` where
+    /// it does not (the scene is refused).
+    pub rest: Option<Vector3<f64>>,
+}
+
+impl PortConstraint {
+    /// The point the backbone passes through at load scale `lambda`, moved
+    /// linearly from the rest shape's crossing.
+    pub fn target_at(&self, lambda: f64) -> Vector3<f64> {
+        let p = self.port.position;
+        self.rest.map_or(p, |rest| rest + lambda * (p - rest))
+    }
+
+    /// The rows' residuals `b_i . (c - p(lambda))` at the crossing `c`.
+    pub fn residual(&self, crossing: &Crossing, lambda: f64) -> [f64; 2] {
+        let off = crossing.point - self.target_at(lambda);
+        self.port.frame().map(|b| b.dot(&off))
     }
 }
 
@@ -90,6 +115,8 @@ pub struct RodModel {
     /// contact rows of the constrained solve (see `solver::contact`).
     obstacles: Vec<Obstacle>,
     contact_radius: f64,
+    /// Ports the backbone slides through: two rows each (see `solver::port`).
+    ports: Vec<PortConstraint>,
 }
 
 impl RodModel {
@@ -149,6 +176,14 @@ impl RodModel {
             breaks: Vec::new(),
             obstacles: scene.obstacles.clone(),
             contact_radius: scene.contact_radius(),
+            ports: scene
+                .ports
+                .iter()
+                .map(|port| PortConstraint {
+                    port: port.clone(),
+                    rest: None,
+                })
+                .collect(),
             rod,
         };
         model.residual_scale = model.stiffness / model.length();
@@ -380,12 +415,15 @@ impl RodModel {
     fn refresh_rest(&mut self) {
         self.disc.prepare(&self.rod);
         let rest = self.disc.rest_shape(&self.rod);
-        if !self.constraints.is_empty() {
+        if !self.constraints.is_empty() || !self.ports.is_empty() {
             let mut positions = vec![Vector3::zeros(); self.n() + 1];
             self.disc
                 .unloaded_positions(&self.rod, &rest, &mut positions);
             for c in &mut self.constraints {
                 c.rest = positions[c.node];
+            }
+            for p in &mut self.ports {
+                p.rest = p.port.crossing(&positions).map(|c| c.point);
             }
         }
         self.rest_tip = rest[self.n()];
@@ -430,6 +468,7 @@ impl RodModel {
     pub fn is_trivial(&self) -> bool {
         self.terms.vanish()
             && self.obstacles.is_empty()
+            && self.ports.is_empty()
             && self.constraints.iter().all(|c| c.target == c.rest)
             && self.clamped_tip.is_none_or(|q| q == self.rest_tip)
     }
@@ -450,7 +489,19 @@ impl RodModel {
     /// Whether the scene has unknown reactions (held nodes, a clamped tip or
     /// obstacles, whose contact forces are unknowns).
     pub fn is_constrained(&self) -> bool {
-        !self.constraints.is_empty() || self.clamped_tip.is_some() || self.has_obstacles()
+        !self.constraints.is_empty() || self.clamped_tip.is_some() || self.has_contact()
+    }
+
+    /// Whether the rod meets its surroundings (obstacles or ports): rows
+    /// whose place on the rod moves, so that the forces are gathered at
+    /// the positions of each evaluation (see `solver::contact`).
+    pub fn has_contact(&self) -> bool {
+        self.has_obstacles() || !self.ports.is_empty()
+    }
+
+    /// The ports the backbone slides through.
+    pub fn ports(&self) -> &[PortConstraint] {
+        &self.ports
     }
 
     /// The obstacles the rod may touch.
@@ -497,6 +548,10 @@ impl RodModel {
         self.positions(q, interior, &mut positions);
         for c in &mut model.constraints {
             c.rest = positions[c.node];
+        }
+        // A port holds the rod on both legs: at its place already.
+        for p in &mut model.ports {
+            p.rest = Some(p.port.position);
         }
         model.rest_tip = q[self.n()];
         if let Some(target) = model.clamped_tip.as_mut() {

@@ -19,6 +19,9 @@
 //! tip_force_offset  [x, y, z] m, the tip frame: where tip_force acts (a tool)
 //! base_quaternion   [w, x, y, z] or a 3x3 rotation matrix, default identity (tangent +z)
 //! base_position     [x, y, z] m, world frame, default the origin
+//! obstacles         [{shape, ...}, ...] rigid obstacles (see `contact::Obstacle`)
+//! ports             [{position, axis}, ...] m: points the rod slides through
+//!                   without friction; axis default the base tangent
 //! tip               {type: "free"}
 //! name              free text
 //! ```
@@ -27,7 +30,7 @@ mod plausible;
 pub mod reach;
 pub use plausible::{MAX_LOAD_PARAMETER, MODULUS_RANGE, ROUNDOFF_LOAD, SLENDER_LIMIT};
 
-use crate::contact::Obstacle;
+use crate::contact::{Obstacle, Port};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::quat::Quat;
@@ -318,6 +321,9 @@ pub struct Scene {
     pub magnetic_field: Vector3<f64>,
     /// Rigid obstacles the rod may touch (frictionless contact).
     pub obstacles: Vec<Obstacle>,
+    /// Ports the backbone passes through and slides through without
+    /// friction (a trocar, a guide tube's exit).
+    pub ports: Vec<Port>,
     /// The rod's radius [m]: its surface, this far from the backbone, keeps
     /// out of the obstacles. `None`: half the diameter of a round rod's
     /// stiffness, else zero (see [`Scene::contact_radius`]).
@@ -349,8 +355,15 @@ impl Scene {
             tip_magnet: Vector3::zeros(),
             magnetic_field: Vector3::zeros(),
             obstacles: Vec::new(),
+            ports: Vec::new(),
             radius: None,
         }
+    }
+
+    /// Whether the rod meets its surroundings: obstacles or ports, whose
+    /// rows slide along it (solved by `fd2` and Newton so far).
+    pub fn has_contact(&self) -> bool {
+        !self.obstacles.is_empty() || !self.ports.is_empty()
     }
 
     /// The rod's radius for contact [m]: `radius`, else half a round rod's
@@ -435,6 +448,7 @@ impl Scene {
                 "a tip force off the tip (tip_force_offset)",
             ),
             (!self.obstacles.is_empty(), "contact with obstacles"),
+            (!self.ports.is_empty(), "sliding ports"),
             (
                 self.has_distributed_moment()
                     || self
@@ -504,6 +518,7 @@ impl Scene {
             "tip_magnet",
             "magnetic_field",
             "obstacles",
+            "ports",
             "radius",
         ])?;
         let name = match top.get("name") {
@@ -613,6 +628,10 @@ impl Scene {
             obstacles: match top.get("obstacles") {
                 None => Vec::new(),
                 Some(v) => obstacles(v)?,
+            },
+            ports: match top.get("ports") {
+                None => Vec::new(),
+                Some(v) => ports(v, base_quaternion.rotate(Vector3::z()))?,
             },
             radius: match top.get("radius") {
                 None => None,
@@ -935,6 +954,10 @@ impl Scene {
         if !self.obstacles.is_empty() {
             let list = self.obstacles.iter().map(Obstacle::to_value).collect();
             m.push(("obstacles".into(), Value::List(list)));
+        }
+        if !self.ports.is_empty() {
+            let list = self.ports.iter().map(Port::to_value).collect();
+            m.push(("ports".into(), Value::List(list)));
         }
         if let Some(radius) = self.radius {
             m.push(("radius".into(), num(radius)));
@@ -1644,6 +1667,21 @@ pub(crate) fn obstacles(v: &Value) -> Result<Vec<Obstacle>> {
         other => Err(Error::scene(
             "obstacles",
             format!("expected a list of obstacles, got {}", other.kind()),
+        )),
+    }
+}
+
+/// A list of ports (`ports[i]`); a port's axis defaults to `base_tangent`.
+pub(crate) fn ports(v: &Value, base_tangent: Vector3<f64>) -> Result<Vec<Port>> {
+    match v {
+        Value::List(items) => items
+            .iter()
+            .enumerate()
+            .map(|(i, x)| Port::from_value(x, &format!("ports[{i}]"), base_tangent))
+            .collect(),
+        other => Err(Error::scene(
+            "ports",
+            format!("expected a list of ports, got {}", other.kind()),
         )),
     }
 }

@@ -12,8 +12,10 @@
 
 pub mod mesh_file;
 mod obstacle;
+mod port;
 mod triangle_mesh;
 
 pub(crate) use obstacle::files_beside;
 pub use obstacle::{Obstacle, Proximity};
+pub use port::{Crossing, Port};
 pub use triangle_mesh::{MeshError, TriangleMesh};

@@ -166,6 +166,19 @@ impl PySolution {
         }
         Ok(d)
     }
+    /// Where the rod passes each port, in the scene's order: a dict of
+    /// arrays ``port`` (index in the scene's list, shape (k,)),
+    /// ``arc_length`` (k,) m, ``point`` (the backbone point in the port,
+    /// (k, 3) m) and ``force`` (the port's force on the rod, across the
+    /// rod, (k, 3) N). Empty without ports.
+    #[getter]
+    fn ports<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (key, value) in port_arrays(py, &self.inner.ports) {
+            d.set_item(key, value)?;
+        }
+        Ok(d)
+    }
     /// Whether ``status`` is ``Status.CONVERGED``: the only ending that is an answer.
     #[getter]
     fn converged(&self) -> bool {
@@ -255,6 +268,9 @@ impl PySolution {
         for (key, value) in contact_arrays(py, &s.contacts) {
             d.set_item(format!("contact_{key}"), value)?;
         }
+        for (key, value) in port_arrays(py, &s.ports) {
+            d.set_item(format!("port_{key}"), value)?;
+        }
         d.set_item("status", s.status.name())?;
         d.set_item("iterations", s.iterations)?;
         d.set_item("continuation_steps", s.continuation_steps)?;
@@ -331,6 +347,7 @@ impl PySolution {
             tip_reaction_moment: d.optional_vector("tip_reaction_moment")?,
             guide_reactions: d.vectors("guide_reactions")?,
             contacts: contacts_of(&d)?,
+            ports: ports_of(&d)?,
             status: str_arg("solution.status", &d.get("status")?)?.parse()?,
             iterations: int_arg("solution.iterations", &d.get("iterations")?)?,
             continuation_steps: int_arg(
@@ -378,7 +395,7 @@ impl PySolution {
 }
 
 /// The keys of `Solution.to_dict()`.
-const SOLUTION_KEYS: [&str; 31] = [
+const SOLUTION_KEYS: [&str; 35] = [
     "n_elements",
     "scheme",
     "length",
@@ -400,6 +417,10 @@ const SOLUTION_KEYS: [&str; 31] = [
     "contact_point",
     "contact_normal",
     "contact_force",
+    "port_port",
+    "port_arc_length",
+    "port_point",
+    "port_force",
     "status",
     "iterations",
     "continuation_steps",
@@ -436,6 +457,57 @@ fn contact_arrays<'py>(
         ("normal", rows(|c| c.normal)),
         ("force", column(|c| c.force)),
     ]
+}
+
+/// A solution's ports as arrays, by field (see `PySolution::ports`).
+fn port_arrays<'py>(
+    py: Python<'py>,
+    ports: &[crate::solver::PortReaction],
+) -> [(&'static str, Bound<'py, PyAny>); 4] {
+    let index: Vec<usize> = ports.iter().map(|p| p.port).collect();
+    let arc_length: Vec<f64> = ports.iter().map(|p| p.arc_length).collect();
+    let points: Vec<Vector3<f64>> = ports.iter().map(|p| p.point).collect();
+    let forces: Vec<Vector3<f64>> = ports.iter().map(|p| p.force).collect();
+    [
+        ("port", index.into_pyarray(py).into_any()),
+        ("arc_length", arc_length.into_pyarray(py).into_any()),
+        ("point", rows3(py, &points).into_any()),
+        ("force", rows3(py, &forces).into_any()),
+    ]
+}
+
+/// The ports of a solution's dict (absent from earlier versions': none).
+fn ports_of(d: &Fields) -> PyResult<Vec<crate::solver::PortReaction>> {
+    let index = d.floats_or_empty("port_port")?;
+    let arc_length = d.floats_or_empty("port_arc_length")?;
+    let point = d.rows_or_empty::<3>("port_point")?;
+    let force = d.rows_or_empty::<3>("port_force")?;
+    let k = index.len();
+    if [arc_length.len(), point.len(), force.len()] != [k; 3] {
+        return Err(crate::error::Error::argument(
+            "solution.port_port",
+            "the port_* fields must have one row a port each",
+        )
+        .into());
+    }
+    (0..k)
+        .map(|i| {
+            let j = index[i];
+            if j.fract() != 0.0 || !(0.0..1e15).contains(&j) {
+                return Err(crate::error::Error::argument(
+                    "solution.port_port",
+                    format!("expected port indices, got {j}"),
+                )
+                .into());
+            }
+            Ok(crate::solver::PortReaction {
+                port: j as usize,
+                arc_length: arc_length[i],
+                point: Vector3::from(point[i]),
+                force: Vector3::from(force[i]),
+            })
+        })
+        .collect()
 }
 
 /// The contacts of a solution's dict (absent from earlier versions': none).

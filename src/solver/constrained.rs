@@ -20,6 +20,7 @@
 
 use super::contact::{self, ContactWork};
 use super::mixed::{self, Mixed, MixedWork};
+use super::port;
 use super::{step_limit, Workspace};
 use crate::blocktri::BlockLu;
 use crate::disc::NodeForces;
@@ -103,8 +104,9 @@ impl KktWorkspace {
     pub fn new(model: &RodModel) -> Self {
         let (n, m) = (model.n(), model.constraints().len());
         let positions = if model.is_constrained() { n + 1 } else { 0 };
-        // The contact slots' multipliers follow the held points' reactions.
-        let multipliers = m + contact::slot_count(model);
+        // The ports' multipliers follow the held points' reactions, the
+        // contact slots' the ports'.
+        let multipliers = m + model.ports().len() + contact::slot_count(model);
         KktWorkspace {
             reactions: vec![Vector3::zeros(); multipliers],
             reactions_start: vec![Vector3::zeros(); multipliers],
@@ -175,11 +177,12 @@ pub(crate) fn evaluate(
     } else {
         None
     };
-    if model.has_obstacles() {
-        // The contact forces act where the backbone is: positions first
-        // (the second-order scheme's need no interior).
+    if model.has_contact() {
+        // The contact and port forces act where the backbone is: positions
+        // first (the second-order scheme's need no interior).
         model.positions(&w.q, &mut w.interior, &mut w.kkt.positions);
         contact::locate(model, &w.kkt.positions, &mut w.kkt.contact.sites);
+        port::locate(model, &w.kkt.positions, lambda, &mut w.kkt.contact.ports);
         contact::gather_forces(model, w);
         contact::gather_gaps(w);
         let held = NodeForces {
@@ -224,8 +227,14 @@ pub(crate) fn evaluate(
     }
     let contact = &w.kkt.contact;
     let gaps = contact.gaps.iter().zip(&contact.held);
-    let contact_rows = gaps.map(|(x, held)| contact_error(*x, *held).powi(2)).sum();
-    merit(model, &w.g, &w.kkt.h, contact_rows)
+    let contact_rows: f64 = gaps.map(|(x, held)| contact_error(*x, *held).powi(2)).sum();
+    let port_rows: f64 = port_residuals(w).map(|x| x * x).sum();
+    merit(model, &w.g, &w.kkt.h, contact_rows + port_rows)
+}
+
+/// The ports' rows' residuals [m].
+fn port_residuals(w: &Workspace) -> impl Iterator<Item = f64> + '_ {
+    w.kkt.contact.ports.iter().flat_map(|p| p.residual)
 }
 
 /// A candidate contact's error: a held one's gap, a free one's penetration.
@@ -254,8 +263,10 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
         h = h.max(r);
     }
     let contact = &w.kkt.contact;
-    for (x, held) in contact.gaps.iter().zip(&contact.held) {
-        let r = contact_error(*x, *held).abs() * position_weight(model);
+    let errors = contact.gaps.iter().zip(&contact.held);
+    let errors = errors.map(|(x, held)| contact_error(*x, *held));
+    for x in errors.chain(port_residuals(w)) {
+        let r = x.abs() * position_weight(model);
         if !r.is_finite() {
             return f64::INFINITY;
         }
@@ -271,11 +282,15 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
 pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     w.kkt.compliance = model.held_point_compliance(&w.q, &w.interior);
     let held = model.constraints().len();
-    w.kkt.row_count = 3 * held + w.kkt.contact.active.len();
+    let ports = port::row_count(model);
+    w.kkt.row_count = 3 * held + ports + w.kkt.contact.active.len();
     let n = model.n();
     w.kkt.row_len.clear();
     for c in model.constraints() {
         w.kkt.row_len.extend([c.node.min(n); 3]);
+    }
+    for site in &w.kkt.contact.ports {
+        w.kkt.row_len.extend([port::last_node(site).min(n); 2]);
     }
     for &i in &w.kkt.contact.active {
         w.kkt.row_len.push(contact::last_node(model, i).min(n));
@@ -296,9 +311,10 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
                 }
             }
         }
-        contact::load_rows(model, w, 3 * held);
+        port::load_rows(model, w, 3 * held);
+        contact::load_rows(model, w, 3 * held + ports);
     }
-    if model.has_obstacles() {
+    if model.has_contact() {
         contact::curvature(model, w, dense);
     }
 }
@@ -308,14 +324,18 @@ fn dot(x: &[Vector3<f64>], y: &[Vector3<f64>]) -> f64 {
     x.iter().zip(y).map(|(a, b)| a.dot(b)).sum()
 }
 
-/// Row `r`'s residual: a held point's position error, then an active
-/// contact's gap.
+/// Row `r`'s residual: a held point's position error, a port's, then an
+/// active contact's gap.
 fn row_residual(w: &Workspace, r: usize) -> f64 {
-    let held = w.kkt.row_count - w.kkt.contact.gaps.len();
+    let held = 3 * w.kkt.h.len();
+    let equalities = w.kkt.row_count - w.kkt.contact.gaps.len();
     if r < held {
         w.kkt.h[r / 3][r % 3]
+    } else if r < equalities {
+        let p = r - held;
+        w.kkt.contact.ports[p / 2].residual[p % 2]
     } else {
-        w.kkt.contact.gaps[r - held]
+        w.kkt.contact.gaps[r - equalities]
     }
 }
 
@@ -329,10 +349,19 @@ pub(crate) fn kkt_solve(w: &mut Workspace) -> bool {
     let lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let gaps = std::mem::take(&mut w.kkt.contact.gaps);
     w.kkt.contact.gaps = vec![0.0; gaps.len()];
+    let ports: Vec<[f64; 2]> = w.kkt.contact.ports.iter().map(|p| p.residual).collect();
+    w.kkt
+        .contact
+        .ports
+        .iter_mut()
+        .for_each(|p| p.residual = [0.0; 2]);
     w.kkt.contact.choose = false;
     let ok = kkt_step(&lu, w);
     w.kkt.contact.choose = true;
     w.kkt.contact.gaps = gaps;
+    for (p, r) in w.kkt.contact.ports.iter_mut().zip(ports) {
+        p.residual = r;
+    }
     w.lu = lu;
     ok
 }
@@ -532,13 +561,22 @@ fn take_multiplier_step(model: &RodModel, w: &mut Workspace) {
     for (i, d) in w.kkt.reaction_step[..held].iter_mut().enumerate() {
         *d = Vector3::new(rhs[3 * i], rhs[3 * i + 1], rhs[3 * i + 2]);
     }
+    let ports = model.ports().len();
+    let first_port = port::first_row(model);
+    for (j, d) in w.kkt.reaction_step[held..held + ports]
+        .iter_mut()
+        .enumerate()
+    {
+        *d = Vector3::new(rhs[first_port + 2 * j], rhs[first_port + 2 * j + 1], 0.0);
+    }
     if model.has_obstacles() {
         let first = contact::offset(model, w);
+        let first_row = 3 * held + 2 * ports;
         w.kkt.reaction_step[first..]
             .iter_mut()
             .for_each(|d| *d = Vector3::zeros());
         for (a, &i) in w.kkt.contact.active.iter().enumerate() {
-            w.kkt.reaction_step[first + i] = Vector3::new(w.kkt.rhs[3 * held + a], 0.0, 0.0);
+            w.kkt.reaction_step[first + i] = Vector3::new(w.kkt.rhs[first_row + a], 0.0, 0.0);
         }
     }
 }
@@ -756,6 +794,11 @@ pub(crate) fn tangent(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool 
     }
     for (h, c) in w.kkt.h[..m].iter_mut().zip(model.constraints()) {
         *h = c.rest - c.target;
+    }
+    // A port's rows move with its point: `-b_i . dp/dlambda`.
+    for (site, p) in w.kkt.contact.ports.iter_mut().zip(model.ports()) {
+        let moved = p.target_at(0.0) - p.target_at(1.0);
+        site.residual = p.port.frame().map(|b| b.dot(&moved));
     }
     // The obstacles stay: the active contacts keep their gaps.
     w.kkt.contact.gaps.iter_mut().for_each(|x| *x = 0.0);
@@ -1042,7 +1085,7 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
         (None, Some(_)) => None,
         (Some(c), Some(k)) => (k + c.negative_schur).checked_sub(c.positive_blocks),
     };
-    if negative == Some(0) && model.has_obstacles() {
+    if negative == Some(0) && model.has_contact() {
         // A positive definite Hessian is so on every subspace: however
         // many contacts hold (their Schur complement, stiff for a long
         // stretch on a surface, is then not needed).

@@ -33,6 +33,7 @@
 //! workspace's `reactions` (the `x` entry of one vector a slot), so that
 //! every save and restore of a solve's state keeps them.
 
+use super::port::{self, PortSite};
 use super::Workspace;
 use crate::contact::{Obstacle, Proximity};
 use crate::disc::NodeForces;
@@ -108,6 +109,8 @@ pub(crate) struct ContactWork {
     pub curvature_blocks: Vec<nalgebra::DMatrix<f64>>,
     /// The nodes each block of `M` moves (its rows: 3 a node).
     pub curvature_nodes: Vec<Vec<usize>>,
+    /// Every port's crossing at the last evaluation (see `port.rs`).
+    pub ports: Vec<PortSite>,
 }
 
 impl ContactWork {
@@ -120,11 +123,12 @@ impl ContactWork {
     }
 
     pub fn new(model: &RodModel) -> Self {
-        if !model.has_obstacles() {
+        if !model.has_contact() {
             return ContactWork::default();
         }
         ContactWork {
             sites: vec![Site::default(); slot_count(model)],
+            ports: vec![PortSite::default(); model.ports().len()],
             position_jacobian: vec![Matrix3::zeros(); model.n()],
             moved: vec![Vector3::zeros(); model.n() + 1],
             choose: true,
@@ -327,7 +331,8 @@ pub(crate) fn shares(model: &RodModel, i: usize, site: &Site) -> [(usize, f64); 
 }
 
 /// Fill the forces on the rod besides the loads: the held points'
-/// reactions, then each active slot's `lambda nu` at its nodes.
+/// reactions, the ports' forces, then each active slot's `lambda nu` at
+/// its nodes.
 pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
     let held = model.constraints().len();
     let c = &mut w.kkt.contact;
@@ -336,6 +341,15 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
     c.force_nodes
         .extend(model.constraints().iter().map(|constraint| constraint.node));
     c.force_vectors.extend(&w.kkt.reactions[..held]);
+    for (site, lambda) in c.ports.iter().zip(&w.kkt.reactions[port::offset(model)..]) {
+        let force = port::force(site, lambda);
+        for (node, weight) in port::shares(site) {
+            if weight != 0.0 {
+                c.force_nodes.push(node);
+                c.force_vectors.push(weight * force);
+            }
+        }
+    }
     let first = w.kkt.reactions.len() - c.sites.len();
     for &i in &c.active {
         let site = &c.sites[i];
@@ -487,13 +501,13 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
     let n = model.n();
     let first = offset(model, w);
     let clamped = model.clamped_tip().is_some();
-    let c = &mut w.kkt.contact;
     let mut used = 0;
-    c.curvature_blocks.clear();
-    c.curvature_nodes.clear();
+    w.kkt.contact.curvature_blocks.clear();
+    w.kkt.contact.curvature_nodes.clear();
     // Every candidate with a force, held or on its way out (its force
     // still acts on the rod).
-    for &i in &c.active {
+    for candidate in 0..w.kkt.contact.active.len() {
+        let i = w.kkt.contact.active[candidate];
         let lambda = w.kkt.reactions[first + i].x;
         if lambda <= 0.0 {
             continue;
@@ -571,28 +585,52 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
         if block.amax() == 0.0 {
             continue;
         }
-        for &k in moving.iter().filter(|_| with_columns) {
-            model.position_jacobian(&w.q, k, &w.interior, &mut c.position_jacobian);
-            for axis in 0..3 {
-                if c.curvature_columns.len() <= used {
-                    c.curvature_columns.push(vec![Vector3::zeros(); n]);
-                }
-                for (x, d) in c.curvature_columns[used]
-                    .iter_mut()
-                    .zip(&c.position_jacobian)
-                {
-                    *x = d.row(axis).transpose();
-                }
-                if clamped {
-                    c.curvature_columns[used][n - 1] = Vector3::zeros();
-                }
-                used += 1;
-            }
-        }
-        c.curvature_blocks.push(block);
-        c.curvature_nodes.push(moving);
+        push_curvature(model, w, block, moving, with_columns, &mut used);
     }
-    c.curvature_columns.truncate(used);
+    let first = port::offset(model);
+    for j in 0..w.kkt.contact.ports.len() {
+        let (site, lambda) = (&w.kkt.contact.ports[j], &w.kkt.reactions[first + j]);
+        let block = port::curvature_block(model, j, site, lambda, &w.kkt.positions);
+        if let Some((block, moving)) = block {
+            push_curvature(model, w, block, moving, with_columns, &mut used);
+        }
+    }
+    w.kkt.contact.curvature_columns.truncate(used);
+}
+
+/// Add a curvature block `M` on the nodes `moving` and, `with_columns`,
+/// their columns `U` (`D_k^T e_a`) from index `used` on.
+fn push_curvature(
+    model: &RodModel,
+    w: &mut Workspace,
+    block: nalgebra::DMatrix<f64>,
+    moving: Vec<usize>,
+    with_columns: bool,
+    used: &mut usize,
+) {
+    let n = model.n();
+    let clamped = model.clamped_tip().is_some();
+    let c = &mut w.kkt.contact;
+    for &k in moving.iter().filter(|_| with_columns) {
+        model.position_jacobian(&w.q, k, &w.interior, &mut c.position_jacobian);
+        for axis in 0..3 {
+            if c.curvature_columns.len() <= *used {
+                c.curvature_columns.push(vec![Vector3::zeros(); n]);
+            }
+            for (x, d) in c.curvature_columns[*used]
+                .iter_mut()
+                .zip(&c.position_jacobian)
+            {
+                *x = d.row(axis).transpose();
+            }
+            if clamped {
+                c.curvature_columns[*used][n - 1] = Vector3::zeros();
+            }
+            *used += 1;
+        }
+    }
+    c.curvature_blocks.push(block);
+    c.curvature_nodes.push(moving);
 }
 
 /// A contact of a solution: where the rod touches an obstacle and how hard.

@@ -308,7 +308,7 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
     let work = &mut w.kkt.mixed;
     work.in_use = false;
     work.dense = false;
-    if !model.has_obstacles() || w.kkt.row_count <= MIXED_ROWS || w.kkt.compliance.is_some() {
+    if !model.has_contact() || w.kkt.row_count <= MIXED_ROWS || w.kkt.compliance.is_some() {
         return;
     }
     let n = model.n();
@@ -328,6 +328,12 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
         }
     }
     let contact = &w.kkt.contact;
+    for site in &contact.ports {
+        let [(a, wa), (b, wb)] = super::port::shares(site);
+        for d in site.directions {
+            work.rows.push([(a, wa * d), (b, wb * d)]);
+        }
+    }
     for &i in &contact.active {
         let site = &contact.sites[i];
         let [(a, wa), (b, wb)] = contact::shares(model, i, site);

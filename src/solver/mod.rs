@@ -26,6 +26,7 @@ mod lm;
 mod mixed;
 mod nested;
 mod newton;
+mod port;
 mod report;
 mod sensitivity;
 mod settings;
@@ -35,6 +36,7 @@ mod workspace;
 pub(crate) use crate::read::check_tolerance;
 pub use adaptive::{solve_to_accuracy, Accuracy};
 pub use contact::Contact;
+pub use port::PortReaction;
 pub use sensitivity::{Sensitivity, TipSensitivity};
 pub use settings::{
     default_elements, Engine, Local, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS,
@@ -117,21 +119,29 @@ impl Solver {
             ));
         }
         let scheme = settings.scheme_for(scene, None);
-        if !scene.obstacles.is_empty() {
+        if scene.has_contact() {
             if scheme != Scheme::Fd2 {
                 return Err(Error::argument(
                     "scheme",
-                    "contact with obstacles is solved by the 'fd2' scheme so far",
+                    "contact with obstacles or ports is solved by the 'fd2' scheme so far",
                 ));
             }
             if settings.method.local() != Local::Newton {
                 return Err(Error::argument(
                     "method",
-                    "contact with obstacles is solved by 'newton' so far",
+                    "contact with obstacles or ports is solved by 'newton' so far",
                 ));
             }
         }
         let model = RodModel::new(scene, n).with_scheme(scheme);
+        // A port's load path starts where the rest shape crosses its plane.
+        if let Some(i) = model.ports().iter().position(|p| p.rest.is_none()) {
+            return Err(Error::scene(
+                format!("ports[{i}]"),
+                "the rod's rest shape does not pass through the port's plane along its \
+                 axis (a port stands ahead of the base, within the rod's reach)",
+            ));
+        }
         let work = Workspace::new(&model)?;
         let local: Box<dyn LocalSolver + Send + Sync> = match settings.method.local() {
             Local::Newton => Box::new(newton::Newton),
@@ -433,7 +443,7 @@ impl Solver {
         // a fallback, and only for moderate n. It shares the iteration budget.
         if self.settings.method.engine() == Engine::Potential(Local::Newton)
             && direct_state.is_none()
-            && !model.has_obstacles()
+            && !model.has_contact()
             && 3 * (model.n() + model.constraints().len()) <= LM_FALLBACK_UNKNOWNS
         {
             let mut lm = lm::LevenbergMarquardt::new(model);
@@ -545,7 +555,7 @@ impl Solver {
             positions,
             internal_quaternions: model.internal_nodes(&w.q, &mut w.interior),
             breaks: Some(model.breaks().to_vec()),
-            forces: if model.has_obstacles() {
+            forces: if model.has_contact() {
                 model.internal_forces(w.kkt.contact.node_forces())
             } else {
                 model.node_forces(reactions)
@@ -560,6 +570,7 @@ impl Solver {
             tip_reaction_moment,
             guide_reactions: reactions[..guides].to_vec(),
             contacts: contact::contacts(model, w),
+            ports: port::reactions(model, w),
             status,
             iterations,
             continuation_steps,

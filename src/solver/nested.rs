@@ -64,7 +64,7 @@ pub(crate) fn coarse_elements(
     let n = settings.elements_for(scene);
     // A coarse rod's contacts are other slots than the fine rod's.
     if settings.method.engine() != Engine::Potential(Local::Newton)
-        || !scene.obstacles.is_empty()
+        || scene.has_contact()
         || n < NEST_FACTOR * COARSE_ELEMENTS
     {
         return None;

@@ -102,10 +102,10 @@ impl Solver {
     fn tip_sensitivity_with(&mut self, tangents: &[Loading]) -> Result<TipSensitivity> {
         let columns = tangents.len();
         let n = self.model.n();
-        if self.model.is_constrained() && !self.model.has_obstacles() {
+        if self.model.is_constrained() && !self.model.has_contact() {
             return Err(Error::argument("tip_sensitivity", "needs a free tip"));
         }
-        if self.model.has_obstacles() {
+        if self.model.has_contact() {
             return self.tip_sensitivity_in_contact(tangents);
         }
         let (model, w) = (&self.model, &mut self.work);

@@ -249,7 +249,7 @@ impl Settings {
             };
             let fine = accuracy.is_some_and(|tol| tol < threshold);
             // Contact is solved on the second-order scheme's chords so far.
-            if fine && self.method == Method::Newton && scene.obstacles.is_empty() {
+            if fine && self.method == Method::Newton && !scene.has_contact() {
                 Scheme::Fe4
             } else {
                 Scheme::Fd2

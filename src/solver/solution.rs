@@ -2,6 +2,7 @@
 //! judgement of every method's end state.
 
 use super::contact::Contact;
+use super::port::PortReaction;
 use crate::disc::Scheme;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -76,6 +77,9 @@ pub struct Solution {
     /// Where the rod touches the obstacles and how hard, by arc length
     /// (empty without obstacles).
     pub contacts: Vec<Contact>,
+    /// Where the rod passes each port and the force the port takes, in the
+    /// scene's order (empty without ports).
+    pub ports: Vec<PortReaction>,
     pub status: Status,
     /// Newton or LM iterations, all continuation steps included.
     pub iterations: usize,

@@ -1,0 +1,219 @@
+//! Sliding ports in the constrained solve: two equality rows a port, after
+//! the held points' and before the contacts' (see `contact::Port` for the
+//! geometry, `constrained.rs` for the KKT system).
+//!
+//! A port's rows are `b_i . (c - p) = 0` at the crossing `c` of the
+//! backbone's chord with the port's plane. With `c = (1 - s) r_(k-1) + s
+//! r_k` and `s` sliding so that `c` stays on the plane, the rows' gradients
+//! are `(1 - s) d_i` at node `k - 1` and `s d_i` at node `k`, `d_i = P^T
+//! b_i` (exact: the slide is in them), and the port's force `sum lambda_i
+//! d_i` is shared between the two nodes like a contact's. The multipliers
+//! live after the held points' reactions in the workspace's `reactions`
+//! (`x` and `y` of one vector a port).
+
+use super::Workspace;
+use crate::contact::Crossing;
+use crate::model::RodModel;
+use nalgebra::{DMatrix, Vector3};
+
+/// One port's crossing at the last evaluation.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct PortSite {
+    /// Where the backbone crosses the port's plane; `None` where it does
+    /// not (the rows' residuals are then infinite: no such step is taken).
+    pub crossing: Option<Crossing>,
+    /// The force directions of the two multipliers, `P^T b_i`.
+    pub directions: [Vector3<f64>; 2],
+    /// The rows' residuals `b_i . (c - p(lambda))` [m].
+    pub residual: [f64; 2],
+}
+
+/// The index of the first port's multiplier in `reactions`.
+pub(crate) fn offset(model: &RodModel) -> usize {
+    model.constraints().len()
+}
+
+/// The first KKT row of the ports (after the held points').
+pub(crate) fn first_row(model: &RodModel) -> usize {
+    3 * model.constraints().len()
+}
+
+/// The number of port rows.
+pub(crate) fn row_count(model: &RodModel) -> usize {
+    2 * model.ports().len()
+}
+
+/// Every port's site at the node positions `r` and load scale `lambda`.
+pub(crate) fn locate(model: &RodModel, r: &[Vector3<f64>], lambda: f64, sites: &mut [PortSite]) {
+    for (p, site) in model.ports().iter().zip(sites.iter_mut()) {
+        *site = match p.port.crossing(r) {
+            Some(c) => PortSite {
+                crossing: Some(c),
+                directions: p.port.force_directions(&(r[c.element] - r[c.element - 1])),
+                residual: p.residual(&c, lambda),
+            },
+            None => PortSite {
+                residual: [f64::INFINITY; 2],
+                ..PortSite::default()
+            },
+        };
+    }
+}
+
+/// The nodes and weights of a port's force: `(1 - s)` at node `k - 1`, `s`
+/// at node `k`.
+pub(crate) fn shares(site: &PortSite) -> [(usize, f64); 2] {
+    match site.crossing {
+        Some(c) => [(c.element - 1, 1.0 - c.s), (c.element, c.s)],
+        None => [(0, 0.0), (0, 0.0)],
+    }
+}
+
+/// A port's force on the rod from its multipliers `lambda` (`x`, `y`) [N].
+pub(crate) fn force(site: &PortSite, lambda: &Vector3<f64>) -> Vector3<f64> {
+    lambda.x * site.directions[0] + lambda.y * site.directions[1]
+}
+
+/// The last node a port's rows depend on.
+pub(crate) fn last_node(site: &PortSite) -> usize {
+    site.crossing.map_or(1, |c| c.element)
+}
+
+/// The ports' rows `d_i^T ((1 - s) D_(k-1) + s D_k)` as `n` vectors each
+/// into `rows` from index `from`.
+pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
+    let n = model.n();
+    let clamped = model.clamped_tip().is_some();
+    for (j, site) in w.kkt.contact.ports.clone().iter().enumerate() {
+        for (i, direction) in site.directions.iter().enumerate() {
+            let r = from + 2 * j + i;
+            if w.kkt.rows.len() <= r {
+                w.kkt.rows.push(vec![Vector3::zeros(); n]);
+            }
+            w.kkt.rows[r].iter_mut().for_each(|x| *x = Vector3::zeros());
+            for (node, weight) in shares(site) {
+                if weight == 0.0 || node == 0 {
+                    continue;
+                }
+                let d = &mut w.kkt.contact.position_jacobian;
+                model.position_jacobian(&w.q, node, &w.interior, d);
+                for (x, b) in w.kkt.rows[r].iter_mut().zip(d.iter()) {
+                    *x += weight * b.transpose() * direction;
+                }
+            }
+            if clamped {
+                w.kkt.rows[r][n - 1] = Vector3::zeros();
+            }
+        }
+    }
+}
+
+/// Relative step of the differences of a port's force: a millionth of
+/// the element.
+const CURVATURE_STEP: f64 = 1e-6;
+
+/// A port's curvature block (see `contact::curvature`): its force `sum
+/// lambda_i d_i` turns with the chord it crosses, and its shares move
+/// with the crossing; `M = -dF/dr` over the moving nodes of its element,
+/// by central differences, made symmetric (the Hessian of `-lambda . h`).
+/// `None` where there is no force or nothing moves.
+pub(crate) fn curvature_block(
+    model: &RodModel,
+    index: usize,
+    site: &PortSite,
+    lambda: &Vector3<f64>,
+    r: &[Vector3<f64>],
+) -> Option<(DMatrix<f64>, Vec<usize>)> {
+    let c = site.crossing?;
+    if lambda.x == 0.0 && lambda.y == 0.0 {
+        return None;
+    }
+    let n = model.n();
+    let clamped = model.clamped_tip().is_some();
+    let port = &model.ports()[index].port;
+    let (a, b) = (c.element - 1, c.element);
+    let moving: Vec<usize> = [a, b]
+        .into_iter()
+        .filter(|&k| k > 0 && !(clamped && k == n))
+        .collect();
+    if moving.is_empty() {
+        return None;
+    }
+    let step = CURVATURE_STEP * model.h(b);
+    // The shares of the force at nodes a and b for the chord a-b.
+    let shares = |ra: &Vector3<f64>, rb: &Vector3<f64>| -> Option<[Vector3<f64>; 2]> {
+        let chord = rb - ra;
+        let along = port.axis.dot(&chord);
+        if along <= 0.0 {
+            return None;
+        }
+        let s = port.axis.dot(&(port.position - ra)) / along;
+        let [d1, d2] = port.force_directions(&chord);
+        let f = lambda.x * d1 + lambda.y * d2;
+        Some([(1.0 - s) * f, s * f])
+    };
+    let mut jac = DMatrix::zeros(6, 3 * moving.len());
+    for (m, &k) in moving.iter().enumerate() {
+        for axis in 0..3 {
+            let shifted = |sign: f64| {
+                let (mut ra, mut rb) = (r[a], r[b]);
+                if k == a {
+                    ra[axis] += sign * step;
+                } else {
+                    rb[axis] += sign * step;
+                }
+                shares(&ra, &rb)
+            };
+            let (plus, minus) = (shifted(1.0)?, shifted(-1.0)?);
+            for share in 0..2 {
+                let d = (plus[share] - minus[share]) / (2.0 * step);
+                jac.view_mut((3 * share, 3 * m + axis), (3, 1))
+                    .copy_from(&d);
+            }
+        }
+    }
+    let mut block = DMatrix::zeros(3 * moving.len(), 3 * moving.len());
+    for (row, &k) in moving.iter().enumerate() {
+        let share = usize::from(k == b);
+        let part = jac.view((3 * share, 0), (3, 3 * moving.len()));
+        block
+            .view_mut((3 * row, 0), (3, 3 * moving.len()))
+            .copy_from(&part);
+    }
+    let block = -0.5 * (&block + block.transpose());
+    (block.amax() > 0.0).then_some((block, moving))
+}
+
+/// A port's answer: where the rod passes it and the force it takes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PortReaction {
+    /// Index of the port in the scene's list.
+    pub port: usize,
+    /// Arc length of the backbone point in the port [m].
+    pub arc_length: f64,
+    /// The backbone point in the port [m], world frame (the port's
+    /// position, to the solve's tolerance).
+    pub point: Vector3<f64>,
+    /// The port's force on the rod [N], world frame: across the rod.
+    pub force: Vector3<f64>,
+}
+
+/// The ports' answers at the last evaluation.
+pub(crate) fn reactions(model: &RodModel, w: &Workspace) -> Vec<PortReaction> {
+    let first = offset(model);
+    w.kkt
+        .contact
+        .ports
+        .iter()
+        .enumerate()
+        .filter_map(|(j, site)| {
+            let c = site.crossing?;
+            Some(PortReaction {
+                port: j,
+                arc_length: model.arc(c.element - 1) + c.s * model.h(c.element),
+                point: c.point,
+                force: force(site, &w.kkt.reactions[first + j]),
+            })
+        })
+        .collect()
+}

@@ -270,3 +270,61 @@ def rod_in_bend(ei: float, length: float, bend: float, clearance: float,
                         parts[1].sol(np.maximum(s, s_1))[:2].T)
 
     return {"contacts": contacts, "path": path, "unknowns": found.x}
+
+
+def through_port(ei: float, length: float, port: tuple[float, float], tip_load: float,
+                 weight: float = 0.0, rtol: float = 1e-12) -> dict:
+    """A planar cantilever, clamped at the origin along +x, that passes
+    through a frictionless port at `port = (a, h)` [m] and may slide through
+    it, with a downward force `tip_load` [N] at its tip and its weight
+    `weight` [N/m]: the port's force `(f_x, f_z)` on the rod, the arc length
+    that passes it, the angle there and the tip `(x, z)`.
+
+    Planar (x, z up, `theta` from +x), inextensible, as in `knife_edge`, with
+    the internal force `F(s) = (0, -tip_load - weight (L - s))`, plus the
+    port's force `f (-sin theta_c, cos theta_c)` proximal of it (across the
+    rod: a frictionless port does no work as the rod slides, of either
+    sign). Unknowns: the base moment, `f`, the arc length `s_c` and the angle
+    `theta_c`; conditions: the rod passes through the port at `s_c` with the
+    angle `theta_c`, no moment at the tip. Found by `scipy.optimize.root`
+    along a load ramp from the weightless rod's answer."""
+    a, h = port
+
+    def integrate(z0, s0, s1, extra, scale):
+        if s1 <= s0:
+            return z0
+
+        def rhs(s, z):
+            theta = z[2]
+            force = np.array([0.0, -scale * (tip_load + weight * (length - s))]) + extra
+            return [np.cos(theta), np.sin(theta), z[3] / ei,
+                    force[0] * np.sin(theta) - force[1] * np.cos(theta)]
+
+        return solve_ivp(rhs, (s0, s1), z0, rtol=rtol, atol=1e-14 * length,
+                         method="DOP853").y[:, -1]
+
+    def shoot(u, scale):
+        m0, f, s_c, theta_c = u
+        normal = np.array([-np.sin(theta_c), np.cos(theta_c)])
+        before = integrate(np.array([0.0, 0.0, 0.0, m0]), 0.0, s_c, f * normal, scale)
+        after = integrate(before, s_c, length, np.zeros(2), scale)
+        return before, after, normal
+
+    def conditions(u, scale):
+        before, after, _ = shoot(u, scale)
+        return np.array([(before[0] - a) / length, (before[1] - h) / length,
+                         before[2] - u[3], after[3] * length / ei])
+
+    # The unloaded rod through the port: a cantilever of length ~a bent by
+    # an end force (small deflection: f = 3 EI h / a^3, slope 3 h / (2 a)).
+    f0 = 3.0 * ei * h / a**3
+    u = np.array([f0 * a, f0, np.hypot(a, h), 1.5 * h / a])
+    for scale in (0.0, 0.25, 0.5, 0.75, 1.0):
+        found = root(conditions, u, args=(scale,), tol=1e-14)
+        u = found.x
+    miss = np.abs(conditions(u, 1.0)).max()
+    if not miss < 1e-10:
+        raise RuntimeError(f"through_port: shooting missed by {miss:.1e}")
+    _, after, normal = shoot(u, 1.0)
+    return {"force": u[1] * normal, "arc_length": float(u[2]), "angle": float(u[3]),
+            "tip": (float(after[0]), float(after[1]))}

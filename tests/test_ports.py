@@ -1,0 +1,192 @@
+"""Sliding ports: a point the backbone passes through and slides through
+without friction (a trocar, a guide tube's exit), against closed forms and
+shooting (`contact_reference.through_port`, `knife_edge`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from contact_reference import knife_edge, through_port
+
+import softspine
+
+ALONG_X = [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0]
+
+
+def port_scene(port: tuple[float, float], tip_load: float = 0.0, weight: float = 0.0,
+               tilt: float = 0.0) -> dict:
+    """A 1 m cantilever along +x (EI = 1) through a port at `(a, h)` of the
+    plane turned by `tilt` about x, with a tip load and its weight [N/m]
+    pulling down that plane."""
+    up = np.array([0.0, -math.sin(tilt), math.cos(tilt)])
+    scene = {
+        "length": 1.0,
+        "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+        "base_quaternion": ALONG_X,
+        "tip_force": list(-tip_load * up),
+        "ports": [{"position": list(port[0] * np.array([1.0, 0.0, 0.0]) + port[1] * up),
+                   "axis": [1.0, 0.0, 0.0]}],
+    }
+    if weight:
+        scene["gravity"] = {"linear_density": weight / 9.81, "vector": list(-9.81 * up)}
+    return scene, up
+
+
+@pytest.mark.parametrize("load", [1e-3, -1e-3])
+def test_a_cantilever_through_a_port_is_the_propped_cantilever_either_way(load):
+    # Small deflection: the port on the rod's line carries R = P (3 L - a)
+    # / (2 a) across it, pushed up or pulled down (it holds both ways); the
+    # port on a node, second order.
+    edge = 0.6
+    exact = load * (3.0 - edge) / (2.0 * edge)
+    errors = []
+    for n in (20, 40, 80):
+        sol = softspine.solve(port_scene((edge, 0.0), load)[0], n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        force = sol.ports["force"][0]
+        assert abs(force[1]) < 1e-15
+        errors.append(abs(force[2] / exact - 1.0))
+        np.testing.assert_allclose(sol.ports["arc_length"], edge, atol=1e-9)
+        np.testing.assert_allclose(sol.ports["point"][0], [edge, 0.0, 0.0], atol=1e-12)
+    assert errors[-1] < 1e-4
+    assert errors[0] / errors[1] > 3.5 and errors[1] / errors[2] > 3.5, errors
+
+
+@pytest.mark.parametrize("case", [
+    ((0.5, 0.1), 0.0, 0.0, 0.0),
+    ((0.5, 0.1), 1.0, 2.0, 0.7),
+    ((0.7, -0.2), 0.5, 3.0, -1.2),
+])
+def test_a_rod_bent_through_a_port_meets_shooting(case):
+    # Large deflection: the port off the rod's line, a tip load and the
+    # weight, in a plane turned about x (the solver works in 3D). The arc
+    # length through the port and the tip converge at second order; the
+    # port's force, across a chord that crosses inside an element, at
+    # first order (measured 0.3 to 2 h |F|, with the crossing's place).
+    port, tip_load, weight, tilt = case
+    ref = through_port(1.0, 1.0, port, tip_load, weight)
+    size = np.linalg.norm(ref["force"])
+    tips, arcs = [], []
+    for n in (20, 40, 80, 160):
+        scene, up = port_scene(port, tip_load, weight, tilt)
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        tip, force = sol.tip_position, sol.ports["force"][0]
+        tips.append(np.hypot(tip[0] - ref["tip"][0], tip @ up - ref["tip"][1]))
+        arcs.append(abs(sol.ports["arc_length"][0] - ref["arc_length"]))
+        in_plane = np.array([force[0], force @ up])
+        assert np.linalg.norm(in_plane - ref["force"]) < 2.5 * size / n
+        # Nothing out of the plane, and the port on its point.
+        assert abs(force @ np.cross([1.0, 0.0, 0.0], up)) < 1e-9 * size
+        np.testing.assert_allclose(sol.ports["point"][0],
+                                   scene["ports"][0]["position"], atol=1e-10)
+        # Frictionless: the force is across the chord it acts on.
+        k = int(np.ceil(sol.ports["arc_length"][0] * n))
+        chord = sol.positions[k] - sol.positions[k - 1]
+        assert abs(force @ chord) < 1e-9 * size * np.linalg.norm(chord)
+    assert all(a / b > 2.8 for a, b in zip(arcs, arcs[1:], strict=False)), arcs
+    assert tips[-1] < 3e-5 and tips[0] / tips[-1] > 40, tips
+
+
+def test_a_port_pressed_from_one_side_is_a_knife_edge():
+    # Where the load presses the rod onto it, a port holds like a knife
+    # edge: the same equilibrium from the contact's unilateral rows (the
+    # edge a capsule of radius 1e-6 m, so to about that).
+    from test_contact import knife_edge_scene
+    load = 2.0
+    reaction, s_contact, tip_x, tip_z = knife_edge(1.0, load, 1.0, 0.6)
+    for n in (40, 80):
+        port = softspine.solve(port_scene((0.6, 0.0), load)[0], n_elements=n)
+        edge = softspine.solve(knife_edge_scene(load), n_elements=n)
+        assert port.converged and edge.converged
+        np.testing.assert_allclose(port.positions, edge.positions, atol=2e-6)
+        np.testing.assert_allclose(np.linalg.norm(port.ports["force"][0]),
+                                   edge.contacts["force"].sum(), rtol=1e-5)
+        assert abs(port.ports["arc_length"][0] - s_contact) < 30.0 / n**2
+        assert np.hypot(port.tip_position[0] - tip_x, port.tip_position[2] - tip_z) < 0.5 / n**2
+
+
+def test_a_port_and_an_obstacle_together():
+    # A steel rod through a port, sagging onto a floor beyond it: both
+    # kinds of rows in one KKT system. The floor holds the rod's surface
+    # above it, the port its backbone, and the forces converge with n.
+    scene = {
+        "length": 1.0,
+        "stiffness": {"E": 200e9, "G": 80e9, "diameter": 0.002},
+        "base_quaternion": ALONG_X,
+        "gravity": {"linear_density": 0.025, "vector": [0.0, 0.0, -9.81]},
+        "ports": [{"position": [0.2, 0.0, 0.0]}],
+        "obstacles": [{"shape": "half_space", "point": [0.0, 0.0, -0.05],
+                       "normal": [0.0, 0.0, 1.0]}],
+    }
+    forces = []
+    for n in (40, 80, 160):
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        assert len(sol.contacts["force"]) > 0 and sol.contacts["force"].min() >= 0.0
+        assert sol.positions[:, 2].min() >= -0.05 + 0.001 - 1e-9
+        np.testing.assert_allclose(sol.ports["point"][0], [0.2, 0.0, 0.0], atol=1e-10)
+        forces.append([sol.contacts["force"].sum(), sol.ports["force"][0][2]])
+    forces = np.array(forces)
+    changes = np.abs(np.diff(forces, axis=0)).max(axis=1)
+    assert changes[1] < 0.5 * changes[0] and changes[1] < 1e-2 * np.abs(forces).max(), forces
+
+
+def test_ports_come_back_from_dict_and_pickle():
+    import pickle
+    sol = softspine.solve(port_scene((0.5, 0.1), 1.0)[0], n_elements=20)
+    for back in (softspine.Solution.from_dict(sol.to_dict()), pickle.loads(pickle.dumps(sol))):
+        for key, value in sol.ports.items():
+            np.testing.assert_array_equal(back.ports[key], value)
+    assert softspine.solve(port_scene((0.5, 0.0))[0]).ports["port"].tolist() == [0]
+    assert softspine.solve({"length": 1.0, "stiffness": {"kx": 1, "ky": 1, "kz": 1}}
+                           ).ports["port"].size == 0
+    scene = softspine.Scene(port_scene((0.5, 0.1))[0])
+    assert softspine.Scene(scene.to_dict()).to_dict()["ports"] == scene.to_dict()["ports"]
+
+
+@pytest.mark.parametrize("port, key, reason", [
+    ({"position": [0.5, 0.0, 0.0], "axis": [0.0, 0.0, 0.0]}, "ports[0].axis", "zero"),
+    ({"position": [0.5, 0.0, float("nan")]}, "ports[0].position", "finite"),
+    ({"position": [0.5, 0.0, 0.0], "radius": 1.0}, "ports[0]", "radius"),
+    ({"axis": [1.0, 0.0, 0.0]}, "ports[0]", "position"),
+    # Behind the base, and past the tip: the rod never crosses its plane.
+    ({"position": [-0.5, 0.0, 0.0]}, "ports[0]", "does not pass"),
+    ({"position": [1.5, 0.0, 0.0]}, "ports[0]", "does not pass"),
+])
+def test_a_bad_port_is_refused_naming_it(port, key, reason):
+    scene = port_scene((0.5, 0.0))[0]
+    scene["ports"] = [port]
+    with pytest.raises(ValueError, match=r"ports\[0\]") as error:
+        softspine.solve(scene)
+    assert key in str(error.value) and reason in str(error.value)
+
+
+@pytest.mark.parametrize("options, name", [
+    ({"method": "lm"}, "method"),
+    ({"scheme": "fe4"}, "scheme"),
+    ({"method": "shooting"}, "method"),
+])
+def test_a_port_is_solved_by_newton_on_fd2_and_says_so(options, name):
+    with pytest.raises(ValueError, match=name):
+        softspine.solve(port_scene((0.5, 0.1))[0], **options)
+
+
+def test_the_tip_sensitivity_through_a_port_is_the_finite_difference():
+    # Along the port (the rod keeps sliding through it): the implicit
+    # function theorem on the KKT system against central differences.
+    scene = port_scene((0.5, 0.1), 0.5, 1.0)[0]
+    solver = softspine.Solver(scene, n_elements=40)
+    assert solver.solve().converged
+    sensitivity = solver.sensitivity("tip_force[2]")
+    step = 1e-5
+    tips = []
+    for sign in (1.0, -1.0):
+        moved = dict(scene, tip_force=[0.0, 0.0, scene["tip_force"][2] + sign * step])
+        sol = softspine.solve(moved, n_elements=40, residual_tol=1e-13)
+        assert sol.converged
+        tips.append(sol.tip_position)
+    difference = (tips[0] - tips[1]) / (2.0 * step)
+    np.testing.assert_allclose(sensitivity.tip_position[:, 0], difference, atol=1e-9)

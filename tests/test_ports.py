@@ -190,3 +190,52 @@ def test_the_tip_sensitivity_through_a_port_is_the_finite_difference():
         tips.append(sol.tip_position)
     difference = (tips[0] - tips[1]) / (2.0 * step)
     np.testing.assert_allclose(sensitivity.tip_position[:, 0], difference, atol=1e-9)
+
+
+def inserted_robot(n: int = 20, **fields) -> softspine.Robot:
+    """The seed's robot, weightless, hanging through a port 0.3 m below its base."""
+    return softspine.Robot({"gravity": [0, 0, 0], "ports": [{"position": [0, 0, -0.3]}],
+                            "insertion_range": [0.0, 0.2], "n_elements": n, **fields})
+
+
+@pytest.mark.parametrize("insertion", [0.0, 0.1])
+def test_a_robot_bent_through_a_port_meets_the_clamped_pinned_beam(insertion):
+    # Small curvature kappa in every section, no weight: between the base
+    # and the port (a = 0.3 m - insertion) a clamped-pinned beam with rest
+    # curvature, EI (w'' - kappa) = R (a - x), w(a) = 0, so the port pushes
+    # back with R = 3 EI kappa / (2 a) and the rod leaves it at the slope
+    # kappa a / 4; beyond, free, it curves by kappa. Second order in n.
+    kappa, length = 0.01, 1.0
+    a = 0.3 - insertion
+    tip = kappa * a / 4.0 * (length - a) + kappa * (length - a) ** 2 / 2.0
+    forces, tips = [], []
+    for n in (20, 40, 80):
+        robot = inserted_robot(n)
+        ei = robot.forward().to_dict()["stiffness"][0]
+        sol = robot.forward(np.tile([kappa, 0.0], (10, 1)), insertion=insertion)
+        assert sol.converged and sol.stable, sol.message
+        np.testing.assert_allclose(sol.positions[0], [0.0, 0.0, -insertion], atol=1e-15)
+        np.testing.assert_allclose(sol.ports["arc_length"], a, atol=1e-6)
+        forces.append(abs(-sol.ports["force"][0][1] / (1.5 * ei * kappa / a) - 1.0))
+        tips.append(abs(sol.tip_position[1] / tip - 1.0))
+    assert forces[-1] < 2e-3 and tips[-1] < 5e-4, (forces, tips)
+    assert forces[0] / forces[1] > 3.8 and forces[1] / forces[2] > 3.8, forces
+    assert tips[0] / tips[1] > 3.5 and tips[1] / tips[2] > 3.5, tips
+
+
+def test_a_robots_ports_and_insertion_range_come_back_and_are_checked():
+    robot = inserted_robot()
+    again = softspine.Robot(robot.to_dict())
+    assert again.to_dict()["ports"] == [{"position": [0.0, 0.0, -0.3], "axis": [0.0, 0.0, -1.0]}]
+    assert again.to_dict()["insertion_range"] == [0.0, 0.2]
+    # The straight robot slides through: only the base moves.
+    sol = robot.forward(insertion=0.15)
+    np.testing.assert_allclose(sol.tip_position, [0.0, 0.0, -1.15], atol=1e-12)
+    np.testing.assert_allclose(sol.ports["force"], 0.0, atol=1e-12)
+    for bad, reason in [(0.25, "outside insertion_range"), (float("nan"), "finite")]:
+        with pytest.raises(ValueError, match="insertion") as error:
+            robot.forward(insertion=bad)
+        assert reason in str(error.value)
+    for bad in ([0.2, 0.1], [0.0, float("inf")]):
+        with pytest.raises(ValueError, match="insertion_range"):
+            inserted_robot(insertion_range=bad)

@@ -287,10 +287,11 @@ class Robot:
         *,
         tensions: npt.ArrayLike | None = None,
         field: npt.ArrayLike | None = None,
+        insertion: float | None = None,
     ) -> Scene:
         """The Scene of this robot with an actuation (rest curvature (m, 2),
-        default straight; one tension a tendon, N; a uniform field, T) and a
-        tip mass (kg)."""
+        default straight; one tension a tendon, N; a uniform field, T; the
+        base moved by ``insertion`` m along its tangent) and a tip mass (kg)."""
     def muscle_lengths(self, rest_curvature: npt.ArrayLike) -> _Array: ...
     def rest_curvature(self, muscle_lengths: npt.ArrayLike) -> _Array: ...
     def inflation_times(self, muscle_lengths: npt.ArrayLike) -> _Array: ...
@@ -304,11 +305,14 @@ class Robot:
         *,
         tensions: npt.ArrayLike | None = None,
         field: npt.ArrayLike | None = None,
+        insertion: float | None = None,
     ) -> Solution:
         """The loaded equilibrium of an actuation under a tip mass (kg): the
         muscles' rest curvature (m, 2) (default straight), the tendons'
-        ``tensions`` (N, one a tendon, each >= 0 and at most ``max_tension``)
-        and a uniform ``field`` (T, world frame, at most ``max_field``); from
+        ``tensions`` (N, one a tendon, each >= 0 and at most ``max_tension``),
+        a uniform ``field`` (T, world frame, at most ``max_field``) and the
+        ``insertion`` (m, default 0: the base moved along its tangent, within
+        ``insertion_range``; through the robot's ``ports``); from
         the straight rod or warm from ``initial`` (a Solution of this robot or
         its quaternions (n + 1, 4))."""
     def sensitivity(

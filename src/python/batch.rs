@@ -184,6 +184,7 @@ pub(super) fn ik_batch_result<'py>(
             rest_curvature: s.rest_curvature.clone(),
             tensions: s.tensions.clone(),
             field: s.field,
+            insertion: 0.0,
         })
         .collect();
     let drives = Drives {

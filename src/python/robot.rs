@@ -374,9 +374,10 @@ impl PyRobot {
 
     /// The Scene of this robot with an actuation and a load (a payload mass
     /// in kg, or a dict of mass, tip_force, tip_moment, point_loads):
-    /// rest curvature (m, 2) 1/m (default straight), tendon ``tensions`` (N)
-    /// and an external ``field`` (T, world frame).
-    #[pyo3(signature = (rest_curvature=None, load=None, *, tensions=None, field=None))]
+    /// rest curvature (m, 2) 1/m (default straight), tendon ``tensions`` (N),
+    /// an external ``field`` (T, world frame) and the ``insertion`` (m, the
+    /// base moved along its tangent).
+    #[pyo3(signature = (rest_curvature=None, load=None, *, tensions=None, field=None, insertion=None))]
     fn scene(
         &self,
         py: Python<'_>,
@@ -384,10 +385,11 @@ impl PyRobot {
         #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         tensions: Option<&Bound<'_, PyAny>>,
         field: Option<&Bound<'_, PyAny>>,
+        insertion: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyScene> {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
-        let a = actuation_arg(rest_curvature, tensions, field)?;
+        let a = actuation_arg(rest_curvature, tensions, field, insertion)?;
         Ok(PyScene {
             inner: self.inner.scene(&a, &load)?,
         })
@@ -463,12 +465,16 @@ impl PyRobot {
     /// field
     ///     A magnetic robot's uniform field, T, world frame, within
     ///     ``max_field``.
+    /// insertion
+    ///     How far the base moves along its tangent, m (default 0; within
+    ///     ``insertion_range`` where the robot has one): the robot fed
+    ///     through its ``ports``.
     ///
     /// Returns
     /// -------
     /// Solution
     ///     At the robot's ``n_elements``; ``status`` says how the solve ended.
-    #[pyo3(signature = (rest_curvature=None, load=None, initial=None, *, tensions=None, field=None))]
+    #[pyo3(signature = (rest_curvature=None, load=None, initial=None, *, tensions=None, field=None, insertion=None))]
     fn forward(
         &self,
         py: Python<'_>,
@@ -477,10 +483,11 @@ impl PyRobot {
         initial: Option<&Bound<'_, PyAny>>,
         tensions: Option<&Bound<'_, PyAny>>,
         field: Option<&Bound<'_, PyAny>>,
+        insertion: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PySolution> {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
-        let a = actuation_arg(rest_curvature, tensions, field)?;
+        let a = actuation_arg(rest_curvature, tensions, field, insertion)?;
         let initial = given(initial)
             .map(|q| quaternions_arg("initial", &q))
             .transpose()?;
@@ -509,7 +516,7 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyDict>> {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
-        let k = actuation_arg(rest_curvature, tensions, field)?;
+        let k = actuation_arg(rest_curvature, tensions, field, None)?;
         let names = match given(parameters) {
             Some(p) => super::fitting::parameter_names(&p)?,
             None => vec![self.inner.drive_parameter().to_owned()],
@@ -821,6 +828,7 @@ fn actuation_arg(
     rest_curvature: Option<&Bound<'_, PyAny>>,
     tensions: Option<&Bound<'_, PyAny>>,
     field: Option<&Bound<'_, PyAny>>,
+    insertion: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Actuation> {
     Ok(Actuation {
         rest_curvature: given(rest_curvature)
@@ -835,6 +843,10 @@ fn actuation_arg(
             .map(|b| vec3_arg("field", &b))
             .transpose()?
             .unwrap_or_else(Vector3::zeros),
+        insertion: given(insertion)
+            .map(|d| float_arg("insertion", &d))
+            .transpose()?
+            .unwrap_or(0.0),
     })
 }
 

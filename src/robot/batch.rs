@@ -167,6 +167,7 @@ impl Robot {
                     .map_or(Vec::new(), |k| k[i * m..(i + 1) * m].to_vec()),
                 tensions: tensions.map_or(Vec::new(), |t| t[i].clone()),
                 field: field.map_or(Vector3::zeros(), |b| Vector3::from(b[i])),
+                insertion: 0.0,
             })
             .collect())
     }
@@ -371,6 +372,7 @@ impl Robot {
                 false => a.tensions.clone(),
             },
             field: a.field,
+            insertion: a.insertion,
         };
         let actuations: Vec<Actuation> = actuations.iter().map(whole).collect();
         // The robot and the load once, each sample's drives (named).
@@ -405,6 +407,7 @@ impl Robot {
             rest_curvature: vec![[0.0; 2]; self.body.sections],
             tensions: vec![0.0; self.drive.tendon_routes().len()],
             field: Vector3::zeros(),
+            insertion: 0.0,
         };
         let stiffness = self.scene(&rest, load)?.stiffness().min();
         let load = load.clone();
@@ -450,6 +453,7 @@ impl Robot {
             rest_curvature: vec![[0.0; 2]; self.body.sections],
             tensions: vec![0.0; self.drive.tendon_routes().len()],
             field: Vector3::zeros(),
+            insertion: 0.0,
         };
         match self.actuation_space() {
             ActuationSpace::Tensions => {

@@ -30,7 +30,7 @@ pub use ik::{
 };
 pub use load::Load;
 
-use crate::contact::Obstacle;
+use crate::contact::{Obstacle, Port};
 use crate::error::{Error, Result};
 use crate::read::count;
 use crate::scene::{Gravity, PointLoad, Scene, Tendon};
@@ -62,6 +62,14 @@ pub struct Robot {
     /// Rigid obstacles around the robot, world frame (frictionless
     /// contact; default none).
     pub obstacles: Vec<Obstacle>,
+    /// Ports the robot slides through without friction, world frame (a
+    /// trocar, a guide tube's exit; default none).
+    pub ports: Vec<Port>,
+    /// The range of the insertion, `[min, max]` [m]: how far the base may
+    /// move along its tangent (a linear stage feeding the robot through a
+    /// port). Given, the inverse kinematics has the insertion as one more
+    /// coordinate; `None`: the base stays (insertion 0).
+    pub insertion_range: Option<[f64; 2]>,
     /// Elements of the discretisation used by every solve (default: the
     /// smallest multiple of the sections that is at least 20, see
     /// [`crate::solver::default_elements`]).
@@ -79,6 +87,9 @@ pub struct Actuation {
     pub tensions: Vec<f64>,
     /// Uniform external field, world frame [T].
     pub field: Vector3<f64>,
+    /// How far the base is moved along its tangent [m] (see
+    /// [`Robot::insertion_range`]); 0: where the body puts it.
+    pub insertion: f64,
 }
 
 impl Actuation {
@@ -135,6 +146,8 @@ impl Default for Robot {
             n_elements: crate::solver::default_elements(body.sections),
             body,
             obstacles: Vec::new(),
+            ports: Vec::new(),
+            insertion_range: None,
         }
     }
 }
@@ -148,6 +161,8 @@ impl Robot {
             body,
             drive,
             obstacles: Vec::new(),
+            ports: Vec::new(),
+            insertion_range: None,
         }
     }
 
@@ -234,7 +249,7 @@ impl Robot {
     /// as point loads at the section ends, the payload's weight and the
     /// load's wrenches.
     pub fn scene(&self, actuation: &Actuation, load: &Load) -> Result<Scene> {
-        if actuation.rest_curvature.is_empty() {
+        let mut scene = if actuation.rest_curvature.is_empty() {
             let straight = vec![[0.0; 2]; self.body.sections];
             self.scene_of(&straight, &actuation.tensions, actuation.field, load)
         } else {
@@ -244,7 +259,35 @@ impl Robot {
                 actuation.field,
                 load,
             )
+        }?;
+        self.check_insertion(actuation.insertion)?;
+        scene.base_position += actuation.insertion * self.insertion_axis();
+        Ok(scene)
+    }
+
+    /// The direction the insertion moves the base: its tangent.
+    pub fn insertion_axis(&self) -> Vector3<f64> {
+        self.body.base_quaternion.rotate(Vector3::z())
+    }
+
+    /// Refuse an insertion that is not finite or outside the robot's range
+    /// (without a range, any finite insertion moves the base).
+    pub fn check_insertion(&self, insertion: f64) -> Result<()> {
+        if !insertion.is_finite() {
+            return Err(Error::argument(
+                "insertion",
+                format!("must be finite, got {insertion}"),
+            ));
         }
+        if let Some([lo, hi]) = self.insertion_range {
+            if !(lo..=hi).contains(&insertion) {
+                return Err(Error::argument(
+                    "insertion",
+                    format!("{insertion} m is outside insertion_range [{lo}, {hi}]"),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Forward statics: the loaded equilibrium of an actuation (see
@@ -423,6 +466,7 @@ impl Robot {
             s.obstacles.clone_from(&self.obstacles);
             s.radius = Some(self.contact_radius());
         }
+        s.ports.clone_from(&self.ports);
         Ok(s)
     }
 
@@ -572,6 +616,14 @@ impl Robot {
             let list = self.obstacles.iter().map(Obstacle::to_value).collect();
             entries.push(("obstacles".into(), Value::List(list)));
         }
+        if !self.ports.is_empty() {
+            let list = self.ports.iter().map(Port::to_value).collect();
+            entries.push(("ports".into(), Value::List(list)));
+        }
+        if let Some(range) = self.insertion_range {
+            let pair = range.iter().map(|x| Value::Number(*x)).collect();
+            entries.push(("insertion_range".into(), Value::List(pair)));
+        }
         Value::Map(entries)
     }
 
@@ -592,6 +644,8 @@ impl Robot {
         let mut body = Body::default();
         let mut n_elements = None;
         let mut obstacles = Vec::new();
+        let mut ports = None;
+        let mut insertion_range = None;
         let mut drive_entries = Vec::new();
         for (key, value) in entries {
             let key = key.as_str();
@@ -601,6 +655,17 @@ impl Robot {
                 n_elements = Some(count(value, key, MAX_ROBOT_ELEMENTS)?);
             } else if key == "obstacles" {
                 obstacles = crate::scene::obstacles(value)?;
+            } else if key == "ports" {
+                ports = Some(value);
+            } else if key == "insertion_range" {
+                let [lo, hi] = crate::read::numbers::<2>(value, key)?;
+                if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                    return Err(Error::scene(
+                        key,
+                        format!("expected finite [min, max] with min <= max, got [{lo}, {hi}]"),
+                    ));
+                }
+                insertion_range = Some([lo, hi]);
             } else if [&MUSCLE_KEYS[..], &TENDON_KEYS, &FIELD_KEYS]
                 .iter()
                 .any(|keys| keys.contains(&key))
@@ -609,7 +674,7 @@ impl Robot {
             } else {
                 let known: Vec<&str> = BODY_KEYS
                     .iter()
-                    .chain(["n_elements", "obstacles"].iter())
+                    .chain(["n_elements", "obstacles", "ports", "insertion_range"].iter())
                     .chain(MUSCLE_KEYS.iter())
                     .chain(TENDON_KEYS.iter())
                     .chain(FIELD_KEYS.iter())
@@ -628,11 +693,18 @@ impl Robot {
         }
         body.check_sections()?;
         let drive = Drive::read(&drive_entries, body.sections, body.section_length())?;
+        // A port's axis defaults to the base's tangent (the body read first).
+        let ports = match ports {
+            Some(v) => crate::scene::ports(v, body.base_quaternion.rotate(Vector3::z()))?,
+            None => Vec::new(),
+        };
         let r = Robot {
             n_elements: n_elements.unwrap_or(crate::solver::default_elements(body.sections)),
             body,
             drive,
             obstacles,
+            ports,
+            insertion_range,
         };
         // A field defaulted from another is blamed on the one given.
         let rest_key = if given("muscle_rest_length") {

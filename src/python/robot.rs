@@ -475,6 +475,7 @@ impl PyRobot {
     /// Solution
     ///     At the robot's ``n_elements``; ``status`` says how the solve ended.
     #[pyo3(signature = (rest_curvature=None, load=None, initial=None, *, tensions=None, field=None, insertion=None))]
+    #[allow(clippy::too_many_arguments)]
     fn forward(
         &self,
         py: Python<'_>,

@@ -360,6 +360,13 @@ impl RodModel {
     /// Set the tendons' tensions in place, in the scene's order (checked by
     /// the caller): nothing else of the discretisation depends on them. The
     /// interiors a caller keeps belonged to the old ones: forget them.
+    /// Move the clamped base to `p` [m] (the rest shape, and so where the
+    /// held points and ports start their load paths, with it).
+    pub(crate) fn set_base_position(&mut self, p: Vector3<f64>) {
+        self.rod.base_position = p;
+        self.refresh_rest();
+    }
+
     pub(crate) fn set_tensions(&mut self, tensions: &[f64]) {
         self.terms.tendons.set_tensions(tensions);
         // Only their curvature density changes (the IK in tension space sets

@@ -239,3 +239,58 @@ def test_a_robots_ports_and_insertion_range_come_back_and_are_checked():
     for bad in ([0.2, 0.1], [0.0, float("inf")]):
         with pytest.raises(ValueError, match="insertion_range"):
             inserted_robot(insertion_range=bad)
+
+
+TENDONS = [{"offset": [0.01, 0.0], "section": 10},
+           {"offset": [-0.005, 0.0087], "section": 10},
+           {"offset": [-0.005, -0.0087], "section": 10}]
+
+
+@pytest.mark.parametrize("fields", [{}, {"tendons": TENDONS, "max_tension": 100.0}])
+@pytest.mark.parametrize("target", [[0.0, 0.0, -1.1], [0.15, 0.05, -1.0], [0.0, 0.1, -1.12]])
+def test_the_inverse_kinematics_inserts_the_robot_through_its_port(fields, target):
+    # The insertion is one more coordinate: targets past the fixed base's
+    # reach are reached by inserting, and the answer is an equilibrium
+    # through the port (checked by a forward solve of it).
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}],
+                             "insertion_range": [0.0, 0.2], **fields})
+    ik = robot.inverse(target, load=0.03)
+    assert ik.reached, ik.message
+    assert 0.0 <= ik.insertion <= 0.2 and "insertion" in ik.message
+    tensions = ik.tensions if len(ik.tensions) else None
+    sol = robot.forward(ik.rest_curvature, load=0.03, tensions=tensions, insertion=ik.insertion)
+    assert np.linalg.norm(sol.tip_position - target) < 1e-6
+    np.testing.assert_allclose(sol.ports["point"][0], [0.0, 0.0, -0.3], atol=1e-10)
+    np.testing.assert_allclose(sol.positions[0], [0.0, 0.0, -ik.insertion], atol=1e-12)
+    if target[2] < -1.0 - 1e-9 and np.hypot(target[0], target[1]) < 0.11:
+        assert ik.insertion > 0.05
+
+
+def test_a_target_past_the_insertion_is_out_of_reach_and_says_why():
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}], "insertion_range": [0.0, 0.2]})
+    ik = robot.inverse([0.0, 0.05, -1.25], load=0.03)
+    assert not ik.reached and ik.ending == "out_of_reach"
+    assert "inserted by 0.2 m" in ik.message and ik.insertion == pytest.approx(0.2)
+
+
+def test_tracking_through_a_port_keeps_the_insertion_and_the_result_comes_back():
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}], "insertion_range": [0.0, 0.2]})
+    angles = np.linspace(0.0, 2.0 * np.pi, 6)
+    circle = [[0.05 * np.cos(t), 0.05 * np.sin(t), -1.05] for t in angles]
+    results = robot.track(circle, load=0.03)
+    assert all(r.reached for r in results), [r.message for r in results]
+    # The circle is symmetric about the axis: one insertion all round (to
+    # the least-norm choice's precision).
+    insertions = [r.insertion for r in results]
+    assert max(insertions) - min(insertions) < 1e-5 and insertions[0] > 0.0
+    d = results[1].to_dict()
+    assert softspine.IkResult.from_dict(d).insertion == d["insertion"] == results[1].insertion
+    del d["insertion"]
+    assert softspine.IkResult.from_dict(d).insertion == 0.0
+
+
+def test_a_limited_field_with_an_insertion_is_refused_by_name():
+    robot = softspine.Robot({"magnetization": [[0.0, 0.0, 0.1]], "max_field": 0.05,
+                             "insertion_range": [0.0, 0.1]})
+    with pytest.raises(ValueError, match="insertion_range"):
+        robot.inverse([0.0, 0.1, -0.9])

@@ -196,6 +196,10 @@ class IkResult:
     def field(self) -> _Array:
         """The uniform magnetic field, world frame, T (a magnetic robot; zero otherwise)."""
     @property
+    def insertion(self) -> float:
+        """How far the base was moved along its tangent, m (a robot with an
+        ``insertion_range``, whose inverse kinematics chooses it; zero otherwise)."""
+    @property
     def solution(self) -> Solution: ...
     @property
     def tip_position(self) -> _Array:

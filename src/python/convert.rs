@@ -503,6 +503,15 @@ impl<'py> Fields<'py> {
     }
 
     /// A key that the dicts of earlier versions lack: None when absent or None.
+    /// A number that the dicts of earlier versions lack: `default` when
+    /// absent or None.
+    pub(super) fn float_or(&self, key: &str, default: f64) -> PyResult<f64> {
+        match self.dict.get_item(key)? {
+            Some(v) if !v.is_none() => float_arg(&self.name(key), &v),
+            _ => Ok(default),
+        }
+    }
+
     pub(super) fn floats_if_given(&self, key: &str) -> PyResult<Option<Vec<f64>>> {
         match self.dict.get_item(key)? {
             Some(v) if !v.is_none() => floats_arg(&self.name(key), &v).map(Some),

@@ -67,6 +67,12 @@ impl PyIkResult {
     fn field<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         vec3_array(py, &self.inner.field)
     }
+    /// How far the base was moved along its tangent, m (a robot with an
+    /// ``insertion_range``, whose inverse kinematics chooses it; zero otherwise).
+    #[getter]
+    fn insertion(&self) -> f64 {
+        self.inner.insertion
+    }
     /// The loaded equilibrium with this actuation.
     #[getter]
     fn solution(&self) -> PySolution {
@@ -127,6 +133,7 @@ impl PyIkResult {
         d.set_item("inflation_times", rows_n(py, &r.inflation_times))?;
         d.set_item("tensions", PyArray1::from_slice(py, &r.tensions))?;
         d.set_item("field", vec3_array(py, &r.field))?;
+        d.set_item("insertion", r.insertion)?;
         let solution = PySolution {
             inner: r.solution.clone(),
         };
@@ -145,12 +152,13 @@ impl PyIkResult {
     /// An IkResult from ``to_dict()``'s dict (every key required).
     #[staticmethod]
     fn from_dict(data: &Bound<'_, PyAny>) -> PyResult<Self> {
-        const KEYS: [&str; 14] = [
+        const KEYS: [&str; 15] = [
             "rest_curvature",
             "muscle_lengths",
             "inflation_times",
             "tensions",
             "field",
+            "insertion",
             "solution",
             "tip_position",
             "tip_miss",
@@ -168,6 +176,8 @@ impl PyIkResult {
             inflation_times: d.rows::<3>("inflation_times")?,
             tensions: d.floats("tensions")?,
             field: d.vector("field")?,
+            // Absent from earlier versions' dicts: no insertion.
+            insertion: d.float_or("insertion", 0.0)?,
             solution: PySolution::from_dict(&d.get("solution")?)?.inner,
             tip_position: d.vector("tip_position")?,
             tip_miss: number_or_infinite("ik_result.tip_miss", &d.get("tip_miss")?)?,
@@ -867,6 +877,7 @@ fn ik_start(x: &Bound<'_, PyAny>) -> PyResult<IkStart> {
             quaternions: r.solution.quaternions.clone(),
             rest_curvature: Some(r.rest_curvature.clone()),
             actuation,
+            insertion: Some(r.insertion),
         });
     }
     if let Ok(s) = x.cast::<PySolution>() {
@@ -875,12 +886,14 @@ fn ik_start(x: &Bound<'_, PyAny>) -> PyResult<IkStart> {
             quaternions: s.quaternions.clone(),
             rest_curvature: Some(s.rest_curvature.clone()),
             actuation: None,
+            insertion: None,
         });
     }
     Ok(IkStart {
         quaternions: quaternions_arg("initial", x)?,
         rest_curvature: None,
         actuation: None,
+        insertion: None,
     })
 }
 

@@ -28,19 +28,27 @@ use nalgebra::{DMatrix, DVector};
 /// (feasible, improved) point.
 const MAX_ROUNDS: usize = 60;
 
-/// The constraint rows shared by every block of the drive's coordinates.
+/// Equal blocks of coordinates that share the rows `a_r . x_s <= b_r`.
 #[derive(Debug, Clone)]
-pub(crate) struct Bounds {
+struct Group {
     /// Coordinates a block.
     block: usize,
+    /// Blocks in the group; `None`: every coordinate up to the later groups'.
+    count: Option<usize>,
     /// `a_r`, `block` coefficients a row, row after row.
     rows: Vec<f64>,
     /// `b_r`, one a row.
     limits: Vec<f64>,
 }
 
-/// A constraint: row `r` of block `s`.
-type Row = (usize, usize);
+/// The drive's range: groups of blocks, one after another along `x`.
+#[derive(Debug, Clone)]
+pub(crate) struct Bounds {
+    groups: Vec<Group>,
+}
+
+/// A constraint: row `r` of block `s` of group `g`.
+type Row = (usize, usize, usize);
 
 /// A bounded step and how many constraints hold it back.
 pub(crate) struct BoundedStep {
@@ -50,65 +58,124 @@ pub(crate) struct BoundedStep {
 }
 
 impl Bounds {
+    fn one(block: usize, rows: Vec<f64>, limits: Vec<f64>) -> Self {
+        Bounds {
+            groups: vec![Group {
+                block,
+                count: None,
+                rows,
+                limits,
+            }],
+        }
+    }
+
     /// The muscles' length range in sections `section_length` long (see
     /// the module docs).
     pub fn muscles(muscles: &Muscles, section_length: f64) -> Self {
         let lever = muscles.lever(section_length);
         let pairs = [(0, 1), (1, 2), (2, 0), (1, 0), (2, 1), (0, 2)];
         let span = muscles.length_range[1] - muscles.length_range[0];
-        Bounds {
-            block: 2,
-            rows: pairs
+        Bounds::one(
+            2,
+            pairs
                 .iter()
                 .flat_map(|&(i, j)| [lever[i][0] - lever[j][0], lever[i][1] - lever[j][1]])
                 .collect(),
-            limits: vec![span; 6],
-        }
+            vec![span; 6],
+        )
     }
 
     /// Tensions between zero and `upper` (none: no upper bound).
     pub fn tensions(upper: Option<f64>) -> Self {
         match upper {
-            Some(upper) => Bounds {
-                block: 1,
-                rows: vec![-1.0, 1.0],
-                limits: vec![0.0, upper],
-            },
-            None => Bounds {
-                block: 1,
-                rows: vec![-1.0],
-                limits: vec![0.0],
-            },
+            Some(upper) => Bounds::one(1, vec![-1.0, 1.0], vec![0.0, upper]),
+            None => Bounds::one(1, vec![-1.0], vec![0.0]),
         }
     }
 
-    fn row(&self, r: usize) -> &[f64] {
-        &self.rows[r * self.block..(r + 1) * self.block]
+    /// No limit on any coordinate.
+    pub fn none() -> Self {
+        Bounds::one(1, Vec::new(), Vec::new())
     }
 
-    fn row_count(&self) -> usize {
-        self.limits.len()
+    /// These bounds on the leading coordinates and one more coordinate,
+    /// the last, within `[lo, hi]` (an insertion).
+    pub fn and_interval(mut self, [lo, hi]: [f64; 2]) -> Self {
+        self.groups.push(Group {
+            block: 1,
+            count: Some(1),
+            rows: vec![-1.0, 1.0],
+            limits: vec![-lo, hi],
+        });
+        self
     }
 
-    fn dot(&self, (s, r): Row, v: &DVector<f64>) -> f64 {
-        let at = s * self.block;
-        self.row(r)
+    /// Group `g`'s block count for `len` coordinates.
+    fn count(&self, g: usize, len: usize) -> usize {
+        let group = &self.groups[g];
+        group.count.unwrap_or_else(|| {
+            let fixed: usize = self
+                .groups
+                .iter()
+                .filter_map(|g| g.count.map(|c| c * g.block))
+                .sum();
+            (len - fixed.min(len)) / group.block
+        })
+    }
+
+    fn row(&self, g: usize, r: usize) -> &[f64] {
+        let group = &self.groups[g];
+        &group.rows[r * group.block..(r + 1) * group.block]
+    }
+
+    /// The first coordinate of row `(g, s, _)`'s block.
+    fn first(&self, (g, s, _): Row, len: usize) -> usize {
+        let before: usize = (0..g)
+            .map(|k| self.count(k, len) * self.groups[k].block)
+            .sum();
+        before + s * self.groups[g].block
+    }
+
+    fn dot(&self, row: Row, v: &DVector<f64>) -> f64 {
+        let at = self.first(row, v.len());
+        self.row(row.0, row.2)
             .iter()
-            .zip(&v.as_slice()[at..at + self.block])
+            .zip(&v.as_slice()[at..])
             .map(|(a, x)| a * x)
             .sum()
     }
 
-    /// Room left by row `(s, r)` at `x` (never negative: `x` is within range).
+    /// Room left by `row` at `x` (never negative: `x` is within range).
     fn slack(&self, x: &DVector<f64>, row: Row) -> f64 {
-        (self.limits[row.1] - self.dot(row, x)).max(0.0)
+        (self.groups[row.0].limits[row.2] - self.dot(row, x)).max(0.0)
     }
 
-    fn dense(&self, (s, r): Row, len: usize) -> DVector<f64> {
+    fn dense(&self, row: Row, len: usize) -> DVector<f64> {
         let mut a = DVector::zeros(len);
-        a.rows_mut(s * self.block, self.block)
-            .copy_from_slice(self.row(r));
+        let block = self.groups[row.0].block;
+        a.rows_mut(self.first(row, len), block)
+            .copy_from_slice(self.row(row.0, row.2));
         a
+    }
+
+    /// Every row for `len` coordinates.
+    fn all_rows(&self, len: usize) -> Vec<Row> {
+        let mut out = Vec::new();
+        for (g, group) in self.groups.iter().enumerate() {
+            for s in 0..self.count(g, len) {
+                out.extend((0..group.limits.len()).map(|r| (g, s, r)));
+            }
+        }
+        out
+    }
+
+    /// The widest row's norm.
+    fn widest(&self) -> f64 {
+        self.groups
+            .iter()
+            .flat_map(|g| g.rows.chunks(g.block.max(1)))
+            .map(|a| a.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .fold(0.0, f64::max)
     }
 
     /// The step defined in the module docs, from `x` (within range).
@@ -200,12 +267,12 @@ impl ActiveSet<'_> {
         }
         let bounds = self.bounds;
         let gram = DMatrix::from_fn(w, w, |i, k| {
-            let ((si, ri), (sk, rk)) = (self.work[i], self.work[k]);
-            if si == sk {
+            let ((gi, si, ri), (gk, sk, rk)) = (self.work[i], self.work[k]);
+            if (gi, si) == (gk, sk) {
                 bounds
-                    .row(ri)
+                    .row(gi, ri)
                     .iter()
-                    .zip(bounds.row(rk))
+                    .zip(bounds.row(gk, rk))
                     .map(|(a, b)| a * b)
                     .sum()
             } else {
@@ -216,10 +283,12 @@ impl ActiveSet<'_> {
         let Some(y) = gram.lu().solve(&rates) else {
             return d;
         };
+        let len = d.len();
         let mut held = d;
-        for (&(s, r), v) in self.work.iter().zip(y.iter()) {
-            for (c, a) in bounds.row(r).iter().enumerate() {
-                held[s * bounds.block + c] -= a * v;
+        for (&row, v) in self.work.iter().zip(y.iter()) {
+            let at = bounds.first(row, len);
+            for (c, a) in bounds.row(row.0, row.2).iter().enumerate() {
+                held[at + c] -= a * v;
             }
         }
         held
@@ -268,23 +337,17 @@ impl ActiveSet<'_> {
     ) -> (f64, Option<Row>) {
         // Rates at rounding level would add rows dependent on the working set.
         let bounds = self.bounds;
-        let widest = (0..bounds.row_count())
-            .map(|r| bounds.row(r).iter().map(|a| a * a).sum::<f64>().sqrt())
-            .fold(0.0, f64::max);
-        let tiny = 1e-12 * d.norm() * widest;
+        let tiny = 1e-12 * d.norm() * bounds.widest();
         let mut best = (1.0, None);
-        for s in 0..self.at.len() / bounds.block {
-            for r in 0..bounds.row_count() {
-                let row = (s, r);
-                let rate = bounds.dot(row, d);
-                if rate <= tiny || (skip_work && self.work.contains(&row)) {
-                    continue;
-                }
-                let room = bounds.slack(self.at, row) - bounds.dot(row, from);
-                let t = room.max(0.0) / rate;
-                if t < best.0 {
-                    best = (t, Some(row));
-                }
+        for row in bounds.all_rows(self.at.len()) {
+            let rate = bounds.dot(row, d);
+            if rate <= tiny || (skip_work && self.work.contains(&row)) {
+                continue;
+            }
+            let room = bounds.slack(self.at, row) - bounds.dot(row, from);
+            let t = room.max(0.0) / rate;
+            if t < best.0 {
+                best = (t, Some(row));
             }
         }
         best

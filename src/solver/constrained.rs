@@ -346,15 +346,24 @@ fn row_residual(w: &Workspace, r: usize) -> f64 {
 /// held stay on their obstacles, which do not move (their rows' residuals
 /// zero), and the others stay free: a derivative along the active set.
 pub(crate) fn kkt_solve(w: &mut Workspace) -> bool {
+    let (ports, gaps) = (w.kkt.contact.ports.len(), w.kkt.contact.gaps.len());
+    kkt_solve_moving(w, &vec![[0.0; 2]; ports], &vec![0.0; gaps])
+}
+
+/// [`kkt_solve`] with the rows' residuals given: the ports' (`moved_ports`)
+/// and the candidates' gaps (`moved_gaps`), for a derivative along which
+/// the surroundings move relative to the rod (the base translated).
+pub(crate) fn kkt_solve_moving(
+    w: &mut Workspace,
+    moved_ports: &[[f64; 2]],
+    moved_gaps: &[f64],
+) -> bool {
     let lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
-    let gaps = std::mem::take(&mut w.kkt.contact.gaps);
-    w.kkt.contact.gaps = vec![0.0; gaps.len()];
+    let gaps = std::mem::replace(&mut w.kkt.contact.gaps, moved_gaps.to_vec());
     let ports: Vec<[f64; 2]> = w.kkt.contact.ports.iter().map(|p| p.residual).collect();
-    w.kkt
-        .contact
-        .ports
-        .iter_mut()
-        .for_each(|p| p.residual = [0.0; 2]);
+    for (p, r) in w.kkt.contact.ports.iter_mut().zip(moved_ports) {
+        p.residual = *r;
+    }
     w.kkt.contact.choose = false;
     let ok = kkt_step(&lu, w);
     w.kkt.contact.choose = true;

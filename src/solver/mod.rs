@@ -230,6 +230,28 @@ impl Solver {
         Ok(())
     }
 
+    /// Move the clamped base to `position` [m], world frame, keeping the
+    /// workspace (a robot's insertion: its stage moves the base along its
+    /// tangent). A port whose plane the moved rest shape does not cross is
+    /// refused, naming it.
+    pub fn set_base_position(&mut self, position: Vector3<f64>) -> Result<()> {
+        if position.iter().any(|x| !x.is_finite()) {
+            return Err(Error::argument("base_position", "must be finite"));
+        }
+        let before = self.model.base_position();
+        self.model.set_base_position(position);
+        if let Some(i) = self.model.ports().iter().position(|p| p.rest.is_none()) {
+            self.model.set_base_position(before);
+            return Err(Error::argument(
+                "base_position",
+                format!("the rod no longer passes through the plane of ports[{i}]"),
+            ));
+        }
+        self.scene.base_position = position;
+        self.jacobian_at_solution = false;
+        Ok(())
+    }
+
     /// Change the uniform magnetic field [T], world frame, keeping the workspace.
     pub fn set_magnetic_field(&mut self, field: Vector3<f64>) -> Result<()> {
         check_field(field)?;

@@ -184,6 +184,75 @@ impl Solver {
         Ok(out)
     }
 
+    /// The tip's sensitivity to a translation of the clamped base along
+    /// `direction` (one column; a robot's insertion): the whole rod moves
+    /// with it, less what the surroundings hold back. Without ports or
+    /// obstacles the tip translates with the base; with them, the KKT
+    /// system's step for the rows' motion relative to the rod (a port's
+    /// `d_i . direction`, a held contact's `nu . direction`), the contacts
+    /// held. The last solve's equilibrium, free tip.
+    pub fn base_sensitivity(&mut self, direction: Vector3<f64>) -> Result<TipSensitivity> {
+        use super::constrained;
+        let model = &self.model;
+        if !model.constraints().is_empty() || model.clamped_tip().is_some() {
+            return Err(Error::argument("base_sensitivity", "needs a free tip"));
+        }
+        let mut out = TipSensitivity::zeros(1);
+        if !model.has_contact() {
+            out.position.set_column(0, &direction);
+            return Ok(out);
+        }
+        let w = &mut self.work;
+        self.state_tangents_at.clear();
+        self.state_tangents.clear();
+        self.jacobian_at_solution = false;
+        // The equations change too: the forces' shares move along their
+        // chords, and a curved surface's normal turns, as the rod moves
+        // against its surroundings. Central differences of the exact
+        // residual, the multipliers and the contact set held.
+        let step = BASE_STEP * model.length();
+        let mut moved = model.clone();
+        let mut residual_at = |sign: f64| {
+            moved.set_base_position(model.base_position() + sign * step * direction);
+            constrained::evaluate(&moved, w, 1.0, false);
+            w.g.clone()
+        };
+        let (plus, minus) = (residual_at(1.0), residual_at(-1.0));
+        constrained::evaluate(model, w, 1.0, true);
+        constrained::load_constraint_jacobian(model, w);
+        if w.lu.factor(&w.jac, 0.0).is_err() {
+            return Err(singular_jacobian(model, w));
+        }
+        let frame = TipFrame::new(model, w);
+        let contact = &w.kkt.contact;
+        let ports: Vec<[f64; 2]> = contact
+            .ports
+            .iter()
+            .map(|p| p.directions.map(|d| d.dot(&direction)))
+            .collect();
+        let gaps: Vec<f64> = contact
+            .active
+            .iter()
+            .map(|&i| contact.sites[i].normal.dot(&direction))
+            .collect();
+        for ((g, p), m) in w.g.iter_mut().zip(&plus).zip(&minus) {
+            *g = (p - m) / (2.0 * step);
+        }
+        if model.clamped_tip().is_some() {
+            let n = model.n();
+            w.g[n - 1] = Vector3::zeros();
+        }
+        let solved = constrained::kkt_solve_moving(w, &ports, &gaps);
+        if solved {
+            frame.fill(&mut out, 0, &w.step, direction);
+        }
+        constrained::evaluate(model, w, 1.0, true);
+        if !solved {
+            return Err(Error::argument("base_sensitivity", "singular KKT system"));
+        }
+        Ok(out)
+    }
+
     /// The equilibrium predicted to first order when the parameters of the
     /// last tip sensitivity (its columns) move by `dp` from the state `q`:
     /// `q` turned by `sum_j d theta / d p_j dp_j` ([`Solver::tip_sensitivity`],
@@ -207,6 +276,10 @@ impl Solver {
         Some(out)
     }
 }
+
+/// Relative step of the base's differences in [`Solver::base_sensitivity`]:
+/// a millionth of the rod.
+const BASE_STEP: f64 = 1e-6;
 
 /// What the tip's outputs are of a state tangent `d theta / dp`: the tip's
 /// position Jacobian, `d T_n / d theta_n = -R [e3]x` and the tip's turn `R`.

@@ -57,11 +57,27 @@ enum Admissible {
     Free,
 }
 
+/// A robot's insertion as the last coordinate, `u = weight * d` (`d` the
+/// insertion [m]): an insertion of the robot's length counts in the
+/// least-norm choice as much as the drive's scale (a curvature of `1/L`,
+/// `max_tension`, `max_field` or 1 mT).
+#[derive(Debug, Clone, Copy)]
+struct Insertion {
+    /// The range of `d` [m].
+    range: [f64; 2],
+    /// The base's tangent, along which it moves, and where it is at `d = 0`.
+    axis: Vector3<f64>,
+    base: Vector3<f64>,
+    weight: f64,
+}
+
 /// One robot's drive (see the module docs).
 #[derive(Debug, Clone)]
 pub(super) struct DriveSpace {
     space: ActuationSpace,
+    /// The drive's own coordinates (the insertion's is after them).
     dimension: usize,
+    insertion: Option<Insertion>,
     admissible: Admissible,
     /// The scale below which a coordinate's change does not count (the
     /// floor of [`DriveSpace::size`]).
@@ -76,7 +92,7 @@ pub(super) struct DriveSpace {
 }
 
 impl DriveSpace {
-    pub fn of(robot: &Robot) -> DriveSpace {
+    pub fn of(robot: &Robot) -> Result<DriveSpace> {
         let space = robot.actuation_space();
         let ls = robot.body.section_length();
         let (dimension, admissible, floor, reach) = match &robot.drive {
@@ -101,24 +117,81 @@ impl DriveSpace {
                 None => (3, Admissible::Free, 1e-9, 0.0),
             },
         };
-        DriveSpace {
+        let length = robot.body.length;
+        let (admissible, insertion) = match robot.insertion_range {
+            None => (admissible, None),
+            Some(range) => {
+                let weight = match space {
+                    ActuationSpace::Curvature => 1.0 / (length * length),
+                    ActuationSpace::Tensions if reach > 0.0 => reach / length,
+                    ActuationSpace::Tensions => 1.0 / length,
+                    ActuationSpace::Field => 1e-3 / length,
+                };
+                let scaled = range.map(|d| d * weight);
+                let admissible = match admissible {
+                    Admissible::Polytope(bounds) => {
+                        Admissible::Polytope(bounds.and_interval(scaled))
+                    }
+                    Admissible::Free => Admissible::Polytope(Bounds::none().and_interval(scaled)),
+                    Admissible::Ball(_) => {
+                        return Err(Error::argument(
+                            "insertion_range",
+                            "the inverse kinematics takes no insertion with a limited field \
+                             (max_field) so far",
+                        ))
+                    }
+                };
+                let insertion = Insertion {
+                    range,
+                    axis: robot.insertion_axis(),
+                    base: robot.body.base_position,
+                    weight,
+                };
+                (admissible, Some(insertion))
+            }
+        };
+        Ok(DriveSpace {
             space,
             dimension,
+            insertion,
             admissible,
             floor,
             reach,
             sections: robot.body.sections,
-            length: robot.body.length,
+            length,
             base: robot.body.base_quaternion,
+        })
+    }
+
+    /// The insertion [m] of coordinates `x` (0 without one).
+    pub fn insertion(&self, x: &DVector<f64>) -> f64 {
+        match (self.insertion, x.get(self.dimension)) {
+            (Some(i), Some(u)) => u / i.weight,
+            _ => 0.0,
         }
+    }
+
+    /// The coordinates of an answer: its drive's, then its insertion's.
+    pub fn coordinates(&self, drive: Vec<f64>, insertion: f64) -> DVector<f64> {
+        let mut x = drive;
+        if let Some(i) = self.insertion {
+            x.push(insertion * i.weight);
+        }
+        DVector::from_vec(x)
     }
 
     pub fn space(&self) -> ActuationSpace {
         self.space
     }
 
+    /// Every coordinate: the drive's and an insertion's.
     pub fn dimension(&self) -> usize {
-        self.dimension
+        self.dimension + usize::from(self.insertion.is_some())
+    }
+
+    /// The drive's own coordinates of `x`.
+    fn drive_part(&self, x: &DVector<f64>) -> DVector<f64> {
+        x.rows(0, self.dimension).into_owned()
     }
 
     /// Muscles follow a path: along a trajectory the reference is the last
@@ -134,16 +207,43 @@ impl DriveSpace {
 
     /// Set the forward solver's drive to `x`.
     pub fn apply(&self, solver: &mut Solver, x: &DVector<f64>) -> Result<()> {
+        let drive = self.drive_part(x);
         match self.space {
-            ActuationSpace::Curvature => solver.set_rest_curvature(&pairs(x)),
-            ActuationSpace::Tensions => solver.set_tensions(x.as_slice()),
-            ActuationSpace::Field => solver.set_magnetic_field(Vector3::new(x[0], x[1], x[2])),
+            ActuationSpace::Curvature => solver.set_rest_curvature(&pairs(&drive)),
+            ActuationSpace::Tensions => solver.set_tensions(drive.as_slice()),
+            ActuationSpace::Field => {
+                solver.set_magnetic_field(Vector3::new(drive[0], drive[1], drive[2]))
+            }
+        }?;
+        if let Some(i) = self.insertion {
+            solver.set_base_position(i.base + self.insertion(x) * i.axis)?;
         }
+        Ok(())
     }
 
     /// The tip's position and turn differentiated in the coordinates, at the
     /// solver's (converged) state; `None` at a bifurcation.
     pub fn tip_jacobian(&self, solver: &mut Solver) -> Option<(Matrix3xX<f64>, Matrix3xX<f64>)> {
+        let (position, rotation) = self.drive_jacobian(solver)?;
+        let Some(i) = self.insertion else {
+            return Some((position, rotation));
+        };
+        // The insertion's column: the base moved along its tangent.
+        let moved = solver.base_sensitivity(i.axis).ok()?;
+        let k = self.dimension;
+        let widen = |m: Matrix3xX<f64>, column: Vector3<f64>| {
+            let mut out = m.insert_column(k, 0.0);
+            out.set_column(k, &(column / i.weight));
+            out
+        };
+        Some((
+            widen(position, moved.position.column(0).into()),
+            widen(rotation, moved.rotation.column(0).into()),
+        ))
+    }
+
+    /// The drive's own columns of [`DriveSpace::tip_jacobian`].
+    fn drive_jacobian(&self, solver: &mut Solver) -> Option<(Matrix3xX<f64>, Matrix3xX<f64>)> {
         let free = !solver.model().is_constrained();
         match self.space {
             ActuationSpace::Curvature => {
@@ -212,22 +312,42 @@ impl DriveSpace {
     /// between zero and `max_tension`; every coordinate of the muscles and
     /// the field (their limits mix coordinates).
     pub fn free(&self, x: &DVector<f64>) -> Vec<bool> {
-        match self.space {
+        let drive = self.drive_part(x);
+        let mut out: Vec<bool> = match self.space {
             ActuationSpace::Tensions => {
                 let upper = if self.reach > 0.0 {
                     self.reach
                 } else {
                     f64::INFINITY
                 };
-                x.iter().map(|t| *t > 0.0 && *t < upper).collect()
+                drive.iter().map(|t| *t > 0.0 && *t < upper).collect()
             }
-            _ => vec![true; x.len()],
+            _ => vec![true; drive.len()],
+        };
+        if let Some(i) = self.insertion {
+            let d = self.insertion(x);
+            out.push(d > i.range[0] && d < i.range[1]);
         }
+        out
     }
 
     /// `x` brought into the admissible set (rounding only, for a step's
     /// result; the nearest point scaled in, for a start).
     pub fn clamp(&self, robot: &Robot, x: &mut DVector<f64>) {
+        if let Some(i) = self.insertion {
+            let k = self.dimension;
+            let [lo, hi] = i.range.map(|d| d * i.weight);
+            x[k] = x[k].clamp(lo, hi);
+            let mut drive = self.drive_part(x);
+            self.clamp_drive(robot, &mut drive);
+            x.rows_mut(0, k).copy_from(&drive);
+        } else {
+            self.clamp_drive(robot, x);
+        }
+    }
+
+    /// [`DriveSpace::clamp`] of the drive's own coordinates.
+    fn clamp_drive(&self, robot: &Robot, x: &mut DVector<f64>) {
         match self.space {
             ActuationSpace::Curvature => {
                 if let Some(m) = robot.drive.muscles() {
@@ -257,6 +377,24 @@ impl DriveSpace {
     /// uniformly in the admissible set, seeded by the target so that an
     /// answer depends on nothing else.
     pub fn starts(&self, target: &Vector3<f64>, last: &DVector<f64>) -> Vec<DVector<f64>> {
+        let starts = self.drive_starts(target, &self.drive_part(last));
+        let Some(i) = self.insertion else {
+            return starts;
+        };
+        // The drive's starts at the last insertion, then at the middle of
+        // the range.
+        let (kept, middle) = (self.insertion(last), 0.5 * (i.range[0] + i.range[1]));
+        let mut out = vec![last.clone()];
+        for d in [kept, middle] {
+            for x in &starts[1..] {
+                out.push(self.coordinates(x.iter().copied().collect(), d));
+            }
+        }
+        out
+    }
+
+    /// [`DriveSpace::starts`] in the drive's own coordinates.
+    fn drive_starts(&self, target: &Vector3<f64>, last: &DVector<f64>) -> Vec<DVector<f64>> {
         let k = self.dimension;
         let mut out = vec![last.clone()];
         match self.space {
@@ -310,6 +448,7 @@ impl DriveSpace {
     /// The answer's actuation in every form a result carries: rest curvature,
     /// tensions, field.
     pub fn actuation(&self, x: &DVector<f64>) -> (Vec<[f64; 2]>, Vec<f64>, Vector3<f64>) {
+        let x = &self.drive_part(x);
         let straight = vec![[0.0; 2]; self.sections];
         match self.space {
             ActuationSpace::Curvature => (pairs(x), Vec::new(), Vector3::zeros()),
@@ -321,6 +460,19 @@ impl DriveSpace {
     /// The reference or pretension of a solve, checked, in the coordinates
     /// (`None`: the drive's default, zero).
     pub fn reference(
+        &self,
+        robot: &Robot,
+        curvature: Option<&[[f64; 2]]>,
+        pretension: Option<&[f64]>,
+    ) -> Result<Option<Vec<f64>>> {
+        let given = self.drive_reference(robot, curvature, pretension)?;
+        // The least insertion (zero: where the body puts the base) unless
+        // a reference says otherwise.
+        Ok(given.map(|r| self.coordinates(r, 0.0).as_slice().to_vec()))
+    }
+
+    /// [`DriveSpace::reference`] in the drive's own coordinates.
+    fn drive_reference(
         &self,
         robot: &Robot,
         curvature: Option<&[[f64; 2]]>,
@@ -376,6 +528,16 @@ impl DriveSpace {
 
     /// A warm start's actuation, checked, in the coordinates (`None`: it gives none).
     pub fn warm(&self, robot: &Robot, start: &super::IkStart) -> Result<Option<DVector<f64>>> {
+        let drive = self.warm_drive(robot, start)?;
+        if let Some(d) = start.insertion {
+            robot.check_insertion(d)?;
+        }
+        let insertion = start.insertion.unwrap_or(0.0);
+        Ok(drive.map(|x| self.coordinates(x.iter().copied().collect(), insertion)))
+    }
+
+    /// [`DriveSpace::warm`] in the drive's own coordinates.
+    fn warm_drive(&self, robot: &Robot, start: &super::IkStart) -> Result<Option<DVector<f64>>> {
         if self.space == ActuationSpace::Curvature {
             return Ok(start.rest_curvature.as_deref().map(flat));
         }
@@ -413,11 +575,16 @@ impl DriveSpace {
 
     /// How much of the drive an answer uses, for its message.
     pub fn describe(&self, x: &DVector<f64>) -> String {
-        match self.space {
+        let drive = self.drive_part(x);
+        let mut out = match self.space {
             ActuationSpace::Curvature => String::new(),
-            ActuationSpace::Tensions => format!(" with tensions of {:.6} N in all", x.sum()),
-            ActuationSpace::Field => format!(" with a field of {:.6} T", x.norm()),
+            ActuationSpace::Tensions => format!(" with tensions of {:.6} N in all", drive.sum()),
+            ActuationSpace::Field => format!(" with a field of {:.6} T", drive.norm()),
+        };
+        if self.insertion.is_some() {
+            out += &format!(" at an insertion of {:.6} m", self.insertion(x));
         }
+        out
     }
 }
 

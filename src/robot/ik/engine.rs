@@ -177,7 +177,7 @@ pub struct InverseSolver {
 impl InverseSolver {
     /// The solver of `robot`'s own drive ([`Robot::actuation_space`]).
     pub fn new(robot: &Robot, load: &Load) -> Result<Self> {
-        let drive = DriveSpace::of(robot);
+        let drive = DriveSpace::of(robot)?;
         let scene = robot.scene(&Actuation::default(), load)?;
         let settings = Settings {
             n_elements: Some(robot.n_elements),
@@ -225,6 +225,13 @@ impl InverseSolver {
         self.path = None;
         self.q = Some(start.quaternions.clone());
         Ok(())
+    }
+
+    /// An answer's coordinates in this solver's space: its drive's, then its
+    /// insertion's (the reference of a path that follows it).
+    pub fn coordinates_of(&self, result: &IkResult) -> DVector<f64> {
+        self.drive
+            .coordinates(result.drive(self.drive.space()), result.insertion)
     }
 
     /// The reference of `options` in the drive's coordinates, checked (the
@@ -284,11 +291,12 @@ impl InverseSolver {
             _ => self.last.clone(),
         };
         let first = self.reach(&goal, start, Pull::Reference, max_iterations)?;
-        let (mut best, starts) = if first.reached(&goal) || goal.unreachable(self.base()) {
-            (first, 1)
-        } else {
-            self.retry(&goal, first, max_iterations)?
-        };
+        let (mut best, starts) =
+            if first.reached(&goal) || goal.unreachable(self.base_toward(&goal.target).0) {
+                (first, 1)
+            } else {
+                self.retry(&goal, first, max_iterations)?
+            };
         let ending = self.settle(&goal, &mut best, max_iterations)?;
         let mut result = self.conclude(&goal, best.state, ending, starts);
         result.seconds = started.elapsed().as_secs_f64();
@@ -319,8 +327,18 @@ impl InverseSolver {
         )
     }
 
-    fn base(&self) -> Vector3<f64> {
-        self.robot.body.base_position
+    /// The base's place nearest `target`: where the body puts it, or with
+    /// an insertion the nearest its range allows, and the insertion there.
+    fn base_toward(&self, target: &Vector3<f64>) -> (Vector3<f64>, f64) {
+        let base = self.robot.body.base_position;
+        match self.robot.insertion_range {
+            None => (base, 0.0),
+            Some([lo, hi]) => {
+                let axis = self.robot.insertion_axis();
+                let d = axis.dot(&(target - base)).clamp(lo, hi);
+                (base + d * axis, d)
+            }
+        }
     }
 
     fn goal(
@@ -756,7 +774,7 @@ impl InverseSolver {
 
     /// Why a descent that did not reach the target ended.
     fn classify(&mut self, goal: &Goal, st: &mut State, phase: PhaseEnd) -> Result<IkEnding> {
-        if goal.unreachable(self.base()) {
+        if goal.unreachable(self.base_toward(&goal.target).0) {
             return Ok(IkEnding::OutOfReach);
         }
         match phase {
@@ -1019,10 +1037,17 @@ impl InverseSolver {
         let length = self.robot.body.length;
         match ending {
             IkEnding::Reached => format!("reached{}", self.drive.describe(x)),
-            IkEnding::OutOfReach if goal.beyond_length(self.base()) => format!(
-                "not reached: the target is out of reach, {:.4} m from the base of a {length} m robot; the closest tip found misses by {miss:.3e} m",
-                (goal.target - self.base()).norm()
-            ),
+            IkEnding::OutOfReach if goal.beyond_length(self.base_toward(&goal.target).0) => {
+                let (base, d) = self.base_toward(&goal.target);
+                let inserted = match self.robot.insertion_range {
+                    Some(_) => format!(" inserted by {d} m (the nearest its insertion_range allows)"),
+                    None => String::new(),
+                };
+                format!(
+                    "not reached: the target is out of reach, {:.4} m from the base{inserted} of a {length} m robot; the closest tip found misses by {miss:.3e} m",
+                    (goal.target - base).norm()
+                )
+            }
             IkEnding::OutOfReach if goal.inside_obstacle.is_some() => {
                 let (k, shape) = goal.inside_obstacle.expect("checked");
                 format!(
@@ -1056,7 +1081,7 @@ impl InverseSolver {
         tol: f64,
     ) -> Result<IkResult> {
         let started = std::time::Instant::now();
-        let x = DVector::from_vec(fit.drive(self.drive.space()));
+        let x = self.coordinates_of(&fit);
         let sol = self.forward(&x)?;
         self.q = usable(&sol).then(|| sol.quaternions.clone());
         let miss = (tool_point(&sol, self.robot.body.tool_offset) - target).norm();
@@ -1083,6 +1108,7 @@ impl InverseSolver {
         message: String,
     ) -> IkResult {
         let (rest_curvature, tensions, field) = self.drive.actuation(x);
+        let insertion = self.drive.insertion(x);
         // The muscles' lengths and times, where muscles drive the robot.
         let (muscle_lengths, inflation_times) = match self.robot.drive.muscles() {
             Some(m) => {
@@ -1097,6 +1123,7 @@ impl InverseSolver {
             rest_curvature,
             tensions,
             field,
+            insertion,
             tip_position: tool_point(&sol, self.robot.body.tool_offset),
             solution: sol,
             tip_miss: miss,

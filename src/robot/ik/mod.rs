@@ -205,6 +205,8 @@ pub struct IkStart {
     /// A tendon-driven or magnetic robot's actuation: its tensions [N] or
     /// its field [T] (`None`: from slack, or zero field).
     pub actuation: Option<Vec<f64>>,
+    /// A robot's insertion [m] (`None`: zero).
+    pub insertion: Option<f64>,
 }
 
 crate::status::named_enum! {
@@ -254,6 +256,9 @@ pub struct IkResult {
     pub tensions: Vec<f64>,
     /// Uniform magnetic field, world frame [T] (a magnetic robot; zero otherwise).
     pub field: Vector3<f64>,
+    /// How far the base was moved along its tangent [m] (a robot with an
+    /// `insertion_range`; zero otherwise).
+    pub insertion: f64,
     /// The loaded equilibrium with this actuation.
     pub solution: Solution,
     /// The point aimed at the target: the tool's, or the tip without a tool [m].
@@ -381,7 +386,7 @@ impl Robot {
     /// The reference (or pretension) of `options` in this robot's drive
     /// coordinates, checked, as [`InverseSolver::solve`] takes it.
     pub(crate) fn ik_reference(&self, options: &IkOptions) -> Result<Option<Vec<f64>>> {
-        engine::reference_of(self, &drive::DriveSpace::of(self), options)
+        engine::reference_of(self, &drive::DriveSpace::of(self)?, options)
     }
 
     /// Load-aware inverse kinematics of one target (see [`IkOptions`]).
@@ -420,7 +425,7 @@ impl Robot {
                 }
             };
             if loaded.follows_path() {
-                reference = Some(result.drive(loaded.space()));
+                reference = Some(loaded.coordinates_of(&result).as_slice().to_vec());
             }
             out.push(result);
         }

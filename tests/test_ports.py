@@ -294,3 +294,29 @@ def test_a_limited_field_with_an_insertion_is_refused_by_name():
                              "insertion_range": [0.0, 0.1]})
     with pytest.raises(ValueError, match="insertion_range"):
         robot.inverse([0.0, 0.1, -0.9])
+
+
+def test_a_catheter_fed_through_a_port_converges_at_every_step():
+    # examples/catheter.py's vessel, sheath and port: the handle moves the
+    # base 5 mm a step from 40 to 150 mm, each solve warm from the last;
+    # every step converges with the catheter through the port and inside
+    # the vessel. Clamped at the entry and lengthened instead, the same
+    # steps failed at 140 and 145 mm before Newton retried refused steps.
+    centreline = np.array([[-0.26, 0.0, 0.0], [-0.02, 0.0, 0.0], [0.03, 0.0, 0.0],
+                           [0.07, 0.012, 0.0], [0.095, 0.045, 0.0], [0.105, 0.09, 0.01],
+                           [0.1, 0.13, 0.04], [0.09, 0.16, 0.08]])
+    radius = np.r_[0.005, np.linspace(0.005, 0.0035, len(centreline) - 1)]
+    vessel = {"shape": "lumen", "centreline": centreline.tolist(), "radius": radius.tolist()}
+    catheter = {"length": 0.25, "stiffness": {"E": 0.5e9, "G": 0.5e9 / 2.8, "diameter": 0.0015},
+                "base_quaternion": ALONG_X, "obstacles": [vessel],
+                "ports": [{"position": [-0.015, 0.0, 0.0]}]}
+    q, touched = None, 0
+    for depth in np.arange(0.04, 0.1501, 0.005):
+        scene = {**catheter, "base_position": [depth - 0.25, 0.0, 0.0]}
+        sol = softspine.solve(scene, n_elements=50, initial=q)
+        assert sol.converged and sol.stable, (depth, sol.message)
+        np.testing.assert_allclose(sol.ports["point"][0], [-0.015, 0.0, 0.0], atol=1e-9)
+        np.testing.assert_allclose(sol.positions[0], [depth - 0.25, 0.0, 0.0], atol=1e-15)
+        touched = max(touched, len(sol.contacts["force"]))
+        q = sol.quaternions
+    assert touched >= 2

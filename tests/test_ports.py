@@ -320,3 +320,16 @@ def test_a_catheter_fed_through_a_port_converges_at_every_step():
         touched = max(touched, len(sol.contacts["force"]))
         q = sol.quaternions
     assert touched >= 2
+
+
+def test_an_inverse_batch_reports_each_insertion():
+    # A batch's answers carry their insertions: applied, they reach.
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}], "insertion_range": [0.0, 0.2]})
+    targets = np.array([[0.0, 0.0, -1.1], [0.0, 0.1, -1.12], [0.1, 0.0, -0.95]])
+    batch = robot.inverse_batch(targets, load=0.03, threads=1)
+    assert batch.reached.all() and batch.insertion.shape == (3,)
+    for target, kappa, insertion in zip(targets, batch.rest_curvature, batch.insertion, strict=True):
+        tip = robot.forward(kappa, load=0.03, insertion=insertion).tip_position
+        assert np.linalg.norm(tip - target) < 1e-6
+    assert batch.insertion[0] == pytest.approx(0.1, abs=1e-9)
+    assert robot.forward_batch(np.zeros((2, 10, 2)), threads=1).insertion.tolist() == [0.0, 0.0]

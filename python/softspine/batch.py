@@ -79,6 +79,9 @@ class BatchResult:
     """(N, tendons), N: the tendon tensions of each sample (a tendon robot's batch)."""
     field: npt.NDArray[np.float64] | None = None
     """(N, 3), T: the field of each sample (a magnetic robot's batch)."""
+    insertion: npt.NDArray[np.float64] | None = None
+    """(N,), m: the insertion of each sample (a robot with an
+    ``insertion_range``; zero: forward batches take no insertion yet)."""
 
     @property
     def converged(self) -> npt.NDArray[np.bool_]:
@@ -114,6 +117,8 @@ class IkBatchResult:
     """(N, tendons), N: the tensions found (a tendon robot's batch)."""
     field: npt.NDArray[np.float64] | None = None
     """(N, 3), T: the field found (a magnetic robot's batch)."""
+    insertion: npt.NDArray[np.float64] | None = None
+    """(N,), m: the insertion found (a robot with an ``insertion_range``)."""
 
     def __len__(self) -> int:
         return len(self.tip_positions)

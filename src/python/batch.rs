@@ -126,6 +126,10 @@ fn set_drives(d: &Bound<'_, PyDict>, drives: &Drives<'_>, curvature_key: &str) -
         let b = Array2::from_shape_fn((count, 3), |(i, c)| a[i].field[c]);
         d.set_item("field", b.into_pyarray(py))?;
     }
+    if drives.columns.insertion {
+        let x = Array1::from_iter(a.iter().map(|a| a.insertion));
+        d.set_item("insertion", x.into_pyarray(py))?;
+    }
     Ok(())
 }
 
@@ -184,7 +188,7 @@ pub(super) fn ik_batch_result<'py>(
             rest_curvature: s.rest_curvature.clone(),
             tensions: s.tensions.clone(),
             field: s.field,
-            insertion: 0.0,
+            insertion: s.insertion,
         })
         .collect();
     let drives = Drives {

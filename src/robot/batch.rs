@@ -21,6 +21,8 @@ pub struct IkSample {
     pub tensions: Vec<f64>,
     /// The field found [T] (a magnetic robot's; zero otherwise).
     pub field: Vector3<f64>,
+    /// The insertion found [m] (a robot with an insertion range; zero otherwise).
+    pub insertion: f64,
     pub tip_position: Vector3<f64>,
     pub tip_miss: f64,
     pub iterations: usize,
@@ -34,6 +36,7 @@ impl IkSample {
             rest_curvature: r.rest_curvature,
             tensions: r.tensions,
             field: r.field,
+            insertion: r.insertion,
             tip_position: r.tip_position,
             tip_miss: r.tip_miss,
             iterations: r.iterations,

@@ -110,6 +110,8 @@ pub struct DriveColumns {
     pub rest_curvature: bool,
     pub tensions: bool,
     pub field: bool,
+    /// The insertion, where the robot has an insertion range.
+    pub insertion: bool,
 }
 
 fn positive(name: &str, x: f64) -> Result<()> {
@@ -533,6 +535,7 @@ impl Robot {
                 || self.actuation_space() == ActuationSpace::Curvature,
             tensions: self.actuation_space() == ActuationSpace::Tensions,
             field: self.actuation_space() == ActuationSpace::Field,
+            insertion: self.insertion_range.is_some(),
         }
     }
 

@@ -328,7 +328,8 @@ def test_an_inverse_batch_reports_each_insertion():
     targets = np.array([[0.0, 0.0, -1.1], [0.0, 0.1, -1.12], [0.1, 0.0, -0.95]])
     batch = robot.inverse_batch(targets, load=0.03, threads=1)
     assert batch.reached.all() and batch.insertion.shape == (3,)
-    for target, kappa, insertion in zip(targets, batch.rest_curvature, batch.insertion, strict=True):
+    answers = zip(targets, batch.rest_curvature, batch.insertion, strict=True)
+    for target, kappa, insertion in answers:
         tip = robot.forward(kappa, load=0.03, insertion=insertion).tip_position
         assert np.linalg.norm(tip - target) < 1e-6
     assert batch.insertion[0] == pytest.approx(0.1, abs=1e-9)

@@ -334,3 +334,60 @@ def test_an_inverse_batch_reports_each_insertion():
         assert np.linalg.norm(tip - target) < 1e-6
     assert batch.insertion[0] == pytest.approx(0.1, abs=1e-9)
     assert robot.forward_batch(np.zeros((2, 10, 2)), threads=1).insertion.tolist() == [0.0, 0.0]
+
+
+def central_difference(scene: dict, key: str, index: int | None, step: float,
+                       n: int = 40) -> np.ndarray:
+    """The tip's central difference in `scene[key][index]` (or `scene[key]`)."""
+    tips = []
+    for sign in (1.0, -1.0):
+        moved = {k: (list(v) if isinstance(v, list) else v) for k, v in scene.items()}
+        if index is None:
+            moved[key] = scene[key] + sign * step
+        else:
+            moved.setdefault(key, [0.0, 0.0, 0.0])
+            moved[key] = list(moved[key])
+            moved[key][index] += sign * step
+        sol = softspine.solve(moved, n_elements=n, residual_tol=1e-13)
+        assert sol.converged
+        tips.append(sol.tip_position)
+    return (tips[0] - tips[1]) / (2.0 * step)
+
+
+def test_a_sensitivity_that_moves_the_rod_against_a_port_or_an_edge_is_the_difference():
+    # Regression: a differenced parameter in contact (the length, the
+    # base's position) raised a panic ("Matrix index out of bounds"): the
+    # contacts' multipliers were read as held points' reactions. Its rows
+    # now move with the rod (the port's crossing, the edge's gap) and the
+    # port's and the edge's forces are in the differences.
+    # (The edge inside an element: on a node the discrete rod's kink makes
+    # the slide along it one-sided.)
+    from test_contact import knife_edge_scene
+    edge = knife_edge_scene(0.5, edge=0.613, rho=1e-3)
+    for scene in (port_scene((0.5, 0.1), 0.5, 1.0)[0], edge):
+        solver = softspine.Solver(scene, n_elements=40)
+        assert solver.solve().converged
+        names = ["length", "base_position[0]", "base_position[2]"]
+        sensitivity = solver.sensitivity(names)
+        for column, (key, index) in enumerate([("length", None), ("base_position", 0),
+                                               ("base_position", 2)]):
+            difference = central_difference(scene, key, index, 1e-6)
+            np.testing.assert_allclose(sensitivity.tip_position[:, column], difference,
+                                       atol=1e-8, err_msg=key)
+
+
+def test_a_clamped_tip_in_contact_gives_its_reaction_force_but_not_its_moment():
+    # The clamp's moment takes the contacts' forces, which the differences
+    # along the state's tangent do not move: not given (None) rather than
+    # wrong; the force's column is the reaction's difference.
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+             "base_quaternion": ALONG_X,
+             "tip": {"type": "clamped", "position": [0.97, 0.0, 0.0], "quaternion": ALONG_X},
+             "gravity": {"linear_density": 1.0, "vector": [0.0, -20.0, 0.0]},
+             "obstacles": [{"shape": "half_space", "point": [0, -0.03, 0], "normal": [0, 1, 0]}]}
+    solver = softspine.Solver(scene, n_elements=20)
+    sol = solver.solve()
+    assert sol.converged and len(sol.contacts["force"]) > 0, sol.message
+    sensitivity = solver.sensitivity("length")
+    assert sensitivity.tip_reaction_moment is None
+    assert sensitivity.tip_reaction_force is not None

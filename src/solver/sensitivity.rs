@@ -511,49 +511,60 @@ fn extrapolated(near: Vector3<f64>, far: Vector3<f64>) -> Vector3<f64> {
     (4.0 * near - 0.5 * far) / 3.0
 }
 
-/// The discrete equations' derivative in parameter `j` (now `value`) at the
-/// fixed state `(q, reactions)` by central differences at one and two steps
-/// (extrapolated), with the step that moves them by [`PARAMETER_RESPONSE`]
-/// of their own scale whatever the parameter's units: `dg` and (held
-/// points) `dh` times the step, and the models of the stencil.
+/// Half differences `(f(+) - f(-)) / 2` of the discrete equations between
+/// two models at a fixed state: the residual, the held points' rows and,
+/// in contact, the ports' and the contact candidates' rows.
+#[derive(Debug, Clone, Default)]
+struct Differences {
+    g: Vec<Vector3<f64>>,
+    h: Vec<Vector3<f64>>,
+    ports: Vec<[f64; 2]>,
+    gaps: Vec<f64>,
+}
+
+impl Differences {
+    /// How far they move the equations, over their scales (the rows over `L`).
+    fn response(&self, model: &RodModel) -> f64 {
+        let rows = self
+            .h
+            .iter()
+            .map(|h| h.amax())
+            .chain(self.ports.iter().flatten().map(|x| x.abs()))
+            .chain(self.gaps.iter().map(|x| x.abs()))
+            .fold(0.0, f64::max);
+        model.residual_norm(&self.g).max(rows / model.length())
+    }
+
+    /// `(4 near - far / 2) / 3`, entry by entry (see [`extrapolated`]).
+    fn extrapolate(&mut self, far: &Differences) {
+        let scalar = |a: f64, b: f64| (4.0 * a - 0.5 * b) / 3.0;
+        for (d, f) in self.g.iter_mut().zip(&far.g) {
+            *d = extrapolated(*d, *f);
+        }
+        for (d, f) in self.h.iter_mut().zip(&far.h) {
+            *d = extrapolated(*d, *f);
+        }
+        for (d, f) in self.ports.iter_mut().zip(&far.ports) {
+            *d = [scalar(d[0], f[0]), scalar(d[1], f[1])];
+        }
+        for (d, f) in self.gaps.iter_mut().zip(&far.gaps) {
+            *d = scalar(*d, *f);
+        }
+    }
+}
+
+/// The discrete equations' derivative in parameter `j` (now `value`) at a
+/// fixed state by central differences at one and two steps (extrapolated),
+/// with the step that moves them by [`PARAMETER_RESPONSE`] of their own
+/// scale whatever the parameter's units: the `half` differences of the
+/// stencil's models times the step, and the models.
 fn differenced(
     model: &RodModel,
     model_at: &impl Fn(usize, f64) -> Result<RodModel>,
     j: usize,
     value: f64,
-    (q, reactions): (&[crate::quat::Quat], &[Vector3<f64>]),
-    dg: &mut [Vector3<f64>],
-    dh: &mut [Vector3<f64>],
-) -> Result<Stencil> {
-    let n = model.n();
-    let held = model.is_constrained();
-    let m = reactions.len();
-    let mut g = [vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]];
-    let mut h = [vec![Vector3::zeros(); m], vec![Vector3::zeros(); m]];
-    let mut positions = vec![Vector3::zeros(); n + 1];
-    let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
-    // `(f(+) - f(-)) / 2` of the residual and the held points' rows at the
-    // fixed state, into `dg` and `dh`.
-    let mut half_difference =
-        |plus: &RodModel, minus: &RodModel, dg: &mut [Vector3<f64>], dh: &mut [Vector3<f64>]| {
-            for (side, at) in [plus, minus].into_iter().enumerate() {
-                // Each model's interior (fe4) loaded by the reactions, for its
-                // held points' positions.
-                let mut interior = at.new_interior();
-                evaluate_at(at, q, reactions, &mut interior, &mut g[side], &mut scratch);
-                if held {
-                    at.constraint_residual(q, 1.0, &mut interior, &mut positions, &mut h[side]);
-                }
-            }
-            for (d, (a, b)) in dg.iter_mut().zip(g[0].iter().zip(&g[1])) {
-                *d = 0.5 * (a - b);
-            }
-            if held {
-                for (d, (a, b)) in dh.iter_mut().zip(h[0].iter().zip(&h[1])) {
-                    *d = 0.5 * (a - b);
-                }
-            }
-        };
+    half: &mut dyn FnMut(&RodModel, &RodModel) -> Differences,
+) -> Result<(Stencil, Differences)> {
     let mut step = first_step(value);
     let mut models = None;
     let mut refusal = None;
@@ -570,13 +581,9 @@ fn differenced(
                 continue;
             }
         };
-        half_difference(&plus, &minus, dg, dh);
-        let mut response = model.residual_norm(dg);
-        if held {
-            let moved = dh.iter().map(|h| h.amax()).fold(0.0, f64::max);
-            response = response.max(moved / model.length());
-        }
-        models = Some((plus, minus, step));
+        let differences = half(&plus, &minus);
+        let response = differences.response(model);
+        models = Some((plus, minus, step, differences));
         let factor = if !response.is_finite() {
             1e-3
         } else if response > 0.0 {
@@ -589,10 +596,9 @@ fn differenced(
         }
         step *= factor;
     }
-    let Some((plus, minus, step)) = models else {
+    let Some((plus, minus, step, mut differences)) = models else {
         return Err(refusal.expect("an attempt without models was refused"));
     };
-    // `dg`, `dh` hold the differences of these models (the last evaluated).
     // The far pair: where the scene refuses it, the near pair alone serves
     // (second order).
     let far = match (model_at(j, 2.0 * step), model_at(j, -2.0 * step)) {
@@ -600,22 +606,83 @@ fn differenced(
         _ => None,
     };
     if let Some((far_plus, far_minus)) = &far {
-        let (mut dg_far, mut dh_far) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); m]);
-        half_difference(far_plus, far_minus, &mut dg_far, &mut dh_far);
-        for (d, f) in dg.iter_mut().zip(&dg_far) {
-            *d = extrapolated(*d, *f);
-        }
-        if held {
-            for (d, f) in dh.iter_mut().zip(&dh_far) {
-                *d = extrapolated(*d, *f);
-            }
-        }
+        differences.extrapolate(&half(far_plus, far_minus));
     }
-    Ok(Stencil {
+    let stencil = Stencil {
         step,
         near: (plus, minus),
         far,
-    })
+    };
+    Ok((stencil, differences))
+}
+
+/// The half differences of the free or held equations (no contact): the
+/// residual with the held points' reactions and their rows.
+fn held_differences<'a>(
+    (q, reactions): (&'a [crate::quat::Quat], &'a [Vector3<f64>]),
+    held: bool,
+) -> impl FnMut(&RodModel, &RodModel) -> Differences + 'a {
+    move |plus, minus| {
+        let n = q.len() - 1;
+        let m = reactions.len();
+        let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
+        let mut positions = vec![Vector3::zeros(); n + 1];
+        let mut side = |at: &RodModel| {
+            // Each model's interior (fe4) loaded by the reactions, for its
+            // held points' positions.
+            let mut interior = at.new_interior();
+            let mut g = vec![Vector3::zeros(); n];
+            evaluate_at(at, q, reactions, &mut interior, &mut g, &mut scratch);
+            let mut h = Vec::new();
+            if held {
+                h = vec![Vector3::zeros(); m];
+                at.constraint_residual(q, 1.0, &mut interior, &mut positions, &mut h);
+            }
+            (g, h)
+        };
+        let ((ga, ha), (gb, hb)) = (side(plus), side(minus));
+        Differences {
+            g: ga.iter().zip(&gb).map(|(a, b)| 0.5 * (a - b)).collect(),
+            h: ha.iter().zip(&hb).map(|(a, b)| 0.5 * (a - b)).collect(),
+            ..Differences::default()
+        }
+    }
+}
+
+/// In contact: the half differences of the whole constrained residual at
+/// the fixed state `(q, r)` (the ports' and contacts' forces in it, the
+/// contact set held), evaluated in the workspace `w`.
+fn contact_differences<'a>(
+    w: &'a mut super::Workspace,
+    (q, r): (&'a [crate::quat::Quat], &'a [Vector3<f64>]),
+) -> impl FnMut(&RodModel, &RodModel) -> Differences + 'a {
+    use super::constrained;
+    move |plus, minus| {
+        let mut side = |at: &RodModel| {
+            w.q.copy_from_slice(q);
+            w.kkt.reactions.copy_from_slice(r);
+            constrained::evaluate(at, w, 1.0, false);
+            let ports: Vec<[f64; 2]> = w.kkt.contact.ports.iter().map(|p| p.residual).collect();
+            (
+                w.g.clone(),
+                w.kkt.h.clone(),
+                ports,
+                w.kkt.contact.gaps.clone(),
+            )
+        };
+        let (a, b) = (side(plus), side(minus));
+        Differences {
+            g: a.0.iter().zip(&b.0).map(|(x, y)| 0.5 * (x - y)).collect(),
+            h: a.1.iter().zip(&b.1).map(|(x, y)| 0.5 * (x - y)).collect(),
+            ports: a
+                .2
+                .iter()
+                .zip(&b.2)
+                .map(|(x, y)| [0.5 * (x[0] - y[0]), 0.5 * (x[1] - y[1])])
+                .collect(),
+            gaps: a.3.iter().zip(&b.3).map(|(x, y)| 0.5 * (x - y)).collect(),
+        }
+    }
 }
 
 /// The loading's derivative in the scene path `path` (and each held point's
@@ -713,7 +780,15 @@ impl Solver {
     /// `"tip_wrench"` for the tip force and moment (the columns of the 6x6
     /// tip compliance).
     pub fn sensitivity(&mut self, parameters: &[&str]) -> Result<Sensitivity> {
-        let base = self.scene.to_value();
+        let mut base = self.scene.to_value();
+        // The base's position is written only where it is not the origin;
+        // as a parameter it is there at its value.
+        if let crate::value::Value::Map(entries) = &mut base {
+            if !entries.iter().any(|(k, _)| k == "base_position") {
+                let origin = (0..3).map(|_| crate::value::Value::Number(0.0)).collect();
+                entries.push(("base_position".into(), crate::value::Value::List(origin)));
+            }
+        }
         let mut names = Vec::new();
         let mut values = Vec::new();
         for (i, p) in parameters.iter().enumerate() {
@@ -853,10 +928,15 @@ impl Solver {
                 && !model.constraints().is_empty()
                 && model.constraints().last().is_some_and(|c| c.node == n))
             .then(|| nalgebra::Matrix3xX::zeros(k)),
-            tip_reaction_moment: clamped.then(|| nalgebra::Matrix3xX::zeros(k)),
+            // In contact the clamp's moment takes the contacts' forces too,
+            // which the differences along the tangent do not move: not given.
+            tip_reaction_moment: (clamped && !model.has_contact())
+                .then(|| nalgebra::Matrix3xX::zeros(k)),
             exact: vec![false; k],
         };
-        let m = r0.len();
+        // The held points' reactions (the ports' and contacts' multipliers
+        // follow them in `r0`; the step's rows are the held points' first).
+        let m = model.constraints().len();
         let mut scratch = crate::blocktri::BlockTridiagonal::zeros(n);
         let model_at = |j: usize, delta: f64| -> Result<RodModel> {
             let scene = scene_at(j, delta)?;
@@ -888,6 +968,9 @@ impl Solver {
             let analytic = tangent_of(model, j, value);
             out.exact[j] = analytic.is_some();
             let mut models = None;
+            // In contact, a differenced parameter may move the rod against its
+            // surroundings: the ports' and contacts' rows move too.
+            let mut moving: Option<(Vec<[f64; 2]>, Vec<f64>)> = None;
             if let Some((tangent, target_moves)) = &analytic {
                 model.residual_derivative(&q0, &r0, tangent, &mut w.interior, &mut w.g, &mut shift);
                 model.position_derivative(&q0, &mut w.interior, &shift, &mut moved_nodes);
@@ -903,15 +986,31 @@ impl Solver {
                     }
                 }
             } else {
-                models = Some(differenced(
-                    model,
-                    &model_at,
-                    j,
-                    value,
-                    (&q0, &r0),
-                    &mut w.g,
-                    &mut w.kkt.h,
-                )?);
+                let (stencil, d) = if model.has_contact() {
+                    let found = differenced(
+                        model,
+                        &model_at,
+                        j,
+                        value,
+                        &mut contact_differences(w, (&q0, &r0)),
+                    );
+                    // The workspace's state and sites are the model's again.
+                    w.q.copy_from_slice(&q0);
+                    w.kkt.reactions.copy_from_slice(&r0);
+                    constrained::evaluate(model, w, 1.0, false);
+                    found?
+                } else {
+                    let mut half = held_differences((&q0, &r0[..m]), held);
+                    differenced(model, &model_at, j, value, &mut half)?
+                };
+                w.g.copy_from_slice(&d.g);
+                for (h, x) in w.kkt.h.iter_mut().zip(&d.h) {
+                    *h = *x;
+                }
+                if model.has_contact() {
+                    moving = Some((d.ports, d.gaps));
+                }
+                models = Some(stencil);
             }
             // The step that moves the equations by PARAMETER_RESPONSE of
             // their scale: the differences' own, or an analytic column's
@@ -937,7 +1036,16 @@ impl Solver {
                 if clamped {
                     w.g[n - 1] = Vector3::zeros();
                 }
-                if !constrained::kkt_solve(w) {
+                let solved = match &moving {
+                    Some((ports, gaps)) => {
+                        let ports: Vec<[f64; 2]> =
+                            ports.iter().map(|p| p.map(|x| x / step)).collect();
+                        let gaps: Vec<f64> = gaps.iter().map(|x| x / step).collect();
+                        constrained::kkt_solve_moving(w, &ports, &gaps)
+                    }
+                    None => constrained::kkt_solve(w),
+                };
+                if !solved {
                     return Err(Error::argument("sensitivity", "singular KKT system"));
                 }
             } else {

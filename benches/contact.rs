@@ -1,14 +1,17 @@
 //! Frictionless contact (issue 28): a heavy rod lying on a floor (every node
 //! in contact) and lifted off it, a cantilever pressed on a knife edge, and
 //! the seed's robot bent into a wall, beside the same robot without it.
+//! Sliding ports: a heavy cantilever bent through a port off its line, the
+//! seed's robot bent through a port, and its inverse kinematics along a
+//! circle with the insertion as one more coordinate.
 //!
 //! `cargo bench --bench contact`; the medians go into docs/model.md's
 //! "Contact with obstacles" and the issue's notes.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::Vector3;
-use softspine::contact::Obstacle;
-use softspine::{Actuation, Gravity, Load, Quat, Robot, Scene, Settings, Solver};
+use softspine::contact::{Obstacle, Port};
+use softspine::{Actuation, Gravity, IkOptions, Load, Quat, Robot, Scene, Settings, Solver};
 use std::hint::black_box;
 
 /// A heavy rod (EI = 1, 1 N/m, 1 m) along +x, clamped at `lift` above a floor.
@@ -43,12 +46,28 @@ fn knife_edge() -> Scene {
     s
 }
 
+/// A heavy cantilever (EI = 1, 1 N/m) along +x through a port at (0.5, 0,
+/// 0.1) m, with 0.5 N down at its tip (`tests/test_ports.py`'s second case).
+fn through_port() -> Scene {
+    let mut s = Scene::new(1.0, 1.0, 1.0, 1.0);
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    s.base_quaternion = Quat::new(half, 0.0, half, 0.0);
+    s.tip_force = Vector3::new(0.0, 0.0, -0.5);
+    s.gravity = Some(Gravity {
+        linear_density: 1.0 / 9.81,
+        vector: Vector3::new(0.0, 0.0, -9.81),
+    });
+    s.ports = vec![Port::new(Vector3::new(0.5, 0.0, 0.1), Vector3::x())];
+    s
+}
+
 fn scenes(c: &mut Criterion) {
     let mut group = c.benchmark_group("contact");
     for (name, scene, sizes) in [
         ("rod_on_floor", rod_on_floor(0.0), &[20, 80, 320][..]),
         ("rod_lifted_5cm", rod_on_floor(0.05), &[20, 80, 320][..]),
         ("knife_edge", knife_edge(), &[20, 80][..]),
+        ("through_port", through_port(), &[20, 80, 320][..]),
     ] {
         for &n in sizes {
             let settings = Settings {
@@ -75,13 +94,47 @@ fn scenes(c: &mut Criterion) {
         }],
         ..Robot::default()
     };
-    for (name, robot) in [("robot_free", Robot::default()), ("robot_wall", walled)] {
-        let sol = robot.forward(&bend, &load, None).unwrap();
+    // Through a port 0.3 m below its base, fed 0.1 m in by its stage.
+    let ported = Robot {
+        ports: vec![Port::new(Vector3::new(0.0, 0.0, -0.3), -Vector3::z())],
+        insertion_range: Some([0.0, 0.2]),
+        ..Robot::default()
+    };
+    let inserted = Actuation {
+        insertion: 0.1,
+        ..bend.clone()
+    };
+    for (name, robot, drive) in [
+        ("robot_free", Robot::default(), &bend),
+        ("robot_wall", walled, &bend),
+        ("robot_port", ported.clone(), &inserted),
+    ] {
+        let sol = robot.forward(drive, &load, None).unwrap();
         assert!(sol.converged());
         group.bench_function(name, |b| {
-            b.iter(|| black_box(robot.forward(&bend, &load, None).unwrap()))
+            b.iter(|| black_box(robot.forward(drive, &load, None).unwrap()))
         });
     }
+    // 24 points of a circle 5 cm across the axis, 1.05 m below the base:
+    // past the fixed robot's reach, so every answer inserts.
+    let circle: Vec<Vector3<f64>> = (0..24)
+        .map(|k| {
+            let t = 2.0 * std::f64::consts::PI * k as f64 / 24.0;
+            Vector3::new(0.05 * t.cos(), 0.05 * t.sin(), -1.05)
+        })
+        .collect();
+    let options = IkOptions {
+        load: 0.03.into(),
+        ..IkOptions::default()
+    };
+    assert!(ported
+        .track(&circle, &options)
+        .unwrap()
+        .iter()
+        .all(|r| r.reached));
+    group.bench_function("robot_port_track_24", |b| {
+        b.iter(|| black_box(ported.track(&circle, &options).unwrap()))
+    });
     group.finish();
 }
 

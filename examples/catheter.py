@@ -30,13 +30,14 @@ centreline = np.array([[-0.26, 0.0, 0.0], [-0.02, 0.0, 0.0], [0.03, 0.0, 0.0],
 radius = np.r_[0.005, np.linspace(0.005, 0.0035, len(centreline) - 1)]
 vessel = {"shape": "lumen", "centreline": centreline.tolist(), "radius": radius.tolist()}
 length = 0.25
+port = [-0.015, 0.0, 0.0]
 catheter = {
     "length": length,
     "stiffness": {"E": 0.5e9, "G": 0.5e9 / 2.8, "diameter": 0.0015},
     # The material z axis (the tangent) along +x, into the vessel.
     "base_quaternion": [np.sqrt(0.5), 0.0, np.sqrt(0.5), 0.0],
     "obstacles": [vessel],
-    "ports": [{"position": [-0.015, 0.0, 0.0]}],
+    "ports": [{"position": port}],
 }
 
 
@@ -50,7 +51,7 @@ def inserted(depth: float, initial: np.ndarray | None) -> softspine.Solution:
 # Drawn: the last insertion solved at or before each of these depths.
 marks = [0.06, 0.12, 0.2]
 shown: dict[float, softspine.Solution] = {}
-q, last = None, None
+q, last = None, 0.0
 failures = []
 depths = np.round(np.arange(0.04, 0.2001, 0.005), 4)
 for depth in depths:
@@ -89,7 +90,7 @@ for sol, colour in zip(shown.values(), ["tab:green", "tab:orange", "tab:blue"], 
     ax.plot(*inside.T, color=colour, lw=2,
             label=f"{1e3 * (sol.positions[0, 0] + length):.0f} mm in")
     plot_contacts(sol, ax, scale=0.5, color=colour)
-ax.scatter(*np.array(catheter["ports"][0]["position"]), color="k", s=12, label="port")
+ax.scatter(*port, color="k", s=12, label="port")
 ax.set_box_aspect(np.ptp(centreline[1:], axis=0) + 0.02)
 ax.view_init(elev=35, azim=-120)
 ax.legend(loc="upper left", fontsize=8)

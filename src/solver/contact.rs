@@ -436,31 +436,42 @@ pub(crate) fn held_slots(w: &Workspace) -> Vec<usize> {
 /// The active rows of the KKT system, `nu^T ((1 - s) D_(k-1) + s D_k)` as
 /// `n` vectors each, appended to `rows` from index `from` (grown as needed).
 pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
-    let n = model.n();
-    let clamped = model.clamped_tip().is_some();
     let active = std::mem::take(&mut w.kkt.contact.active);
     for (a, &i) in active.iter().enumerate() {
         let site = w.kkt.contact.sites[i];
-        let r = from + a;
-        if w.kkt.rows.len() <= r {
-            w.kkt.rows.push(vec![Vector3::zeros(); n]);
-        }
-        w.kkt.rows[r].iter_mut().for_each(|x| *x = Vector3::zeros());
-        for (node, weight) in shares(model, i, &site) {
-            if weight == 0.0 || node == 0 {
-                continue;
-            }
-            let d = &mut w.kkt.contact.position_jacobian;
-            model.position_jacobian(&w.q, node, &w.interior, d);
-            for (x, b) in w.kkt.rows[r].iter_mut().zip(d.iter()) {
-                *x += weight * b.transpose() * site.normal;
-            }
-        }
-        if clamped {
-            w.kkt.rows[r][n - 1] = Vector3::zeros();
-        }
+        load_row(model, w, from + a, shares(model, i, &site), &site.normal);
     }
     w.kkt.contact.active = active;
+}
+
+/// KKT row `r` of a force along `direction` shared between nodes as
+/// `shares` (a contact's, a port's): `sum weight D_k^T direction` as `n`
+/// vectors (zero on a clamped tip's node; node 0, the base, moves nothing).
+pub(crate) fn load_row(
+    model: &RodModel,
+    w: &mut Workspace,
+    r: usize,
+    shares: [(usize, f64); 2],
+    direction: &Vector3<f64>,
+) {
+    let n = model.n();
+    if w.kkt.rows.len() <= r {
+        w.kkt.rows.push(vec![Vector3::zeros(); n]);
+    }
+    w.kkt.rows[r].iter_mut().for_each(|x| *x = Vector3::zeros());
+    for (node, weight) in shares {
+        if weight == 0.0 || node == 0 {
+            continue;
+        }
+        let d = &mut w.kkt.contact.position_jacobian;
+        model.position_jacobian(&w.q, node, &w.interior, d);
+        for (x, b) in w.kkt.rows[r].iter_mut().zip(d.iter()) {
+            *x += weight * b.transpose() * direction;
+        }
+    }
+    if model.clamped_tip().is_some() {
+        w.kkt.rows[r][n - 1] = Vector3::zeros();
+    }
 }
 
 /// The direction of each node's share of a unit contact force of slot `i`

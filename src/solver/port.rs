@@ -82,28 +82,10 @@ pub(crate) fn last_node(site: &PortSite) -> usize {
 /// The ports' rows `d_i^T ((1 - s) D_(k-1) + s D_k)` as `n` vectors each
 /// into `rows` from index `from`.
 pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
-    let n = model.n();
-    let clamped = model.clamped_tip().is_some();
-    for (j, site) in w.kkt.contact.ports.clone().iter().enumerate() {
+    for j in 0..w.kkt.contact.ports.len() {
+        let site = w.kkt.contact.ports[j];
         for (i, direction) in site.directions.iter().enumerate() {
-            let r = from + 2 * j + i;
-            if w.kkt.rows.len() <= r {
-                w.kkt.rows.push(vec![Vector3::zeros(); n]);
-            }
-            w.kkt.rows[r].iter_mut().for_each(|x| *x = Vector3::zeros());
-            for (node, weight) in shares(site) {
-                if weight == 0.0 || node == 0 {
-                    continue;
-                }
-                let d = &mut w.kkt.contact.position_jacobian;
-                model.position_jacobian(&w.q, node, &w.interior, d);
-                for (x, b) in w.kkt.rows[r].iter_mut().zip(d.iter()) {
-                    *x += weight * b.transpose() * direction;
-                }
-            }
-            if clamped {
-                w.kkt.rows[r][n - 1] = Vector3::zeros();
-            }
+            super::contact::load_row(model, w, from + 2 * j + i, shares(&site), direction);
         }
     }
 }

@@ -391,3 +391,20 @@ def test_a_clamped_tip_in_contact_gives_its_reaction_force_but_not_its_moment():
     sensitivity = solver.sensitivity("length")
     assert sensitivity.tip_reaction_moment is None
     assert sensitivity.tip_reaction_force is not None
+
+
+def test_a_robots_sensitivity_to_its_insertion_is_the_difference():
+    # At an insertion, through the port: the tip's derivative in the
+    # insertion against forward solves at insertions a step apart. (The
+    # port's crossing inside an element: on a node, the polygon's kink
+    # makes the derivative one-sided, 13 % off the difference across it.)
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}], "insertion_range": [0.0, 0.2]})
+    kappa = np.tile([0.3, -0.2], (10, 1))
+    sensitivity = robot.sensitivity(kappa, load=0.03, parameters="insertion", insertion=0.113)
+    step = 1e-5
+    tips = [robot.forward(kappa, load=0.03, insertion=0.113 + sign * step).tip_position
+            for sign in (1.0, -1.0)]
+    difference = (tips[0] - tips[1]) / (2.0 * step)
+    np.testing.assert_allclose(sensitivity.tip_position[:, 0], difference, atol=1e-7)
+    # Not the base's own motion: the port holds the rod back.
+    assert np.linalg.norm(sensitivity.tip_position[:, 0] - [0.0, 0.0, -1.0]) > 1e-3

@@ -328,6 +328,7 @@ class Robot:
         *,
         tensions: npt.ArrayLike | None = None,
         field: npt.ArrayLike | None = None,
+        insertion: float | None = None,
     ) -> Sensitivity:
         """The loaded equilibrium of an actuation (``.solution``) and its tip's
         sensitivity to the named parameters: ``"rest_curvature"``,
@@ -335,7 +336,8 @@ class Robot:
         ``"tensions"`` (or ``"tensions[i]"``), ``"field"`` (or
         ``"field[c]"``), the load's ``"load.mass"``, ``"load.tip_force"``,
         ``"load.tip_moment"``, ``"load.point_loads[j].force"`` / ``".moment"``
-        (three columns each, or one with ``[i]``) and any numeric field of
+        (three columns each, or one with ``[i]``), ``"insertion"`` (the base
+        along its tangent, at the ``insertion`` given) and any numeric field of
         ``to_dict()`` (``"stiffness.E"``, ``"linear_density"``,
         ``"disk_mass"``). Default: the robot's actuation space."""
     def forward_batch(
@@ -471,6 +473,7 @@ class Robot:
         *,
         tensions: npt.ArrayLike | None = None,
         field: npt.ArrayLike | None = None,
+        insertion: float | None = None,
     ) -> dict[str, Any]: ...
     def inverse_solver(self, load: _Load = None) -> InverseSolver: ...
     def inverse(

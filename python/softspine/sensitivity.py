@@ -89,13 +89,14 @@ def robot_sensitivity(
     *,
     tensions: npt.ArrayLike | None = None,
     field: npt.ArrayLike | None = None,
+    insertion: float | None = None,
 ) -> Sensitivity:
     """The loaded equilibrium of an actuation (``.solution``) and its tip's
     sensitivity to named parameters.
 
     Parameters
     ----------
-    rest_curvature, load, initial, tensions, field
+    rest_curvature, load, initial, tensions, field, insertion
         The actuation, load and start, as ``Robot.forward``.
     parameters
         A name or a list of names: ``"rest_curvature"``, ``"muscle_lengths"``
@@ -103,7 +104,8 @@ def robot_sensitivity(
         ``"tensions[i]"``), ``"field"`` (or ``"field[c]"``), the load's
         ``"load.mass"`` (or ``"load"``), ``"load.tip_force"``,
         ``"load.tip_moment"``, ``"load.point_loads[j].force"`` and
-        ``".moment"`` (each three columns, or one with ``[i]``), and any
+        ``".moment"`` (each three columns, or one with ``[i]``),
+        ``"insertion"`` (the base along its tangent, m), and any
         numeric field of ``Robot.to_dict()`` (``"stiffness.E"``,
         ``"linear_density"``, ``"disk_mass"``). Default: the robot's drive
         (``Robot.actuation_space``).
@@ -114,7 +116,8 @@ def robot_sensitivity(
         One column a parameter, in its own units (m per unit of it).
     """
     fields = self._sensitivity(
-        rest_curvature, load, parameters, initial, tensions=tensions, field=field
+        rest_curvature, load, parameters, initial, tensions=tensions, field=field,
+        insertion=insertion,
     )
     return Sensitivity(**fields)
 

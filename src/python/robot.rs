@@ -513,7 +513,7 @@ impl PyRobot {
     /// The loaded equilibrium of an actuation and its tip's sensitivity to
     /// the named parameters: the fields of a ``Sensitivity``.
     /// ``Robot.sensitivity`` (``softspine.sensitivity``) calls it.
-    #[pyo3(name = "_sensitivity", signature = (rest_curvature=None, load=None, parameters=None, initial=None, *, tensions=None, field=None))]
+    #[pyo3(name = "_sensitivity", signature = (rest_curvature=None, load=None, parameters=None, initial=None, *, tensions=None, field=None, insertion=None))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity<'py>(
         &self,
@@ -524,10 +524,11 @@ impl PyRobot {
         initial: Option<&Bound<'py, PyAny>>,
         tensions: Option<&Bound<'py, PyAny>>,
         field: Option<&Bound<'py, PyAny>>,
+        insertion: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
-        let k = actuation_arg(rest_curvature, tensions, field, None)?;
+        let k = actuation_arg(rest_curvature, tensions, field, insertion)?;
         let names = match given(parameters) {
             Some(p) => super::fitting::parameter_names(&p)?,
             None => vec![self.inner.drive_parameter().to_owned()],

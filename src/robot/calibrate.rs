@@ -25,6 +25,8 @@ enum Parameter {
     Tension(usize),
     /// `field[c]`: a component of the external magnetic field [T].
     MagneticField(usize),
+    /// `insertion`: the base moved along its tangent [m].
+    Insertion,
     /// A numeric field of `Robot::to_value` (`"stiffness.E"`, `"linear_density"`).
     Field(String),
 }
@@ -87,6 +89,7 @@ impl Robot {
                 }
             }
             "load" | "load.mass" => out.push((name.into(), Parameter::Load)),
+            "insertion" => out.push((name.into(), Parameter::Insertion)),
             "tensions" => out.extend(
                 (0..self.drive.tendon_routes().len())
                     .map(|i| (format!("tensions[{i}]"), Parameter::Tension(i))),
@@ -136,6 +139,7 @@ impl Robot {
             })?,
             Parameter::Tension(i) => a.tensions.get(*i).copied().unwrap_or(0.0),
             Parameter::MagneticField(c) => a.field[*c],
+            Parameter::Insertion => a.insertion,
             Parameter::Field(path) => *self.to_value().number_at_mut(path)?,
         })
     }
@@ -204,6 +208,13 @@ impl Robot {
                 *v.number_at_mut(path)? += delta;
                 return Robot::from_value(&v)?.scene(a, load);
             }
+            Parameter::Insertion => {
+                // A difference past the stage's range is still a rod: the
+                // base moved as the scene's, not checked against the range.
+                let mut scene = self.scene(a, load)?;
+                scene.base_position += delta * self.insertion_axis();
+                return Ok(scene);
+            }
         }
         self.scene(&moved, load)
     }
@@ -232,7 +243,7 @@ impl Robot {
     /// the named parameters: `"rest_curvature"`, `"muscle_lengths"` (or one
     /// component, `"muscle_lengths[2][0]"`), `"tensions"` (or
     /// `"tensions[i]"`), `"field"` (or `"field[c]"`), `"load"` (the tip
-    /// mass) and any numeric field of the robot (`"stiffness.E"`,
+    /// mass), `"insertion"` (the base along its tangent) and any numeric field of the robot (`"stiffness.E"`,
     /// `"linear_density"`, `"disk_mass"`; `"inflation_rate"` has no effect
     /// on statics).
     pub fn sensitivity(

@@ -408,3 +408,14 @@ def test_a_robots_sensitivity_to_its_insertion_is_the_difference():
     np.testing.assert_allclose(sensitivity.tip_position[:, 0], difference, atol=1e-7)
     # Not the base's own motion: the port holds the rod back.
     assert np.linalg.norm(sensitivity.tip_position[:, 0] - [0.0, 0.0, -1.0]) > 1e-3
+
+
+def test_a_port_and_its_force_are_plotted():
+    figure = pytest.importorskip("matplotlib.figure")
+    from softspine.plotting import plot_contacts
+
+    sol = softspine.solve(port_scene((0.5, 0.1), 1.0)[0], n_elements=20)
+    ax = figure.Figure().add_subplot(projection="3d")
+    plot_contacts(sol, ax)
+    # The port's dot and its force's arrow.
+    assert len(ax.collections) == 2

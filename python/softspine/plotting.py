@@ -204,18 +204,26 @@ def _obstacle_surfaces(obstacle: dict[str, Any], u: np.ndarray, v: np.ndarray, e
 def plot_contacts(solution: Solution, ax: Axes3D, *, scale: float | None = None,
                   **arrows: Any) -> Axes3D:
     """Draw a solution's contact forces as arrows at the points touched,
-    along the obstacles' normals; ``scale`` (m per N) defaults to drawing
-    the largest a tenth of the rod's length."""
-    contacts = solution.contacts
+    along the obstacles' normals, and its ports (a black dot each) with
+    their forces on the rod; ``scale`` (m per N) defaults to drawing the
+    largest force a tenth of the rod's length."""
+    contacts, ports = solution.contacts, solution.ports
     force = np.asarray(contacts["force"])
-    if len(force) == 0:
+    port_forces = np.asarray(ports["force"]).reshape(-1, 3)
+    sizes = np.r_[force, np.linalg.norm(port_forces, axis=1)]
+    if len(sizes) == 0:
         return ax
     if scale is None:
-        scale = 0.1 * solution.length / max(float(force.max()), 1e-300)
-    points = np.asarray(contacts["point"])
-    vectors = np.asarray(contacts["normal"]) * (scale * force)[:, None]
+        scale = 0.1 * solution.length / max(float(sizes.max()), 1e-300)
     arrows.setdefault("color", "tab:red")
-    ax.quiver(*points.T, *vectors.T, **arrows)
+    if len(force):
+        points = np.asarray(contacts["point"])
+        vectors = np.asarray(contacts["normal"]) * (scale * force)[:, None]
+        ax.quiver(*points.T, *vectors.T, **arrows)
+    if len(port_forces):
+        points = np.asarray(ports["point"]).reshape(-1, 3)
+        ax.scatter(*points.T, color="k", s=12)
+        ax.quiver(*points.T, *(scale * port_forces).T, **arrows)
     return ax
 
 

@@ -94,7 +94,8 @@ ax.scatter(*port, color="k", s=12, label="port")
 ax.set_box_aspect(np.ptp(centreline[1:], axis=0) + 0.02)
 ax.view_init(elev=35, azim=-120)
 ax.legend(loc="upper left", fontsize=8)
-ax.set_title("a catheter fed through a port into a curved vessel\n(the wall's and the port's forces as arrows)")
+ax.set_title("a catheter fed through a port into a curved vessel\n"
+             "(the wall's and the port's forces as arrows)")
 fig.tight_layout()
 out = sys.argv[1] if len(sys.argv) > 1 else "catheter.png"
 fig.savefig(out, dpi=110)

@@ -419,3 +419,27 @@ def test_a_port_and_its_force_are_plotted():
     plot_contacts(sol, ax)
     # The port's dot and its force's arrow.
     assert len(ax.collections) == 2
+
+
+def test_a_forward_batch_takes_each_samples_insertion():
+    # Each sample's base moved by its insertion, the same as a forward solve.
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}], "insertion_range": [0.0, 0.2]})
+    kappa = np.tile([0.3, -0.2], (3, 10, 1))
+    insertion = np.array([0.0, 0.05, 0.15])
+    batch = robot.forward_batch(kappa, load=0.03, insertion=insertion, threads=1)
+    assert batch.converged.all()
+    np.testing.assert_array_equal(batch.insertion, insertion)
+    for tip, k, d in zip(batch.tip_positions, kappa, insertion, strict=True):
+        np.testing.assert_allclose(tip, robot.forward(k, load=0.03, insertion=d).tip_position,
+                                   atol=1e-9)
+    with pytest.raises(ValueError, match="insertion"):
+        robot.forward_batch(kappa, insertion=[0.0, 0.1, 0.3], threads=1)
+    with pytest.raises(ValueError, match="insertion"):
+        robot.forward_batch(kappa, insertion=[0.0, 0.1], threads=1)
+    # On an executor, in parts: the same answers.
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(2) as executor:
+        parts = robot.forward_batch(kappa, load=0.03, insertion=insertion, executor=executor,
+                                    chunk=1, part=1, threads=1)
+    np.testing.assert_array_equal(parts.insertion, insertion)
+    np.testing.assert_allclose(parts.tip_positions, batch.tip_positions, atol=1e-12)

@@ -199,6 +199,7 @@ def forward_batch(
     *,
     tensions: npt.ArrayLike | None = None,
     field: npt.ArrayLike | None = None,
+    insertion: npt.ArrayLike | None = None,
     shapes: bool | None = None,
     warm_start: bool | None = None,
     threads: int | None = None,
@@ -225,6 +226,9 @@ def forward_batch(
     field
         A magnetic robot's uniform field, (samples, 3), T, world frame: each
         within ``max_field``.
+    insertion
+        How far each sample's base moves along its tangent, (samples,), m
+        (within ``insertion_range`` where the robot has one; default 0).
     shapes
         Keep every node's position and quaternion (default False).
     warm_start
@@ -257,11 +261,11 @@ def forward_batch(
 
         return distributed.forward_batch(
             self, actuations, load, executor=executor, tensions=tensions, field=field,
-            shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk,
-            progress=progress, part=part,
+            insertion=insertion, shapes=shapes, warm_start=warm_start, threads=threads,
+            chunk=chunk, progress=progress, part=part,
         )  # fmt: skip
     fields_ = self._forward_batch(
-        actuations, load, tensions=tensions, field=field, shapes=shapes,
+        actuations, load, tensions=tensions, field=field, insertion=insertion, shapes=shapes,
         warm_start=warm_start, threads=threads, chunk=chunk,
         progress=progress_callback(progress), part=part,
     )  # fmt: skip

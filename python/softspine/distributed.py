@@ -117,6 +117,7 @@ def forward_batch(
     executor: Any,
     tensions: npt.ArrayLike | None = None,
     field: npt.ArrayLike | None = None,
+    insertion: npt.ArrayLike | None = None,
     shapes: bool | None = None,
     warm_start: bool | None = None,
     threads: int | None = None,
@@ -127,13 +128,13 @@ def forward_batch(
     """``Robot.forward_batch`` on ``executor`` (see the module's documentation)."""
     # The core reads every argument as a local batch would, and cuts it.
     chunk, part = robot._forward_batch(
-        actuations, load, tensions=tensions, field=field, shapes=shapes,
+        actuations, load, tensions=tensions, field=field, insertion=insertion, shapes=shapes,
         warm_start=warm_start, threads=threads, chunk=chunk, part=part, plan=True,
     )  # fmt: skip
+    drives = (("actuations", actuations), ("tensions", tensions), ("field", field),
+              ("insertion", insertion))
     given = {
-        name: np.asarray(a, dtype=np.float64)
-        for name, a in (("actuations", actuations), ("tensions", tensions), ("field", field))
-        if a is not None
+        name: np.asarray(a, dtype=np.float64) for name, a in drives if a is not None
     }
     count = len(next(iter(given.values())))
     options = _options(shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk)

@@ -548,7 +548,7 @@ impl PyRobot {
     /// (samples, tendons) or fields (samples, 3) under one load, on every
     /// core: the fields of a ``BatchResult``. ``Robot.forward_batch``
     /// (``softspine.batch``) calls it.
-    #[pyo3(name = "_forward_batch", signature = (actuations=None, load=None, *, tensions=None, field=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
+    #[pyo3(name = "_forward_batch", signature = (actuations=None, load=None, *, tensions=None, field=None, insertion=None, shapes=None, warm_start=None, threads=None, chunk=None, progress=None, part=None, plan=None))]
     #[allow(clippy::too_many_arguments)]
     fn forward_batch<'py>(
         slf: &Bound<'py, Self>,
@@ -557,6 +557,7 @@ impl PyRobot {
         #[pyo3(from_py_with = load_arg)] load: Option<crate::robot::Load>,
         tensions: Option<&Bound<'py, PyAny>>,
         field: Option<&Bound<'py, PyAny>>,
+        insertion: Option<&Bound<'py, PyAny>>,
         shapes: Option<&Bound<'py, PyAny>>,
         warm_start: Option<&Bound<'py, PyAny>>,
         threads: Option<&Bound<'py, PyAny>>,
@@ -579,7 +580,11 @@ impl PyRobot {
             .map(|b| sample_rows("field", &b, 3))
             .transpose()?
             .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2]]).collect::<Vec<_>>());
-        let drives = robot.batch_actuations(k.as_deref(), t.as_deref(), b.as_deref())?;
+        let d = given(insertion)
+            .map(|d| floats_arg("insertion", &d))
+            .transpose()?;
+        let drives =
+            robot.batch_actuations(k.as_deref(), t.as_deref(), b.as_deref(), d.as_deref())?;
         if let Some(cut) = cluster_plan(py, plan, part, &settings)? {
             return Ok(cut);
         }

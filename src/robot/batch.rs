@@ -126,13 +126,15 @@ impl Robot {
 
     /// The actuations of a batch given by drive, each `None` or a row a
     /// sample: the muscles' rest curvature (`sections` rows a sample, sample
-    /// after sample), the tensions [N], the field [T]. Refused by name when
-    /// nothing is given or the counts of samples disagree.
+    /// after sample), the tensions [N], the field [T], the insertion [m].
+    /// Refused by name when nothing is given or the counts of samples
+    /// disagree.
     pub fn batch_actuations(
         &self,
         rest_curvature: Option<&[[f64; 2]]>,
         tensions: Option<&[Vec<f64>]>,
         field: Option<&[[f64; 3]]>,
+        insertion: Option<&[f64]>,
     ) -> Result<Vec<Actuation>> {
         let m = self.body.sections.max(1);
         if rest_curvature.is_some_and(|k| k.len() % m != 0) {
@@ -145,6 +147,7 @@ impl Robot {
             ("actuations", rest_curvature.map(|k| k.len() / m)),
             ("tensions", tensions.map(<[_]>::len)),
             ("field", field.map(<[_]>::len)),
+            ("insertion", insertion.map(<[_]>::len)),
         ];
         let mut given = counts.iter().filter_map(|(name, c)| c.map(|c| (*name, c)));
         let Some((first, count)) = given.next() else {
@@ -170,7 +173,7 @@ impl Robot {
                     .map_or(Vec::new(), |k| k[i * m..(i + 1) * m].to_vec()),
                 tensions: tensions.map_or(Vec::new(), |t| t[i].clone()),
                 field: field.map_or(Vector3::zeros(), |b| Vector3::from(b[i])),
-                insertion: 0.0,
+                insertion: insertion.map_or(0.0, |d| d[i]),
             })
             .collect())
     }
@@ -189,9 +192,9 @@ impl Robot {
     ) -> Result<Vec<Sample>> {
         let m = self.body.sections;
         let muscles_only = self.actuation_space() == ActuationSpace::Curvature
-            && actuations
-                .iter()
-                .all(|a| a.tensions.is_empty() && a.field == Vector3::zeros());
+            && actuations.iter().all(|a| {
+                a.tensions.is_empty() && a.field == Vector3::zeros() && a.insertion == 0.0
+            });
         if !muscles_only {
             return self.drive_batch(actuations, load, settings, control);
         }
@@ -382,6 +385,7 @@ impl Robot {
         let (start, stiffness) = self.actuated_chunk(load)?;
         for (i, a) in actuations.iter().enumerate() {
             self.check_sample_drives(&a.rest_curvature, &a.tensions, a.field)
+                .and_then(|()| self.check_insertion(a.insertion))
                 .map_err(|e| match e {
                     Error::InvalidArgument { name, reason } => {
                         Error::argument(name, format!("{reason} (sample {i})"))
@@ -427,6 +431,7 @@ impl Robot {
         settings: &BatchSettings,
     ) -> Result<Sample> {
         solver.set_drives(&a.rest_curvature, &a.tensions, a.field)?;
+        solver.set_base_position(self.body.base_position + a.insertion * self.insertion_axis())?;
         let near =
             last.q.is_some() && self.actuation_turn(&last.actuation, a, stiffness) < WARM_TURN;
         let from = if settings.warm_start && near {

@@ -131,10 +131,10 @@ def forward_batch(
         actuations, load, tensions=tensions, field=field, insertion=insertion, shapes=shapes,
         warm_start=warm_start, threads=threads, chunk=chunk, part=part, plan=True,
     )  # fmt: skip
-    drives = (("actuations", actuations), ("tensions", tensions), ("field", field),
-              ("insertion", insertion))
+    named = (("actuations", actuations), ("tensions", tensions), ("field", field),
+             ("insertion", insertion))
     given = {
-        name: np.asarray(a, dtype=np.float64) for name, a in drives if a is not None
+        name: np.asarray(a, dtype=np.float64) for name, a in named if a is not None
     }
     count = len(next(iter(given.values())))
     options = _options(shapes=shapes, warm_start=warm_start, threads=threads, chunk=chunk)

@@ -443,3 +443,18 @@ def test_a_forward_batch_takes_each_samples_insertion():
                                     chunk=1, part=1, threads=1)
     np.testing.assert_array_equal(parts.insertion, insertion)
     np.testing.assert_allclose(parts.tip_positions, batch.tip_positions, atol=1e-12)
+
+
+def test_the_inverse_kinematics_inserts_through_a_port_and_leans_on_a_wall():
+    # A port and an obstacle together: the target near the wall is reached
+    # with the robot pressed on it, the insertion and the contact both in
+    # the Jacobian (the base's sensitivity with the contact held).
+    wall = {"shape": "half_space", "point": [0.12, 0, 0], "normal": [-1, 0, 0]}
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}],
+                             "insertion_range": [0.0, 0.2], "obstacles": [wall]})
+    ik = robot.inverse([0.1, -0.02, -0.98], load=0.03)
+    assert ik.reached, ik.message
+    assert len(ik.solution.contacts["force"]) >= 1
+    assert ik.solution.positions[:, 0].max() <= 0.12 - robot.to_dict().get("radius", 0.0) + 1e-9
+    far = robot.inverse([0.08, 0.05, -1.1], load=0.03)
+    assert far.reached and far.insertion > 0.05, far.message

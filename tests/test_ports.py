@@ -458,3 +458,16 @@ def test_the_inverse_kinematics_inserts_through_a_port_and_leans_on_a_wall():
     assert ik.solution.positions[:, 0].max() <= 0.12 - robot.to_dict().get("radius", 0.0) + 1e-9
     far = robot.inverse([0.08, 0.05, -1.1], load=0.03)
     assert far.reached and far.insertion > 0.05, far.message
+
+
+def test_a_workspace_draws_the_insertion_over_its_range():
+    robot = softspine.Robot({"ports": [{"position": [0, 0, -0.3]}], "insertion_range": [0.0, 0.2]})
+    ws = robot.workspace(12, load=0.03, seed=3, threads=1)
+    assert ws.converged.all()
+    assert ws.insertion.min() >= 0.0 and ws.insertion.max() <= 0.2 and np.ptp(ws.insertion) > 0.05
+    for k, d, tip in zip(ws.actuations[:3], ws.insertion[:3], ws.tip_positions[:3], strict=True):
+        np.testing.assert_allclose(robot.forward(k, load=0.03, insertion=d).tip_position, tip,
+                                   atol=1e-9)
+    # The muscles' draws are those of the robot without an insertion.
+    plain = softspine.Robot().workspace(12, load=0.03, seed=3, threads=1)
+    np.testing.assert_array_equal(plain.actuations, ws.actuations)

@@ -290,7 +290,8 @@ def workspace(
     core: each muscle's length uniform over its range (``actuations``), a
     tendon-driven robot's tensions each over ``[0, max_tension]``
     (``tensions``), a magnetic robot's field uniform in the ball
-    ``|B| <= max_field`` (``field``).
+    ``|B| <= max_field`` (``field``), and with an ``insertion_range`` the
+    insertion uniform over it (``insertion``).
 
     Sample ``i`` is drawn from ``seed`` and ``first + i``, so a part of a
     larger workspace draws what the whole would. The other keywords are

@@ -450,7 +450,8 @@ impl Robot {
     /// Sample `index` of the seeded random drives, in the robot's drive:
     /// every muscle's length uniform over its range, each tension uniform
     /// over `[0, max_tension]` (the muscles straight), or the field uniform in
-    /// the ball `|B| <= max_field`. Each sample has its own stream (from the
+    /// the ball `|B| <= max_field`; with an insertion range, the insertion
+    /// uniform over it. Each sample has its own stream (from the
     /// seed and its index), so a batch draws its samples in its workers, in
     /// any order, and a part of a batch draws the same samples as the whole.
     pub fn random_drive(&self, seed: u64, index: u64) -> Result<Actuation> {
@@ -494,6 +495,10 @@ impl Robot {
                 drives.rest_curvature = self.random_curvature(seed, index)?;
             }
         }
+        // After the drive's draws (which stay those of the robot without).
+        if let Some([lo, hi]) = self.insertion_range {
+            drives.insertion = lo + (hi - lo) * rng.random::<f64>();
+        }
         Ok(drives)
     }
 
@@ -513,7 +518,8 @@ impl Robot {
         settings: &BatchSettings,
         control: &BatchControl,
     ) -> Result<(Vec<Actuation>, Vec<Sample>)> {
-        if self.actuation_space() != ActuationSpace::Curvature {
+        // An insertion is one more drive: each sample's drawn over its range.
+        if self.actuation_space() != ActuationSpace::Curvature || self.insertion_range.is_some() {
             return self.drive_workspace(samples, first, load, seed, settings, control);
         }
         self.muscle_workspace(samples, first, load, seed, settings, control)

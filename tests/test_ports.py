@@ -289,13 +289,6 @@ def test_tracking_through_a_port_keeps_the_insertion_and_the_result_comes_back()
     assert softspine.IkResult.from_dict(d).insertion == 0.0
 
 
-def test_a_limited_field_with_an_insertion_is_refused_by_name():
-    robot = softspine.Robot({"magnetization": [[0.0, 0.0, 0.1]], "max_field": 0.05,
-                             "insertion_range": [0.0, 0.1]})
-    with pytest.raises(ValueError, match="insertion_range"):
-        robot.inverse([0.0, 0.1, -0.9])
-
-
 def test_a_catheter_fed_through_a_port_converges_at_every_step():
     # examples/catheter.py's vessel, sheath and port: the handle moves the
     # base 5 mm a step from 40 to 150 mm, each solve warm from the last;
@@ -471,3 +464,30 @@ def test_a_workspace_draws_the_insertion_over_its_range():
     # The muscles' draws are those of the robot without an insertion.
     plain = softspine.Robot().workspace(12, load=0.03, seed=3, threads=1)
     np.testing.assert_array_equal(plain.actuations, ws.actuations)
+
+
+def test_a_magnetic_catheter_with_a_limited_field_is_fed_by_its_stage():
+    # The field's ball and the insertion's interval in one step: a target
+    # above the catheter's reach is reached by inserting it, within
+    # max_field; one past both is refused with the field at its limit or
+    # the insertion at its end.
+    robot = softspine.Robot.from_file("examples/robots/magnetic_catheter.toml")
+    fed = softspine.Robot({**robot.to_dict(), "ports": [{"position": [0.0, 0.0, 0.05]}],
+                           "insertion_range": [0.0, 0.04]})
+    target = [0.04, 0.02, 0.22]
+    assert not robot.inverse(target).reached
+    ik = fed.inverse(target)
+    assert ik.reached, ik.message
+    assert 0.0 < ik.insertion <= 0.04 and np.linalg.norm(ik.field) <= 0.05 + 1e-12
+    tip = fed.forward(field=ik.field, insertion=ik.insertion).tip_position
+    assert np.linalg.norm(tip - target) < 1e-6
+    beyond = fed.inverse([0.0, 0.0, 0.3])
+    assert not beyond.reached
+
+
+def test_a_robots_port_behind_its_base_is_refused_by_name():
+    for fields, key in [({"ports": [{"position": [0, 0, 0.1]}]}, r"ports\[0\]"),
+                        ({"ports": [{"position": [0, 0, -0.3]}], "insertion_range": [0.0, 0.3]},
+                         "insertion_range")]:
+        with pytest.raises(ValueError, match=key):
+            softspine.Robot(fields)

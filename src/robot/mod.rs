@@ -587,7 +587,34 @@ impl Robot {
             body.sections,
             body.section_length(),
             body.has_equal_sections(),
-        )
+        )?;
+        self.check_ports()
+    }
+
+    /// Refuse ports the base does not stay behind at every insertion of its
+    /// range (at its place without one): the rod must cross each port's
+    /// plane ahead of its clamp.
+    fn check_ports(&self) -> Result<()> {
+        let [lo, hi] = self.insertion_range.unwrap_or([0.0, 0.0]);
+        for (i, port) in self.ports.iter().enumerate() {
+            for d in [lo, hi] {
+                let base = self.body.base_position + d * self.insertion_axis();
+                if port.axis.dot(&(port.position - base)) <= 0.0 {
+                    let key = match self.insertion_range {
+                        Some(_) => "insertion_range".to_string(),
+                        None => format!("ports[{i}]"),
+                    };
+                    return Err(Error::scene(
+                        key,
+                        format!(
+                            "at an insertion of {d} m the base is not behind ports[{i}] \
+                             (the rod must cross the port's plane ahead of its clamp)"
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Read a robot from JSON text (the fields of [`Robot::from_value`]).

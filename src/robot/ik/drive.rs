@@ -53,6 +53,9 @@ enum Admissible {
     Polytope(Bounds),
     /// The ball `|x| <= radius` (a field).
     Ball(f64),
+    /// The ball on the leading coordinates and the interval `[lo, hi]` on
+    /// the last (a limited field and an insertion).
+    BallAndInterval(f64, [f64; 2]),
     /// Anywhere (a field without `max_field`).
     Free,
 }
@@ -133,13 +136,8 @@ impl DriveSpace {
                         Admissible::Polytope(bounds.and_interval(scaled))
                     }
                     Admissible::Free => Admissible::Polytope(Bounds::none().and_interval(scaled)),
-                    Admissible::Ball(_) => {
-                        return Err(Error::argument(
-                            "insertion_range",
-                            "the inverse kinematics takes no insertion with a limited field \
-                             (max_field) so far",
-                        ))
-                    }
+                    Admissible::Ball(radius) => Admissible::BallAndInterval(radius, scaled),
+                    Admissible::BallAndInterval(..) => unreachable!("made here only"),
                 };
                 let insertion = Insertion {
                     range,
@@ -303,8 +301,11 @@ impl DriveSpace {
     ) -> Option<BoundedStep> {
         match &self.admissible {
             Admissible::Polytope(bounds) => bounds.step(x, j, e, r, c),
-            Admissible::Ball(radius) => ball_step(x, j, e, r, c, *radius),
-            Admissible::Free => ball_step(x, j, e, r, c, f64::INFINITY),
+            Admissible::Ball(radius) => ball_step(x, j, e, r, c, *radius, x.len()),
+            Admissible::Free => ball_step(x, j, e, r, c, f64::INFINITY, x.len()),
+            Admissible::BallAndInterval(radius, range) => {
+                ball_and_interval_step(x, j, e, r, c, *radius, *range)
+            }
         }
     }
 
@@ -361,7 +362,9 @@ impl DriveSpace {
                 x.apply(|t| *t = t.clamp(0.0, upper));
             }
             ActuationSpace::Field => {
-                if let Admissible::Ball(radius) = self.admissible {
+                if let Admissible::Ball(radius) | Admissible::BallAndInterval(radius, _) =
+                    self.admissible
+                {
                     let norm = x.norm();
                     if norm > radius {
                         *x *= radius / norm;
@@ -605,12 +608,14 @@ fn flat(k: &[[f64; 2]]) -> DVector<f64> {
     DVector::from_iterator(2 * k.len(), k.iter().flat_map(|x| x.iter().copied()))
 }
 
-/// [`DriveSpace::step`] in the ball `|x + d| <= radius`: the free minimiser
-/// `d = r + J^T (c I + J J^T)^{-1} (e - J r)` if it stays inside, else
-/// the minimiser with `nu |x + d|^2` added, `nu` the smallest that keeps it
-/// on the sphere (by bisection): `(s I + J^T J / c) d = r + J^T e / c - nu x`,
-/// `s = 1 + nu`, applied by the Woodbury identity so that it stays exact as
-/// `c -> 0`.
+/// [`DriveSpace::step`] in the ball `|x_b + d_b| <= radius` over the first
+/// `ball` coordinates (the others free): the free minimiser `d = r + J^T (c
+/// I + J J^T)^{-1} (e - J r)` if it stays inside, else the minimiser with
+/// `nu |x_b + d_b|^2` added, `nu` the smallest that keeps it on the sphere
+/// (by bisection): `(D + J^T J / c) d = v + J^T e / c`, `v = r - nu x_b`,
+/// `D` the identity with `1 + nu` on the ball's coordinates, applied by the
+/// Woodbury identity, `d = D^-1 v + D^-1 J^T (c I + J D^-1 J^T)^-1 (e - J
+/// D^-1 v)`, so that it stays exact as `c -> 0`.
 fn ball_step(
     x: &DVector<f64>,
     j: &DMatrix<f64>,
@@ -618,31 +623,36 @@ fn ball_step(
     r: &DVector<f64>,
     c: f64,
     radius: f64,
+    ball: usize,
 ) -> Option<BoundedStep> {
     let rows = j.nrows();
-    let jjt = j * j.transpose();
+    let within = |d: &DVector<f64>| (x + d).rows(0, ball).norm();
     let solve = |nu: f64| -> Option<DVector<f64>> {
-        let s = 1.0 + nu;
-        let v = r - x * nu;
-        // (s I + J^T J / c)^{-1} (v + J^T e / c)
-        //   = (v + J^T (c s I + J J^T)^{-1} (s e - J v)) / s
-        let g = (&jjt + DMatrix::identity(rows, rows) * (c * s)).cholesky()?;
-        Some((&v + j.transpose() * g.solve(&(e * s - j * &v))) / s)
+        let inverse = DVector::from_fn(
+            x.len(),
+            |i, _| if i < ball { 1.0 / (1.0 + nu) } else { 1.0 },
+        );
+        let mut v = r.clone();
+        v.rows_mut(0, ball).axpy(-nu, &x.rows(0, ball), 1.0);
+        let dv = v.component_mul(&inverse);
+        let scaled = j * DMatrix::from_diagonal(&inverse);
+        let g = (&scaled * j.transpose() + DMatrix::identity(rows, rows) * c).cholesky()?;
+        Some(&dv + scaled.transpose() * g.solve(&(e - j * &dv)))
     };
     let free = solve(0.0)?;
-    if (x + &free).norm() <= radius {
+    if within(&free) <= radius {
         return Some(BoundedStep {
             step: free,
             blocking: 0,
         });
     }
     let (mut lo, mut hi) = (0.0, 1.0);
-    while (x + solve(hi)?).norm() > radius && hi < 1e300 {
+    while within(&solve(hi)?) > radius && hi < 1e300 {
         hi *= 4.0;
     }
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
-        if (x + solve(mid)?).norm() > radius {
+        if within(&solve(mid)?) > radius {
             lo = mid;
         } else {
             hi = mid;
@@ -651,13 +661,55 @@ fn ball_step(
             break;
         }
     }
-    let d = solve(hi)?;
+    let mut d = solve(hi)?;
     // On the sphere to round-off, never outside it.
-    let moved = x + &d;
-    let shrink = (radius / moved.norm()).min(1.0);
+    let shrink = (radius / within(&d)).min(1.0);
+    let moved = (x.rows(0, ball) + d.rows(0, ball)) * shrink - x.rows(0, ball);
+    d.rows_mut(0, ball).copy_from(&moved);
     Some(BoundedStep {
-        step: moved * shrink - x,
+        step: d,
         blocking: 1,
+    })
+}
+
+/// [`DriveSpace::step`] in the ball over all but the last coordinate and
+/// the interval `[lo, hi]` on the last. The problem is convex: where the
+/// step within the ball alone leaves the interval, the step with both
+/// holds the last coordinate at the bound it crossed, and the others are
+/// the ball's step with that column's move taken into the miss.
+fn ball_and_interval_step(
+    x: &DVector<f64>,
+    j: &DMatrix<f64>,
+    e: &DVector<f64>,
+    r: &DVector<f64>,
+    c: f64,
+    radius: f64,
+    [lo, hi]: [f64; 2],
+) -> Option<BoundedStep> {
+    let k = x.len() - 1;
+    let free = ball_step(x, j, e, r, c, radius, k)?;
+    let last = x[k] + free.step[k];
+    if (lo..=hi).contains(&last) {
+        return Some(free);
+    }
+    let held = last.clamp(lo, hi) - x[k];
+    let rest = |v: &DVector<f64>| v.rows(0, k).into_owned();
+    let moved = e - j.column(k) * held;
+    let step = ball_step(
+        &rest(x),
+        &j.columns(0, k).into_owned(),
+        &moved,
+        &rest(r),
+        c,
+        radius,
+        k,
+    )?;
+    let mut d = DVector::zeros(k + 1);
+    d.rows_mut(0, k).copy_from(&step.step);
+    d[k] = held;
+    Some(BoundedStep {
+        step: d,
+        blocking: step.blocking + 1,
     })
 }
 
@@ -671,14 +723,45 @@ mod tests {
         let x = DVector::zeros(3);
         let r = DVector::zeros(3);
         let small = DVector::from_row_slice(&[0.3, 0.4, 0.0]);
-        let free = ball_step(&x, &j, &small, &r, 1e-14, 1.0).unwrap();
+        let free = ball_step(&x, &j, &small, &r, 1e-14, 1.0, 3).unwrap();
         assert_eq!(free.blocking, 0);
         assert!((free.step - &small).norm() < 1e-12);
         let large = small * 10.0;
-        let held = ball_step(&x, &j, &large, &r, 1e-14, 1.0).unwrap();
+        let held = ball_step(&x, &j, &large, &r, 1e-14, 1.0, 3).unwrap();
         assert_eq!(held.blocking, 1);
         assert!((held.step.norm() - 1.0).abs() < 1e-12);
         assert!((held.step - DVector::from_row_slice(&[0.6, 0.8, 0.0])).norm() < 1e-9);
+    }
+
+    #[test]
+    fn the_ball_and_interval_step_holds_each_limit_it_crosses() {
+        // A field (3) in the unit ball and an insertion (1) in [0, 0.2].
+        let j = DMatrix::identity(4, 4);
+        let (x, r) = (DVector::zeros(4), DVector::zeros(4));
+        let both = |e: [f64; 4]| {
+            ball_and_interval_step(
+                &x,
+                &j,
+                &DVector::from_row_slice(&e),
+                &r,
+                1e-14,
+                1.0,
+                [0.0, 0.2],
+            )
+            .unwrap()
+        };
+        // The insertion past its range: held at 0.2, the field free.
+        let s = both([0.3, 0.4, 0.0, 0.5]);
+        assert_eq!(s.blocking, 1);
+        assert!((s.step - DVector::from_row_slice(&[0.3, 0.4, 0.0, 0.2])).norm() < 1e-9);
+        // The field past its ball: on the sphere, the insertion free.
+        let s = both([3.0, 4.0, 0.0, 0.1]);
+        assert_eq!(s.blocking, 1);
+        assert!((s.step - DVector::from_row_slice(&[0.6, 0.8, 0.0, 0.1])).norm() < 1e-9);
+        // Both.
+        let s = both([3.0, 4.0, 0.0, -0.1]);
+        assert_eq!(s.blocking, 2);
+        assert!((s.step - DVector::from_row_slice(&[0.6, 0.8, 0.0, 0.0])).norm() < 1e-9);
     }
 
     #[test]

@@ -239,6 +239,11 @@ impl Solver {
             return Err(Error::argument("base_position", "must be finite"));
         }
         let before = self.model.base_position();
+        // Every batch sample and IK trial sets it: the rest shape is
+        // recomputed only when the base moves.
+        if position == before {
+            return Ok(());
+        }
         self.model.set_base_position(position);
         if let Some(i) = self.model.ports().iter().position(|p| p.rest.is_none()) {
             self.model.set_base_position(before);

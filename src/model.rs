@@ -115,6 +115,8 @@ pub struct RodModel {
     /// contact rows of the constrained solve (see `solver::contact`).
     obstacles: Vec<Obstacle>,
     contact_radius: f64,
+    /// Each obstacle's Coulomb coefficient (one an obstacle).
+    friction: Vec<f64>,
     /// Ports the backbone slides through: two rows each (see `solver::port`).
     ports: Vec<PortConstraint>,
 }
@@ -176,6 +178,9 @@ impl RodModel {
             breaks: Vec::new(),
             obstacles: scene.obstacles.clone(),
             contact_radius: scene.contact_radius(),
+            friction: (0..scene.obstacles.len())
+                .map(|i| scene.friction.get(i).copied().unwrap_or(0.0))
+                .collect(),
             ports: scene
                 .ports
                 .iter()
@@ -519,6 +524,17 @@ impl RodModel {
     /// Whether there are obstacles.
     pub fn has_obstacles(&self) -> bool {
         !self.obstacles.is_empty()
+    }
+
+    /// Obstacle `o`'s Coulomb friction coefficient.
+    pub fn friction(&self, o: usize) -> f64 {
+        self.friction[o]
+    }
+
+    /// Whether any obstacle has friction: the answer then depends on the
+    /// loading history (see `solver::contact`).
+    pub fn has_friction(&self) -> bool {
+        self.friction.iter().any(|mu| *mu > 0.0)
     }
 
     /// The rod's radius for contact [m].

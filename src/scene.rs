@@ -319,8 +319,13 @@ pub struct Scene {
     pub tip_magnet: Vector3<f64>,
     /// Uniform external magnetic field, world frame [T].
     pub magnetic_field: Vector3<f64>,
-    /// Rigid obstacles the rod may touch (frictionless contact).
+    /// Rigid obstacles the rod may touch.
     pub obstacles: Vec<Obstacle>,
+    /// The Coulomb friction coefficient of each obstacle, in `obstacles`'
+    /// order (`>= 0`; obstacles past its end are frictionless). With
+    /// friction the answer depends on the loading history: see
+    /// `solver::contact`.
+    pub friction: Vec<f64>,
     /// Ports the backbone passes through and slides through without
     /// friction (a trocar, a guide tube's exit).
     pub ports: Vec<Port>,
@@ -355,6 +360,7 @@ impl Scene {
             tip_magnet: Vector3::zeros(),
             magnetic_field: Vector3::zeros(),
             obstacles: Vec::new(),
+            friction: Vec::new(),
             ports: Vec::new(),
             radius: None,
         }
@@ -629,6 +635,10 @@ impl Scene {
                 None => Vec::new(),
                 Some(v) => obstacles(v)?,
             },
+            friction: match top.get("obstacles") {
+                None => Vec::new(),
+                Some(v) => obstacle_friction(v)?,
+            },
             ports: match top.get("ports") {
                 None => Vec::new(),
                 Some(v) => ports(v, base_quaternion.rotate(Vector3::z()))?,
@@ -648,6 +658,19 @@ impl Scene {
     /// parameters (`|f| L^3 / k`, `|P| L^2 / k`, `|M| L / k`, `L |kappa0|`)
     /// that the solver works with. Each must be finite, the stiffness nonzero.
     pub fn check_derived(&self) -> Result<()> {
+        if self.friction.len() > self.obstacles.len() {
+            return Err(Error::scene(
+                "friction",
+                format!(
+                    "{} coefficients for {} obstacles",
+                    self.friction.len(),
+                    self.obstacles.len()
+                ),
+            ));
+        }
+        for (i, mu) in self.friction.iter().enumerate() {
+            check_friction(*mu, &format!("obstacles[{i}].friction"))?;
+        }
         for (s, p) in self.sections.iter().enumerate() {
             let k = self.section_stiffness(s);
             if p.stiffness.is_some() && !k.iter().all(|v| v.is_finite() && *v >= f64::MIN_POSITIVE)
@@ -952,8 +975,10 @@ impl Scene {
             m.push(("tip_magnet".into(), v3(&self.tip_magnet)));
         }
         if !self.obstacles.is_empty() {
-            let list = self.obstacles.iter().map(Obstacle::to_value).collect();
-            m.push(("obstacles".into(), Value::List(list)));
+            m.push((
+                "obstacles".into(),
+                obstacles_value(&self.obstacles, &self.friction),
+            ));
         }
         if !self.ports.is_empty() {
             let list = self.ports.iter().map(Port::to_value).collect();
@@ -1669,6 +1694,53 @@ pub(crate) fn obstacles(v: &Value) -> Result<Vec<Obstacle>> {
             format!("expected a list of obstacles, got {}", other.kind()),
         )),
     }
+}
+
+/// The friction coefficient of each obstacle of a list (its `friction`
+/// key, default 0), finite and non-negative.
+pub(crate) fn obstacle_friction(v: &Value) -> Result<Vec<f64>> {
+    let Value::List(items) = v else {
+        return Ok(Vec::new());
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let key = format!("obstacles[{i}].friction");
+            match x {
+                Value::Map(entries) => match entries.iter().find(|(k, _)| k == "friction") {
+                    Some((_, v)) => check_friction(crate::read::finite(v, &key)?, &key),
+                    None => Ok(0.0),
+                },
+                _ => Ok(0.0),
+            }
+        })
+        .collect()
+}
+
+/// A friction coefficient must be finite and non-negative.
+pub(crate) fn check_friction(mu: f64, key: &str) -> Result<f64> {
+    if mu.is_finite() && mu >= 0.0 {
+        Ok(mu)
+    } else {
+        Err(Error::scene(
+            key,
+            format!("a friction coefficient must be finite and >= 0, got {mu}"),
+        ))
+    }
+}
+
+/// Obstacles as a value-tree list, each with its `friction` where not zero.
+pub(crate) fn obstacles_value(obstacles: &[Obstacle], friction: &[f64]) -> Value {
+    let list = obstacles.iter().enumerate().map(|(i, o)| {
+        let mut v = o.to_value();
+        let mu = friction.get(i).copied().unwrap_or(0.0);
+        if let (Value::Map(entries), true) = (&mut v, mu != 0.0) {
+            entries.push(("friction".into(), Value::Number(mu)));
+        }
+        v
+    });
+    Value::List(list.collect())
 }
 
 /// A list of ports (`ports[i]`); a port's axis defaults to `base_tangent`.

@@ -364,7 +364,9 @@ impl Obstacle {
                 ),
             ));
         };
-        let allowed: Vec<&str> = std::iter::once("shape")
+        // `friction` is the scene's (`scene::obstacle_friction`).
+        let allowed: Vec<&str> = ["shape", "friction"]
+            .into_iter()
             .chain(keys.iter().copied())
             .collect();
         t.only(&allowed)?;

@@ -521,6 +521,18 @@ impl<'py> Fields<'py> {
 
     /// Rows of a key that the dicts of earlier versions lack: empty when
     /// absent or None.
+    /// Booleans (one a row) that the dicts of earlier versions lack: empty
+    /// when absent or None.
+    pub(super) fn bools_or_empty(&self, key: &str) -> PyResult<Vec<bool>> {
+        match self.dict.get_item(key)? {
+            Some(v) if !v.is_none() => v.extract::<Vec<bool>>().map_err(|_| {
+                crate::error::Error::argument(self.name(key), "expected a list of booleans")
+                    .into()
+            }),
+            _ => Ok(Vec::new()),
+        }
+    }
+
     pub(super) fn rows_or_empty<const N: usize>(&self, key: &str) -> PyResult<Vec<[f64; N]>> {
         match self.dict.get_item(key)? {
             Some(v) if !v.is_none() => rows_of::<N>(&self.name(key), &v),

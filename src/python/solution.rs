@@ -157,7 +157,11 @@ impl PySolution {
     /// ``obstacle`` (index in the scene's list, shape (k,)), ``arc_length``
     /// (k,) m, ``point`` (the obstacle's surface point touched, (k, 3) m),
     /// ``normal`` (into free space, the force's direction, (k, 3)) and
-    /// ``force`` (its magnitude, (k,) N, >= 0). Empty without obstacles.
+    /// ``force`` (its magnitude, (k,) N, >= 0), ``friction`` (the friction
+    /// force on the rod, along the surface, (k, 3) N; zero on frictionless
+    /// obstacles) and ``sliding`` (whether the contact slides, its friction
+    /// at ``mu * force`` against its motion, else it sticks, (k,) bool).
+    /// Empty without obstacles.
     #[getter]
     fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
@@ -395,7 +399,7 @@ impl PySolution {
 }
 
 /// The keys of `Solution.to_dict()`.
-const SOLUTION_KEYS: [&str; 35] = [
+const SOLUTION_KEYS: [&str; 37] = [
     "n_elements",
     "scheme",
     "length",
@@ -417,6 +421,8 @@ const SOLUTION_KEYS: [&str; 35] = [
     "contact_point",
     "contact_normal",
     "contact_force",
+    "contact_friction",
+    "contact_sliding",
     "port_port",
     "port_arc_length",
     "port_point",
@@ -437,7 +443,7 @@ const SOLUTION_KEYS: [&str; 35] = [
 fn contact_arrays<'py>(
     py: Python<'py>,
     contacts: &[crate::solver::Contact],
-) -> [(&'static str, Bound<'py, PyAny>); 5] {
+) -> [(&'static str, Bound<'py, PyAny>); 7] {
     let column = |f: fn(&crate::solver::Contact) -> f64| {
         contacts
             .iter()
@@ -456,6 +462,16 @@ fn contact_arrays<'py>(
         ("point", rows(|c| c.point)),
         ("normal", rows(|c| c.normal)),
         ("force", column(|c| c.force)),
+        ("friction", rows(|c| c.friction)),
+        (
+            "sliding",
+            contacts
+                .iter()
+                .map(|c| c.sliding)
+                .collect::<Vec<bool>>()
+                .into_pyarray(py)
+                .into_any(),
+        ),
     ]
 }
 
@@ -518,7 +534,24 @@ fn contacts_of(d: &Fields) -> PyResult<Vec<crate::solver::Contact>> {
     let normal = d.rows_or_empty::<3>("contact_normal")?;
     let force = d.floats_or_empty("contact_force")?;
     let k = obstacle.len();
-    if [arc_length.len(), point.len(), normal.len(), force.len()] != [k; 4] {
+    // Frictionless and sticking where absent (earlier versions').
+    let friction = match d.rows_or_empty::<3>("contact_friction")? {
+        x if x.is_empty() => vec![[0.0; 3]; k],
+        x => x,
+    };
+    let sliding = match d.bools_or_empty("contact_sliding")? {
+        x if x.is_empty() => vec![false; k],
+        x => x,
+    };
+    if [
+        arc_length.len(),
+        point.len(),
+        normal.len(),
+        force.len(),
+        friction.len(),
+        sliding.len(),
+    ] != [k; 6]
+    {
         return Err(crate::error::Error::argument(
             "solution.contact_obstacle",
             "the contact_* fields must have one row a contact each",
@@ -541,6 +574,8 @@ fn contacts_of(d: &Fields) -> PyResult<Vec<crate::solver::Contact>> {
                 point: Vector3::from(point[i]),
                 normal: Vector3::from(normal[i]),
                 force: force[i],
+                friction: Vector3::from(friction[i]),
+                sliding: sliding[i],
             })
         })
         .collect()

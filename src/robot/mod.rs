@@ -59,9 +59,11 @@ pub struct Robot {
     pub body: Body,
     /// Muscles, tendons or a field.
     pub drive: Drive,
-    /// Rigid obstacles around the robot, world frame (frictionless
-    /// contact; default none).
+    /// Rigid obstacles around the robot, world frame (default none).
     pub obstacles: Vec<Obstacle>,
+    /// Each obstacle's Coulomb friction coefficient, as
+    /// [`Scene::friction`] (default none: frictionless).
+    pub friction: Vec<f64>,
     /// Ports the robot slides through without friction, world frame (a
     /// trocar, a guide tube's exit; default none).
     pub ports: Vec<Port>,
@@ -148,6 +150,7 @@ impl Default for Robot {
             n_elements: crate::solver::default_elements(body.sections),
             body,
             obstacles: Vec::new(),
+            friction: Vec::new(),
             ports: Vec::new(),
             insertion_range: None,
         }
@@ -163,6 +166,7 @@ impl Robot {
             body,
             drive,
             obstacles: Vec::new(),
+            friction: Vec::new(),
             ports: Vec::new(),
             insertion_range: None,
         }
@@ -466,6 +470,7 @@ impl Robot {
         s.magnetic_field = field;
         if !self.obstacles.is_empty() {
             s.obstacles.clone_from(&self.obstacles);
+            s.friction.clone_from(&self.friction);
             s.radius = Some(self.contact_radius());
         }
         s.ports.clone_from(&self.ports);
@@ -643,8 +648,8 @@ impl Robot {
         entries.push(("n_elements".into(), Value::Number(self.n_elements as f64)));
         entries.extend(self.drive.entries());
         if !self.obstacles.is_empty() {
-            let list = self.obstacles.iter().map(Obstacle::to_value).collect();
-            entries.push(("obstacles".into(), Value::List(list)));
+            let list = crate::scene::obstacles_value(&self.obstacles, &self.friction);
+            entries.push(("obstacles".into(), list));
         }
         if !self.ports.is_empty() {
             let list = self.ports.iter().map(Port::to_value).collect();
@@ -674,6 +679,7 @@ impl Robot {
         let mut body = Body::default();
         let mut n_elements = None;
         let mut obstacles = Vec::new();
+        let mut friction = Vec::new();
         let mut ports = None;
         let mut insertion_range = None;
         let mut drive_entries = Vec::new();
@@ -685,6 +691,7 @@ impl Robot {
                 n_elements = Some(count(value, key, MAX_ROBOT_ELEMENTS)?);
             } else if key == "obstacles" {
                 obstacles = crate::scene::obstacles(value)?;
+                friction = crate::scene::obstacle_friction(value)?;
             } else if key == "ports" {
                 ports = Some(value);
             } else if key == "insertion_range" {
@@ -733,6 +740,7 @@ impl Robot {
             body,
             drive,
             obstacles,
+            friction,
             ports,
             insertion_range,
         };

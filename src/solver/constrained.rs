@@ -19,6 +19,7 @@
 //! for a free tip without guides.
 
 use super::contact::{self, ContactWork};
+use super::friction;
 use super::mixed::{self, Mixed, MixedWork};
 use super::port;
 use super::{step_limit, Workspace};
@@ -74,6 +75,8 @@ impl KktWorkspace {
             .for_each(|r| *r = Vector3::zeros());
         self.contact.active.clear();
         self.contact.held.clear();
+        let f = &mut self.contact.friction;
+        f.sliding.iter_mut().for_each(|d| *d = None);
     }
 
     /// Keep the multipliers and the contact set as the last equilibrium
@@ -83,6 +86,8 @@ impl KktWorkspace {
         self.reactions_saved.copy_from_slice(&self.reactions);
         self.contact.saved_active.clone_from(&self.contact.active);
         self.contact.saved_held.clone_from(&self.contact.held);
+        let f = &mut self.contact.friction;
+        f.saved_sliding.clone_from(&f.sliding);
     }
 
     /// Go back to the kept multipliers and contact set.
@@ -90,6 +95,8 @@ impl KktWorkspace {
         self.reactions.copy_from_slice(&self.reactions_saved);
         self.contact.active.clone_from(&self.contact.saved_active);
         self.contact.held.clone_from(&self.contact.saved_held);
+        let f = &mut self.contact.friction;
+        f.sliding.clone_from(&f.saved_sliding);
     }
 
     /// Keep the rest shape's: no multiplier, no contact.
@@ -99,6 +106,8 @@ impl KktWorkspace {
             .for_each(|r| *r = Vector3::zeros());
         self.contact.saved_active.clear();
         self.contact.saved_held.clear();
+        let f = &mut self.contact.friction;
+        f.saved_sliding.iter_mut().for_each(|d| *d = None);
     }
 
     pub fn new(model: &RodModel) -> Self {
@@ -136,6 +145,7 @@ pub(crate) struct Snapshot {
     reactions: Vec<Vector3<f64>>,
     active: Vec<usize>,
     held: Vec<bool>,
+    sliding: Vec<Option<Vector3<f64>>>,
 }
 
 impl Snapshot {
@@ -145,6 +155,7 @@ impl Snapshot {
             reactions: w.kkt.reactions.clone(),
             active: w.kkt.contact.active.clone(),
             held: w.kkt.contact.held.clone(),
+            sliding: w.kkt.contact.friction.sliding.clone(),
         }
     }
 
@@ -153,6 +164,7 @@ impl Snapshot {
         w.kkt.reactions.copy_from_slice(&self.reactions);
         w.kkt.contact.active = self.active;
         w.kkt.contact.held = self.held;
+        w.kkt.contact.friction.sliding = self.sliding;
     }
 }
 
@@ -183,6 +195,7 @@ pub(crate) fn evaluate(
         model.positions(&w.q, &mut w.interior, &mut w.kkt.positions);
         contact::locate(model, &w.kkt.positions, &mut w.kkt.contact.sites);
         port::locate(model, &w.kkt.positions, lambda, &mut w.kkt.contact.ports);
+        friction::gather_sticks(model, w);
         contact::gather_forces(model, w);
         contact::gather_gaps(w);
         let held = NodeForces {
@@ -232,9 +245,11 @@ pub(crate) fn evaluate(
     merit(model, &w.g, &w.kkt.h, contact_rows + port_rows)
 }
 
-/// The ports' rows' residuals [m].
+/// The ports' and the sticking contacts' rows' residuals [m].
 fn port_residuals(w: &Workspace) -> impl Iterator<Item = f64> + '_ {
-    w.kkt.contact.ports.iter().flat_map(|p| p.residual)
+    let c = &w.kkt.contact;
+    let sticks = c.friction.sticks.iter().flat_map(|s| s.residual);
+    c.ports.iter().flat_map(|p| p.residual).chain(sticks)
 }
 
 /// A candidate contact's error: a held one's gap, a free one's penetration.
@@ -283,7 +298,8 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     w.kkt.compliance = model.held_point_compliance(&w.q, &w.interior);
     let held = model.constraints().len();
     let ports = port::row_count(model);
-    w.kkt.row_count = 3 * held + ports + w.kkt.contact.active.len();
+    let sticks = w.kkt.contact.friction.row_count();
+    w.kkt.row_count = 3 * held + ports + sticks + w.kkt.contact.active.len();
     let n = model.n();
     w.kkt.row_len.clear();
     for c in model.constraints() {
@@ -291,6 +307,9 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     }
     for site in &w.kkt.contact.ports {
         w.kkt.row_len.extend([port::last_node(site).min(n); 2]);
+    }
+    for stick in &w.kkt.contact.friction.sticks {
+        w.kkt.row_len.extend([contact::last_node(model, stick.slot).min(n); 2]);
     }
     for &i in &w.kkt.contact.active {
         w.kkt.row_len.push(contact::last_node(model, i).min(n));
@@ -312,7 +331,8 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
             }
         }
         port::load_rows(model, w, 3 * held);
-        contact::load_rows(model, w, 3 * held + ports);
+        friction::load_rows(model, w, 3 * held + ports);
+        contact::load_rows(model, w, 3 * held + ports + sticks);
     }
     if model.has_contact() {
         contact::curvature(model, w, dense);
@@ -324,16 +344,20 @@ fn dot(x: &[Vector3<f64>], y: &[Vector3<f64>]) -> f64 {
     x.iter().zip(y).map(|(a, b)| a.dot(b)).sum()
 }
 
-/// Row `r`'s residual: a held point's position error, a port's, then an
-/// active contact's gap.
+/// Row `r`'s residual: a held point's position error, a port's, a
+/// sticking contact's, then an active contact's gap.
 fn row_residual(w: &Workspace, r: usize) -> f64 {
     let held = 3 * w.kkt.h.len();
+    let ports = held + 2 * w.kkt.contact.ports.len();
     let equalities = w.kkt.row_count - w.kkt.contact.gaps.len();
     if r < held {
         w.kkt.h[r / 3][r % 3]
-    } else if r < equalities {
+    } else if r < ports {
         let p = r - held;
         w.kkt.contact.ports[p / 2].residual[p % 2]
+    } else if r < equalities {
+        let p = r - ports;
+        w.kkt.contact.friction.sticks[p / 2].residual[p % 2]
     } else {
         w.kkt.contact.gaps[r - equalities]
     }
@@ -409,8 +433,11 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
             curvature.correct(col);
         }
     }
+    // Each on its own: a mixed step leaves `rhs` its size.
     if w.kkt.schur.nrows() != rows {
         w.kkt.schur = DMatrix::zeros(rows, rows);
+    }
+    if w.kkt.rhs.len() != rows {
         w.kkt.rhs = DVector::zeros(rows);
     }
     for r in 0..rows {
@@ -466,7 +493,7 @@ fn contact_lower_bounds(w: &Workspace) -> Vec<f64> {
         .contact
         .active
         .iter()
-        .map(|&i| -w.kkt.reactions[first + i].x.max(0.0))
+        .map(|&i| friction::lower_bound(w, i, -w.kkt.reactions[first + i].x.max(0.0)))
         .collect()
 }
 
@@ -580,12 +607,19 @@ fn take_multiplier_step(model: &RodModel, w: &mut Workspace) {
     }
     if model.has_obstacles() {
         let first = contact::offset(model, w);
-        let first_row = 3 * held + 2 * ports;
+        let sticks = &w.kkt.contact.friction.sticks;
+        let first_stick = 3 * held + 2 * ports;
+        let first_row = first_stick + 2 * sticks.len();
         w.kkt.reaction_step[first..]
             .iter_mut()
             .for_each(|d| *d = Vector3::zeros());
         for (a, &i) in w.kkt.contact.active.iter().enumerate() {
-            w.kkt.reaction_step[first + i] = Vector3::new(w.kkt.rhs[first_row + a], 0.0, 0.0);
+            w.kkt.reaction_step[first + i].x = w.kkt.rhs[first_row + a];
+        }
+        for (j, stick) in sticks.iter().enumerate() {
+            let d = &mut w.kkt.reaction_step[first + stick.slot];
+            d.y = w.kkt.rhs[first_stick + 2 * j];
+            d.z = w.kkt.rhs[first_stick + 2 * j + 1];
         }
     }
 }
@@ -809,8 +843,12 @@ pub(crate) fn tangent(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool 
         let moved = p.target_at(0.0) - p.target_at(1.0);
         site.residual = p.port.frame().map(|b| b.dot(&moved));
     }
-    // The obstacles stay: the active contacts keep their gaps.
+    // The obstacles stay: the active contacts keep their gaps, the
+    // sticking ones their anchors.
     w.kkt.contact.gaps.iter_mut().for_each(|x| *x = 0.0);
+    for stick in &mut w.kkt.contact.friction.sticks {
+        stick.residual = [0.0; 2];
+    }
     w.kkt.contact.choose = false;
     let solved = super::newton::damped_solve(model, w, kkt_step);
     w.kkt.contact.choose = true;
@@ -839,8 +877,10 @@ pub(crate) fn newton(
         // The contact candidates of this step (see `contact.rs`); a step
         // whose QP changes which are held certifies nothing.
         let mut held_before = Vec::new();
+        let mut grips_changed = false;
         if model.has_obstacles() {
             contact::select_candidates(model, w, contact_margin(model));
+            grips_changed = friction::update(model, w);
             merit_now = evaluate(model, w, lambda, true);
             held_before = contact::held_slots(w);
         }
@@ -868,9 +908,16 @@ pub(crate) fn newton(
         if !solved {
             return (false, it);
         }
-        let settled = !model.has_obstacles() || contact::held_slots(w) == held_before;
+        let settled = !model.has_obstacles()
+            || (contact::held_slots(w) == held_before && !grips_changed);
         if settled && super::newton::certified(norm, &w.step, tol) {
-            return (true, it);
+            // Sliding contacts whose direction is not against their move
+            // turn and the solve goes on (see `friction.rs`).
+            if it == max_iter || !friction::turn(model, w) {
+                return (true, it);
+            }
+            merit_now = evaluate(model, w, lambda, true);
+            continue;
         }
         if it == max_iter {
             return (false, it);

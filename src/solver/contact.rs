@@ -33,6 +33,7 @@
 //! workspace's `reactions` (the `x` entry of one vector a slot), so that
 //! every save and restore of a solve's state keeps them.
 
+use super::friction::{self, FrictionWork};
 use super::port::{self, PortSite};
 use super::Workspace;
 use crate::contact::{Obstacle, Proximity};
@@ -111,6 +112,9 @@ pub(crate) struct ContactWork {
     pub curvature_nodes: Vec<Vec<usize>>,
     /// Every port's crossing at the last evaluation (see `port.rs`).
     pub ports: Vec<PortSite>,
+    /// The contacts' friction: anchors, sticking or sliding, the sticking
+    /// ones' rows (see `friction.rs`).
+    pub friction: FrictionWork,
 }
 
 impl ContactWork {
@@ -131,6 +135,7 @@ impl ContactWork {
             ports: vec![PortSite::default(); model.ports().len()],
             position_jacobian: vec![Matrix3::zeros(); model.n()],
             moved: vec![Vector3::zeros(); model.n() + 1],
+            friction: FrictionWork::new(model),
             choose: true,
             ..ContactWork::default()
         }
@@ -361,6 +366,7 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
             }
         }
     }
+    friction::gather_forces(model, w);
 }
 
 /// The candidates' gaps into `gaps`.
@@ -396,8 +402,17 @@ pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64
                 w.kkt.reactions[first + i] = Vector3::zeros();
                 held_before.retain(|&j| j != i);
                 let node = if site.s < 0.5 { k - 1 } else { k };
+                // A sliding contact slides on from the node (a sticking
+                // one sticks where the node stands).
+                let sliding = c.friction.sliding.get_mut(i).and_then(|d| d.take());
+                if let Some(a) = c.friction.anchors.get_mut(i) {
+                    *a = None;
+                }
                 if node > 0 {
                     let j = 2 * n * o + node - 1;
+                    if let Some(d) = c.friction.sliding.get_mut(j) {
+                        *d = d.or(sliding);
+                    }
                     w.kkt.reactions[first + j].x += lambda;
                     if !held_before.contains(&j) {
                         held_before.push(j);
@@ -657,6 +672,12 @@ pub struct Contact {
     pub normal: Vector3<f64>,
     /// The contact force's magnitude [N] (`>= 0`).
     pub force: f64,
+    /// The friction force on the rod [N], along the obstacle's surface
+    /// (zero on a frictionless obstacle).
+    pub friction: Vector3<f64>,
+    /// Whether the contact slides (its friction at the cone's edge,
+    /// against its motion); else it sticks.
+    pub sliding: bool,
 }
 
 /// The contacts at the last evaluation: the held slots, by arc length.
@@ -672,12 +693,15 @@ pub(crate) fn contacts(model: &RodModel, w: &Workspace) -> Vec<Contact> {
                 Place::Element(k) => model.arc(k - 1) + site.s * model.h(k),
             };
             let distance = site.gap + model.contact_radius();
+            let (friction, sliding) = friction::force(model, w, i);
             Contact {
                 obstacle,
                 arc_length,
                 point: site.point - distance * site.normal,
                 normal: site.normal,
                 force: force(model, w, i),
+                friction,
+                sliding,
             }
         })
         .collect();

@@ -40,11 +40,19 @@ pub(crate) fn load_path(
             continuation(free_local.as_mut(), &released, w, tol, budget, min_step);
         iterations += first.iterations;
         steps += first_steps;
+        if first.converged && model.constraints().is_empty() && model.clamped_tip().is_none() {
+            // Nothing is held: the first leg was the whole path (a second
+            // would hold the loads still, and start the contacts' friction
+            // over).
+            evaluate(model, w, 1.0);
+            return (first, steps);
+        }
         if first.converged && !interrupt::requested() {
             // Second leg: the held points from where the loaded rod puts them.
             let holding = model.holding_from(&w.q, &mut w.interior);
             w.saved.copy_from_slice(&w.q);
             w.kkt.clear_saved();
+            super::friction::anchor_at_saved(&holding, w);
             let (second, second_steps) = continuation(
                 local,
                 &holding,
@@ -94,6 +102,7 @@ fn start_from_rest(model: &RodModel, w: &mut Workspace) {
     // No contact is held at the rest shape (an attempt before may have left some).
     w.kkt.contact.active.clear();
     w.kkt.contact.held.clear();
+    super::friction::anchor_at_saved(model, w);
 }
 
 /// Continuation steps shorter than this may end on an unstable equilibrium.
@@ -250,6 +259,7 @@ fn continuation(
             w.reached_load = w.reached_load.max(lambda);
             w.saved.copy_from_slice(&w.q);
             w.kkt.save();
+            super::friction::anchor_at_saved(model, w);
             if out.iterations <= 6 {
                 dlambda = (dlambda * 2.0).min(1.0);
             }

@@ -334,6 +334,15 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
             work.rows.push([(a, wa * d), (b, wb * d)]);
         }
     }
+    for stick in &contact.friction.sticks {
+        let Some(anchor) = &contact.friction.anchors[stick.slot] else {
+            continue;
+        };
+        let [(a, wa), (b, wb)] = super::friction::shares(model, stick.slot, anchor);
+        for d in stick.directions {
+            work.rows.push([(a, wa * d), (b, wb * d)]);
+        }
+    }
     for &i in &contact.active {
         let site = &contact.sites[i];
         let [(a, wa), (b, wb)] = contact::shares(model, i, site);

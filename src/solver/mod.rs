@@ -22,6 +22,7 @@ mod adaptive;
 mod constrained;
 mod contact;
 mod continuation;
+mod friction;
 mod lm;
 mod mixed;
 mod nested;
@@ -407,7 +408,11 @@ impl Solver {
         }
         let budget = self.settings.max_iterations;
         let mut spent = 0;
-        if initial.is_none() {
+        // With friction the answer is the end of a history: a cold solve's
+        // is the load path from the rest shape (see `friction.rs`), so it
+        // is neither started from a coarser rod nor tried directly.
+        let follow_path = initial.is_none() && self.model.has_friction();
+        if initial.is_none() && !follow_path {
             if let Some(n0) =
                 nested::coarse_elements(&self.scene, &self.settings, self.model.load_parameter())
             {
@@ -434,9 +439,18 @@ impl Solver {
             None => w.q.copy_from_slice(&model.initial_guess()),
         }
         w.kkt.clear_multipliers();
-        let direct =
+        // A warm start's history starts at its shape: its contacts stick there.
+        w.saved.copy_from_slice(&w.q);
+        friction::anchor_at_saved(model, w);
+        let direct = if follow_path {
+            LocalOutcome {
+                converged: false,
+                iterations: 0,
+            }
+        } else {
             self.local
-                .attempt(model, w, 1.0, (budget - spent).min(DIRECT_ITERATIONS), tol);
+                .attempt(model, w, 1.0, (budget - spent).min(DIRECT_ITERATIONS), tol)
+        };
         let mut iterations = spent + direct.iterations;
         if direct.converged && is_stable(model, w) {
             // The local method leaves the Jacobian at its answer (see

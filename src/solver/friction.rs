@@ -1,0 +1,450 @@
+//! Coulomb friction at the contacts with obstacles (see `contact.rs` for
+//! the normal part): each contact sticks or slides, and which depends on
+//! the loading history.
+//!
+//! The history assumed is the load path's: the loads (and held points,
+//! ports, insertion) go from the rest shape, or from a warm start's shape,
+//! to their values in the continuation's steps, and each step starts from
+//! the last equilibrium. A step is one backward-Euler increment of the
+//! quasi-static problem. A contact's material point is the point of the rod
+//! that touches when the step first holds it (a node, or a place on an
+//! element's chord, kept), and its *anchor* the obstacle's point nearest
+//! where that material point stood at the step's start; at the step's end
+//! a held contact either
+//!
+//! * **sticks**: its material point has not moved along the obstacle, two
+//!   equality rows `t_j . (p - a) = 0` (`t_1`, `t_2` tangent to the
+//!   obstacle, `a` the anchor) whose multipliers are the friction force
+//!   `f_t = mu_1 t_1 + mu_2 t_2`, and `|f_t| <= mu lambda`; or
+//! * **slides**: the friction force is `mu lambda d`, `d` against the
+//!   material point's move along the obstacle since the anchor (`lambda`
+//!   the normal force), and no row.
+//!
+//! Which is chosen like the normal contact's set (`contact.rs`), as a
+//! semismooth Newton on the cone (Alart and Curnier's, as a primal-dual
+//! active set: Hueber, Stadler and Wohlmuth 2008): at each Newton step
+//! every held contact's trial force `z = f_t - c u` (`f_t` its friction
+//! force, `u` its material point's move along the obstacle since the
+//! anchor, `c` a stiffness that only weighs the two) decides: inside the
+//! cone, `|z| <= mu lambda`, it sticks; outside, it slides with `d = z /
+//! |z|`. So a sliding contact that moved along its friction force (which
+//! would have to push it back) sticks again, and the noise of a move much
+//! smaller than the rod's compliance does not turn a force around. The
+//! solve has converged only when no contact changed between the two. The sliding force's dependence on `lambda` is left out of the
+//! Jacobian (it would make the KKT system unsymmetric): the residual is
+//! exact, so is the answer, and Newton converges linearly while contacts
+//! slide.
+//!
+//! An increment finds the exact end of the history for loads under which
+//! no contact that slid comes to rest within the step and none reverses
+//! its sliding; otherwise the answer has the error of the step, which the
+//! continuation's steps bound. The stick multipliers live in the `y` and
+//! `z` of each slot's vector in `reactions` (its `x` the normal force).
+
+use super::contact::{self, Place, Site};
+use super::Workspace;
+use crate::model::RodModel;
+use nalgebra::Vector3;
+
+/// A contact's material point and where it stood at the step's start.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Anchor {
+    /// Its place along the element's chord, `0..=1` (1 for a node's slot).
+    pub s: f64,
+    /// Its obstacle's point nearest it at the step's start (offset by the
+    /// rod's radius: where the backbone stands while the rod touches) [m].
+    pub point: Vector3<f64>,
+}
+
+/// A sticking contact's rows at the last evaluation.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Stick {
+    /// The slot.
+    pub slot: usize,
+    /// The tangents `t_1`, `t_2` of the obstacle there.
+    pub directions: [Vector3<f64>; 2],
+    /// `t_j . (p - a)` [m].
+    pub residual: [f64; 2],
+}
+
+/// The friction state of a solve (empty without friction).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct FrictionWork {
+    /// The node positions at the step's start.
+    pub start: Vec<Vector3<f64>>,
+    /// Every slot's anchor while it is held in this step.
+    pub anchors: Vec<Option<Anchor>>,
+    /// Every slot's sliding direction: the unit direction of its friction
+    /// force while it slides, `None` while it sticks (or touches nothing).
+    pub sliding: Vec<Option<Vector3<f64>>>,
+    /// The sliding directions at the continuation's last equilibrium.
+    pub saved_sliding: Vec<Option<Vector3<f64>>>,
+    /// The sticking contacts of this Newton step, by slot: two rows each,
+    /// after the ports' and before the contact candidates'.
+    pub sticks: Vec<Stick>,
+}
+
+impl FrictionWork {
+    pub fn new(model: &RodModel) -> Self {
+        if !model.has_friction() {
+            return FrictionWork::default();
+        }
+        let slots = contact::slot_count(model);
+        FrictionWork {
+            start: vec![Vector3::zeros(); model.n() + 1],
+            anchors: vec![None; slots],
+            sliding: vec![None; slots],
+            saved_sliding: vec![None; slots],
+            sticks: Vec::new(),
+        }
+    }
+
+    /// The rows of this step: two a sticking contact.
+    pub fn row_count(&self) -> usize {
+        2 * self.sticks.len()
+    }
+}
+
+/// The nodes and weights of slot `i`'s material point (its anchor's place).
+pub(crate) fn shares(model: &RodModel, i: usize, anchor: &Anchor) -> [(usize, f64); 2] {
+    match contact::slot(model, i).1 {
+        Place::Node(k) => [(k, 1.0), (k, 0.0)],
+        Place::Element(k) => [(k - 1, 1.0 - anchor.s), (k, anchor.s)],
+    }
+}
+
+/// Slot `i`'s material point at the node positions `r`.
+fn material_point(model: &RodModel, i: usize, anchor: &Anchor, r: &[Vector3<f64>]) -> Vector3<f64> {
+    let [(a, wa), (b, wb)] = shares(model, i, anchor);
+    wa * r[a] + wb * r[b]
+}
+
+/// Two unit tangents of a surface with unit `normal`, orthogonal.
+pub(crate) fn tangents(normal: &Vector3<f64>) -> [Vector3<f64>; 2] {
+    // The axis least along the normal makes the first tangent well defined.
+    let axis = if normal.x.abs() <= normal.y.abs() && normal.x.abs() <= normal.z.abs() {
+        Vector3::x()
+    } else if normal.y.abs() <= normal.z.abs() {
+        Vector3::y()
+    } else {
+        Vector3::z()
+    };
+    let t1 = (axis - normal * normal.dot(&axis)).normalize();
+    [t1, normal.cross(&t1)]
+}
+
+/// `v` along the surface of unit `normal`.
+fn along_surface(v: &Vector3<f64>, normal: &Vector3<f64>) -> Vector3<f64> {
+    v - normal * normal.dot(v)
+}
+
+/// Start a step of the history at the rod of rotations `w.saved` (its
+/// last evaluation's): keep its positions, anchor each contact held there
+/// where it stands (a sticking one at its material point, a sliding one at
+/// its contact point), and let the others take theirs when the step first
+/// holds them. A contact keeps sticking or sliding as it was, the Newton
+/// step's first guess, and the forces at `w.saved` are unchanged.
+pub(crate) fn anchor_at_saved(model: &RodModel, w: &mut Workspace) {
+    if !model.has_friction() {
+        return;
+    }
+    let held = contact::held_slots(w);
+    let f = &mut w.kkt.contact.friction;
+    model.positions(&w.saved, &mut w.interior, &mut f.start);
+    let kept: Vec<(usize, Anchor)> = held
+        .iter()
+        .filter_map(|&i| {
+            let site = &w.kkt.contact.sites[i];
+            let s = match (f.sliding[i], f.anchors[i]) {
+                (None, Some(anchor)) => anchor.s,
+                _ => site.s,
+            };
+            let mut material = *site;
+            material.s = s;
+            (model.friction(contact::slot(model, i).0) > 0.0)
+                .then(|| (i, anchor(model, i, &material, &f.start)))
+        })
+        .collect();
+    f.anchors.iter_mut().for_each(|a| *a = None);
+    for (i, anchor) in kept {
+        f.anchors[i] = Some(anchor);
+    }
+}
+
+/// The anchor of slot `i` first held with its site `site`: its material
+/// point the site's, where that stood at the step's start, onto the
+/// obstacle's offset surface.
+fn anchor(model: &RodModel, i: usize, site: &Site, start: &[Vector3<f64>]) -> Anchor {
+    let (o, place) = contact::slot(model, i);
+    let s = match place {
+        Place::Node(_) => 1.0,
+        Place::Element(_) => site.s,
+    };
+    let at_start = material_point(model, i, &Anchor { s, point: Vector3::zeros() }, start);
+    let near = model.obstacles()[o].proximity(&at_start);
+    Anchor {
+        s,
+        point: at_start - (near.gap - model.contact_radius()) * near.normal,
+    }
+}
+
+/// The lower bound of a contact candidate's force step in the step's QP
+/// (`lower` for a frictionless or sliding one): none for a sticking contact,
+/// whose friction rows hold its point, so that the QP cannot let go of its
+/// normal force while its friction still acts; a sticking contact that
+/// pulls is let go by [`update`] at the next step.
+pub(crate) fn lower_bound(w: &Workspace, i: usize, lower: f64) -> f64 {
+    let sticks = &w.kkt.contact.friction.sticks;
+    if sticks.binary_search_by_key(&i, |s| s.slot).is_ok() {
+        f64::NEG_INFINITY
+    } else {
+        lower
+    }
+}
+
+/// The first multiplier of the slots in `reactions`.
+fn first(model: &RodModel, w: &Workspace) -> usize {
+    contact::offset(model, w)
+}
+
+/// At the start of a Newton step, after the candidates are chosen: update
+/// each held contact's sticking or sliding (see the module), zero the
+/// friction of every other slot, and list the sticking contacts (their
+/// rows are filled by [`gather_sticks`]). Returns whether any contact
+/// changed between sticking and sliding.
+pub(crate) fn update(model: &RodModel, w: &mut Workspace) -> bool {
+    if !model.has_friction() {
+        return false;
+    }
+    let first = first(model, w);
+    // A sticking contact's force is free of its bound within a step (its
+    // rows are equalities, see `lower_bound`): one that pulls is let go
+    // here, its friction with it.
+    let c = &mut w.kkt.contact;
+    for (&i, held) in c.active.iter().zip(c.held.iter_mut()) {
+        let reaction = &mut w.kkt.reactions[first + i];
+        if *held && c.friction.sliding[i].is_none() && reaction.x < 0.0 {
+            *held = false;
+            *reaction = Vector3::zeros();
+        }
+    }
+    let held = contact::held_slots(w);
+    let r = &w.kkt.positions;
+    let c = &mut w.kkt.contact;
+    let f = &mut c.friction;
+    let mut changed = false;
+    let stiffness = trial_stiffness(model);
+    let mut is_held = vec![false; f.sliding.len()];
+    for &i in &held {
+        is_held[i] = true;
+    }
+    for (i, held) in is_held.iter().enumerate() {
+        let mu = model.friction(contact::slot(model, i).0);
+        let reaction = &mut w.kkt.reactions[first + i];
+        if !held || mu == 0.0 {
+            f.sliding[i] = None;
+            f.anchors[i] = None;
+            reaction.y = 0.0;
+            reaction.z = 0.0;
+            continue;
+        }
+        let site = &c.sites[i];
+        let anchor = *f.anchors[i].get_or_insert_with(|| anchor(model, i, site, &f.start));
+        let t = tangents(&site.normal);
+        let lambda = reaction.x.max(0.0);
+        let moved = along_surface(&(material_point(model, i, &anchor, r) - anchor.point), &site.normal);
+        let force = match f.sliding[i] {
+            None => reaction.y * t[0] + reaction.z * t[1],
+            Some(d) => mu * lambda * along_surface(&d, &site.normal),
+        };
+        let trial = force - stiffness * moved;
+        let size = trial.norm();
+        let cone = mu * lambda;
+        match f.sliding[i] {
+            // A sticking contact slides where its trial force leaves the
+            // cone, along it.
+            None if size > cone * (1.0 + CONE_SLACK) => {
+                f.sliding[i] = Some(trial / size);
+                reaction.y = 0.0;
+                reaction.z = 0.0;
+                changed = true;
+            }
+            None => {}
+            // A sliding one sticks where its trial force comes inside (it
+            // moved along its friction force); its direction is kept
+            // while the step's Newton iterations run (turning it with
+            // each iterate's move is unstable where the rod is compliant
+            // across it), then set against the move (see `turn`).
+            Some(_) if size < cone * (1.0 - CONE_SLACK) => {
+                f.sliding[i] = None;
+                reaction.y = force.dot(&t[0]);
+                reaction.z = force.dot(&t[1]);
+                changed = true;
+            }
+            Some(_) => {}
+        }
+    }
+    f.sticks.clear();
+    f.sticks.extend(
+        held.iter()
+            .filter(|&&i| model.friction(contact::slot(model, i).0) > 0.0 && f.sliding[i].is_none())
+            .map(|&i| Stick {
+                slot: i,
+                directions: [Vector3::zeros(); 2],
+                residual: [0.0; 2],
+            }),
+    );
+    changed
+}
+
+/// At a Newton solve's end: turn each sliding contact's direction against
+/// its material point's move since the anchor, where the two differ by more
+/// than [`TURN_ANGLE`]. Returns whether any turned (the solve goes on).
+pub(crate) fn turn(model: &RodModel, w: &mut Workspace) -> bool {
+    if !model.has_friction() {
+        return false;
+    }
+    let r = &w.kkt.positions;
+    let c = &mut w.kkt.contact;
+    let f = &mut c.friction;
+    let mut turned = false;
+    for (i, sliding) in f.sliding.iter_mut().enumerate() {
+        let (Some(d), Some(anchor)) = (*sliding, f.anchors[i]) else {
+            continue;
+        };
+        let normal = &c.sites[i].normal;
+        let moved = along_surface(&(material_point(model, i, &anchor, r) - anchor.point), normal);
+        let size = moved.norm();
+        if size == 0.0 {
+            continue;
+        }
+        let against = -moved / size;
+        if along_surface(&d, normal).normalize().dot(&against) < TURN_ANGLE.cos() {
+            *sliding = Some(against);
+            turned = true;
+        }
+    }
+    turned
+}
+
+/// How far a sliding contact's direction may be from against its move.
+const TURN_ANGLE: f64 = 1e-6;
+
+/// How far outside its cone a sticking contact's friction goes before it
+/// slides (relative): round-off.
+const CONE_SLACK: f64 = 1e-9;
+
+/// The stiffness `c` of the trial force [N/m]: a node's against a move
+/// across an element, `k / h^3` (`k` the largest bending stiffness, `h`
+/// the mean element). Any `c > 0` gives the same answer; this one weighs a
+/// move and a force as the rod does.
+fn trial_stiffness(model: &RodModel) -> f64 {
+    let h = model.length() / model.n() as f64;
+    model.stiffness().max() / (h * h * h)
+}
+
+/// The sticking contacts' directions and residuals at the last evaluation's
+/// sites and positions.
+pub(crate) fn gather_sticks(model: &RodModel, w: &mut Workspace) {
+    let r = &w.kkt.positions;
+    let c = &mut w.kkt.contact;
+    for stick in &mut c.friction.sticks {
+        let i = stick.slot;
+        let Some(anchor) = &c.friction.anchors[i] else {
+            continue;
+        };
+        let t = tangents(&c.sites[i].normal);
+        let moved = material_point(model, i, anchor, r) - anchor.point;
+        stick.directions = t;
+        stick.residual = [t[0].dot(&moved), t[1].dot(&moved)];
+    }
+}
+
+/// The friction forces at nodes, after the contacts' (see
+/// `contact::gather_forces`): a sticking contact's multipliers, a sliding
+/// one's `mu lambda d`, at its material point.
+pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
+    if !model.has_friction() {
+        return;
+    }
+    let first = first(model, w);
+    let c = &mut w.kkt.contact;
+    for &i in &c.active {
+        let reaction = w.kkt.reactions[first + i];
+        let site = &c.sites[i];
+        let Some(anchor) = &c.friction.anchors[i] else {
+            continue;
+        };
+        // A sliding contact's friction acts where its normal force does, a
+        // sticking one's at its material point (its rows').
+        let shares = match c.friction.sliding[i] {
+            Some(_) => contact::shares(model, i, site),
+            None => shares(model, i, anchor),
+        };
+        let force = match c.friction.sliding[i] {
+            Some(d) => {
+                let mu = model.friction(contact::slot(model, i).0);
+                let d = along_surface(&d, &site.normal);
+                let size = d.norm();
+                if size == 0.0 {
+                    continue;
+                }
+                mu * reaction.x.max(0.0) * d / size
+            }
+            None => {
+                if reaction.y == 0.0 && reaction.z == 0.0 {
+                    continue;
+                }
+                let t = tangents(&site.normal);
+                reaction.y * t[0] + reaction.z * t[1]
+            }
+        };
+        for (node, weight) in shares {
+            if weight != 0.0 {
+                c.force_nodes.push(node);
+                c.force_vectors.push(weight * force);
+            }
+        }
+    }
+}
+
+/// The sticking contacts' rows into `rows` from index `from`.
+pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
+    for j in 0..w.kkt.contact.friction.sticks.len() {
+        let stick = w.kkt.contact.friction.sticks[j];
+        let Some(anchor) = &w.kkt.contact.friction.anchors[stick.slot] else {
+            continue;
+        };
+        let shares = shares(model, stick.slot, anchor);
+        for (e, direction) in stick.directions.iter().enumerate() {
+            contact::load_row(model, w, from + 2 * j + e, shares, direction);
+        }
+    }
+}
+
+/// The friction force of slot `i` at the last evaluation [N], and whether
+/// it slides.
+pub(crate) fn force(model: &RodModel, w: &Workspace, i: usize) -> (Vector3<f64>, bool) {
+    if !model.has_friction() {
+        return (Vector3::zeros(), false);
+    }
+    let reaction = w.kkt.reactions[first(model, w) + i];
+    let site = &w.kkt.contact.sites[i];
+    match w.kkt.contact.friction.sliding[i] {
+        Some(d) => {
+            let mu = model.friction(contact::slot(model, i).0);
+            let d = along_surface(&d, &site.normal);
+            let size = d.norm();
+            let force = if size > 0.0 {
+                mu * reaction.x.max(0.0) * d / size
+            } else {
+                Vector3::zeros()
+            };
+            (force, true)
+        }
+        None => {
+            let t = tangents(&site.normal);
+            (reaction.y * t[0] + reaction.z * t[1], false)
+        }
+    }
+}

@@ -526,8 +526,7 @@ impl<'py> Fields<'py> {
     pub(super) fn bools_or_empty(&self, key: &str) -> PyResult<Vec<bool>> {
         match self.dict.get_item(key)? {
             Some(v) if !v.is_none() => v.extract::<Vec<bool>>().map_err(|_| {
-                crate::error::Error::argument(self.name(key), "expected a list of booleans")
-                    .into()
+                crate::error::Error::argument(self.name(key), "expected a list of booleans").into()
             }),
             _ => Ok(Vec::new()),
         }

@@ -309,7 +309,9 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
         w.kkt.row_len.extend([port::last_node(site).min(n); 2]);
     }
     for stick in &w.kkt.contact.friction.sticks {
-        w.kkt.row_len.extend([contact::last_node(model, stick.slot).min(n); 2]);
+        w.kkt
+            .row_len
+            .extend([contact::last_node(model, stick.slot).min(n); 2]);
     }
     for &i in &w.kkt.contact.active {
         w.kkt.row_len.push(contact::last_node(model, i).min(n));
@@ -908,12 +910,13 @@ pub(crate) fn newton(
         if !solved {
             return (false, it);
         }
-        let settled = !model.has_obstacles()
-            || (contact::held_slots(w) == held_before && !grips_changed);
+        let settled =
+            !model.has_obstacles() || (contact::held_slots(w) == held_before && !grips_changed);
         if settled && super::newton::certified(norm, &w.step, tol) {
-            // Sliding contacts whose direction is not against their move
-            // turn and the solve goes on (see `friction.rs`).
-            if it == max_iter || !friction::turn(model, w) {
+            // Sliding contacts that did not slide stick, those whose
+            // direction is not against their move turn, and the solve goes
+            // on (see `friction.rs`).
+            if it == max_iter || !friction::settle(model, w) {
                 return (true, it);
             }
             merit_now = evaluate(model, w, lambda, true);

@@ -180,7 +180,15 @@ fn anchor(model: &RodModel, i: usize, site: &Site, start: &[Vector3<f64>]) -> An
         Place::Node(_) => 1.0,
         Place::Element(_) => site.s,
     };
-    let at_start = material_point(model, i, &Anchor { s, point: Vector3::zeros() }, start);
+    let at_start = material_point(
+        model,
+        i,
+        &Anchor {
+            s,
+            point: Vector3::zeros(),
+        },
+        start,
+    );
     let near = model.obstacles()[o].proximity(&at_start);
     Anchor {
         s,
@@ -229,11 +237,9 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) -> bool {
         }
     }
     let held = contact::held_slots(w);
-    let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
     let f = &mut c.friction;
     let mut changed = false;
-    let stiffness = trial_stiffness(model);
     let mut is_held = vec![false; f.sliding.len()];
     for &i in &held {
         is_held[i] = true;
@@ -249,39 +255,26 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) -> bool {
             continue;
         }
         let site = &c.sites[i];
-        let anchor = *f.anchors[i].get_or_insert_with(|| anchor(model, i, site, &f.start));
+        if f.anchors[i].is_none() {
+            // First held in this step: it sticks while the step finds its
+            // friction (its move before it touched is no sliding).
+            f.anchors[i] = Some(anchor(model, i, site, &f.start));
+            f.sliding[i] = None;
+            continue;
+        }
         let t = tangents(&site.normal);
         let lambda = reaction.x.max(0.0);
-        let moved = along_surface(&(material_point(model, i, &anchor, r) - anchor.point), &site.normal);
-        let force = match f.sliding[i] {
-            None => reaction.y * t[0] + reaction.z * t[1],
-            Some(d) => mu * lambda * along_surface(&d, &site.normal),
-        };
-        let trial = force - stiffness * moved;
-        let size = trial.norm();
-        let cone = mu * lambda;
-        match f.sliding[i] {
-            // A sticking contact slides where its trial force leaves the
-            // cone, along it.
-            None if size > cone * (1.0 + CONE_SLACK) => {
-                f.sliding[i] = Some(trial / size);
+        // A sticking contact slides where its friction leaves the cone,
+        // along it; a sliding one is settled when the solve converges.
+        if f.sliding[i].is_none() {
+            let force = reaction.y * t[0] + reaction.z * t[1];
+            let size = force.norm();
+            if size > mu * lambda * (1.0 + CONE_SLACK) {
+                f.sliding[i] = Some(force / size);
                 reaction.y = 0.0;
                 reaction.z = 0.0;
                 changed = true;
             }
-            None => {}
-            // A sliding one sticks where its trial force comes inside (it
-            // moved along its friction force); its direction is kept
-            // while the step's Newton iterations run (turning it with
-            // each iterate's move is unstable where the rod is compliant
-            // across it), then set against the move (see `turn`).
-            Some(_) if size < cone * (1.0 - CONE_SLACK) => {
-                f.sliding[i] = None;
-                reaction.y = force.dot(&t[0]);
-                reaction.z = force.dot(&t[1]);
-                changed = true;
-            }
-            Some(_) => {}
         }
     }
     f.sticks.clear();
@@ -297,51 +290,58 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) -> bool {
     changed
 }
 
-/// At a Newton solve's end: turn each sliding contact's direction against
-/// its material point's move since the anchor, where the two differ by more
-/// than [`TURN_ANGLE`]. Returns whether any turned (the solve goes on).
-pub(crate) fn turn(model: &RodModel, w: &mut Workspace) -> bool {
+/// At a Newton solve's end, each sliding contact: one whose material point
+/// did not move against its friction force since the anchor sticks (its
+/// friction as it was, the solve finds it); one whose direction is more
+/// than [`TURN_ANGLE`] from against its move turns. Returns whether any
+/// changed (the solve goes on).
+pub(crate) fn settle(model: &RodModel, w: &mut Workspace) -> bool {
     if !model.has_friction() {
         return false;
     }
+    let first = first(model, w);
     let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
     let f = &mut c.friction;
-    let mut turned = false;
+    let mut changed = false;
     for (i, sliding) in f.sliding.iter_mut().enumerate() {
         let (Some(d), Some(anchor)) = (*sliding, f.anchors[i]) else {
             continue;
         };
         let normal = &c.sites[i].normal;
-        let moved = along_surface(&(material_point(model, i, &anchor, r) - anchor.point), normal);
+        let moved = along_surface(
+            &(material_point(model, i, &anchor, r) - anchor.point),
+            normal,
+        );
+        let d = along_surface(&d, normal).normalize();
         let size = moved.norm();
-        if size == 0.0 {
-            continue;
-        }
-        let against = -moved / size;
-        if along_surface(&d, normal).normalize().dot(&against) < TURN_ANGLE.cos() {
-            *sliding = Some(against);
-            turned = true;
+        if moved.dot(&d) >= -MOVE_SLACK * model.length() {
+            let mu = model.friction(contact::slot(model, i).0);
+            let reaction = &mut w.kkt.reactions[first + i];
+            let force = mu * reaction.x.max(0.0) * d;
+            let t = tangents(normal);
+            reaction.y = force.dot(&t[0]);
+            reaction.z = force.dot(&t[1]);
+            *sliding = None;
+            changed = true;
+        } else if d.dot(&(-moved / size)) < TURN_ANGLE.cos() {
+            *sliding = Some(-moved / size);
+            changed = true;
         }
     }
-    turned
+    changed
 }
 
 /// How far a sliding contact's direction may be from against its move.
 const TURN_ANGLE: f64 = 1e-6;
 
+/// How little a sliding contact must have moved against its friction force
+/// to stay sliding (of the length): round-off.
+const MOVE_SLACK: f64 = 1e-14;
+
 /// How far outside its cone a sticking contact's friction goes before it
 /// slides (relative): round-off.
 const CONE_SLACK: f64 = 1e-9;
-
-/// The stiffness `c` of the trial force [N/m]: a node's against a move
-/// across an element, `k / h^3` (`k` the largest bending stiffness, `h`
-/// the mean element). Any `c > 0` gives the same answer; this one weighs a
-/// move and a force as the rod does.
-fn trial_stiffness(model: &RodModel) -> f64 {
-    let h = model.length() / model.n() as f64;
-    model.stiffness().max() / (h * h * h)
-}
 
 /// The sticking contacts' directions and residuals at the last evaluation's
 /// sites and positions.

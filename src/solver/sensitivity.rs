@@ -197,6 +197,7 @@ impl Solver {
         if !model.constraints().is_empty() || model.clamped_tip().is_some() {
             return Err(Error::argument("base_sensitivity", "needs a free tip"));
         }
+        refuse_friction(model)?;
         let mut out = TipSensitivity::zeros(1);
         if !model.has_contact() {
             out.position.set_column(0, &direction);
@@ -780,6 +781,7 @@ impl Solver {
     /// `"tip_wrench"` for the tip force and moment (the columns of the 6x6
     /// tip compliance).
     pub fn sensitivity(&mut self, parameters: &[&str]) -> Result<Sensitivity> {
+        refuse_friction(&self.model)?;
         let mut base = self.scene.to_value();
         // The base's position is written only where it is not the origin;
         // as a parameter it is there at its value.
@@ -1156,4 +1158,19 @@ fn term_tangents(model: &RodModel, names: impl Iterator<Item = String>) -> Resul
                 .ok_or_else(|| Error::argument(name, "no such parameter"))
         })
         .collect()
+}
+
+/// Sensitivities are not given with friction: the equilibrium is the end of
+/// a loading history, and a derivative would have to say which contacts
+/// stick and slide under the change (and an inverse kinematics built on
+/// them which history it assumes).
+fn refuse_friction(model: &crate::model::RodModel) -> Result<()> {
+    match (0..model.obstacles().len()).find(|&o| model.friction(o) > 0.0) {
+        Some(o) => Err(Error::argument(
+            format!("obstacles[{o}].friction"),
+            "sensitivities (and the inverse kinematics built on them) are not given with \
+             friction: its answer depends on the loading history",
+        )),
+        None => Ok(()),
+    }
 }

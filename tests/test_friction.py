@@ -1,0 +1,176 @@
+"""Coulomb friction at obstacle contacts (issue 28, deliverable 5).
+
+A precurved rod clamped along +x bends down onto a floor; its weight pushes
+the tip outward. Where the friction needed to hold the tip is within the cone
+the tip sticks: the answer is the same rod with its tip pinned where it
+touched (the held-point solve, another code path). Where it is not, the tip
+slides: its friction is mu times its normal force, against its move, and the
+rod is in equilibrium under that force (the same rod with no obstacle and the
+contact's force at its tip, the free solve). Friction makes the answer the end
+of a history: unloading from a loaded state ends elsewhere than loading to the
+same weight from the rest shape."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import softspine
+
+ALONG_X = [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0]
+N = 40
+
+
+def arc(weight: float, mu: float | None = None, floor: float = 0.0, **extra) -> dict:
+    """A rod bent in the x-z plane (curvature 2/m), along +x at its clamp, under
+    its weight; with ``mu``, a floor at height ``floor`` with that friction."""
+    scene = {
+        "length": 1.0,
+        "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+        "base_quaternion": ALONG_X,
+        "rest_curvature": [[0.0, 2.0]],
+        "gravity": {"linear_density": weight, "vector": [0.0, 0.0, -1.0]},
+    }
+    if mu is not None:
+        scene["obstacles"] = [{"shape": "half_space", "point": [0.0, 0.0, floor],
+                               "normal": [0.0, 0.0, 1.0], "friction": mu}]
+    scene.update(extra)
+    return scene
+
+
+@pytest.fixture(scope="module")
+def rest_tip() -> np.ndarray:
+    """Where the unloaded rod's tip is: the floor is put there."""
+    return softspine.solve(arc(0.0), n_elements=N).tip_position
+
+
+def test_a_tip_within_its_cone_sticks_where_it_touched(rest_tip):
+    pinned = softspine.solve(arc(1.0, tip={"type": "pinned", "position": list(rest_tip)}),
+                             n_elements=N)
+    assert pinned.converged
+    needed = abs(pinned.tip_reaction_force[0]) / pinned.tip_reaction_force[2]
+    assert 0.03 < needed < 0.05  # measured 0.0419
+    for mu in (0.05, 0.3, 5.0):
+        sol = softspine.solve(arc(1.0, mu, floor=rest_tip[2]), n_elements=N)
+        assert sol.converged and sol.stable, sol.message
+        c = sol.contacts
+        assert len(c["force"]) == 1 and not c["sliding"][0]
+        np.testing.assert_allclose(sol.positions, pinned.positions, atol=1e-9)
+        # The floor's force is the pin's reaction: normal and friction.
+        assert c["force"][0] == pytest.approx(pinned.tip_reaction_force[2], rel=1e-8)
+        np.testing.assert_allclose(c["friction"][0], [pinned.tip_reaction_force[0], 0, 0],
+                                   atol=1e-9)
+        assert np.linalg.norm(c["friction"][0]) <= mu * c["force"][0]
+
+
+@pytest.mark.parametrize("mu", [0.01, 0.02, 0.04])
+def test_a_tip_outside_its_cone_slides_with_mu_times_its_normal_force(rest_tip, mu):
+    sol = softspine.solve(arc(1.0, mu, floor=rest_tip[2]), n_elements=N)
+    assert sol.converged and sol.stable, sol.message
+    c = sol.contacts
+    assert len(c["force"]) == 1 and c["sliding"][0]
+    friction, normal = c["friction"][0], c["force"][0]
+    assert np.linalg.norm(friction) == pytest.approx(mu * normal, rel=1e-12)
+    # Against the tip's move along the floor (it slid inward, -x).
+    moved = sol.tip_position - rest_tip
+    assert moved[0] < -1e-5
+    assert np.dot(friction, moved) < 0.0
+    assert abs(friction[1]) < 1e-14 and abs(friction[2]) < 1e-14
+    # The rod is in equilibrium under that force: the free solve with it at
+    # the tip (no obstacle, no contact code) gives the same shape, the tip on
+    # the floor.
+    force = normal * c["normal"][0] + friction
+    free = softspine.solve(arc(1.0, tip_force=list(force)), n_elements=N)
+    np.testing.assert_allclose(free.positions, sol.positions, atol=1e-8)
+    assert abs(free.tip_position[2] - rest_tip[2]) < 1e-8
+
+
+def test_more_friction_slides_less(rest_tip):
+    slid = [softspine.solve(arc(1.0, mu, floor=rest_tip[2]), n_elements=N).tip_position[0]
+            - rest_tip[0] for mu in (0.0, 0.01, 0.02, 0.03, 0.04, 0.05)]
+    assert all(a < b for a, b in zip(slid, slid[1:], strict=False)), slid
+    assert slid[-1] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_the_answer_is_the_end_of_its_history(rest_tip):
+    # Loaded to w = 1 from the rest shape, then unloaded to 0.5 from there (a
+    # warm start's history starts at its shape), against 0.5 from the rest
+    # shape: the tip slid inward under w = 1 and stays there as the weight
+    # halves (its friction back inside the cone), where loading straight to
+    # 0.5 slides it half as far.
+    mu, floor = 0.02, rest_tip[2]
+    loaded = softspine.solve(arc(1.0, mu, floor=floor), n_elements=N)
+    direct = softspine.solve(arc(0.5, mu, floor=floor), n_elements=N)
+    unloaded = softspine.solve(arc(0.5, mu, floor=floor), n_elements=N, initial=loaded)
+    for sol in (loaded, direct, unloaded):
+        assert sol.converged and sol.stable, sol.message
+    x = [s.tip_position[0] - rest_tip[0] for s in (loaded, direct, unloaded)]
+    assert x[2] == pytest.approx(x[0], abs=1e-12) and x[1] - x[0] > 5e-4, x
+    assert loaded.contacts["sliding"][0] and direct.contacts["sliding"][0]
+    c = unloaded.contacts
+    assert not c["sliding"][0]
+    assert np.linalg.norm(c["friction"][0]) < mu * c["force"][0]
+    # Stuck, it is the rod pinned where the loading left its tip.
+    pinned = softspine.solve(arc(0.5, tip={"type": "pinned", "position": list(
+        loaded.tip_position)}), n_elements=N)
+    np.testing.assert_allclose(unloaded.positions, pinned.positions, atol=1e-9)
+
+
+def test_a_leaning_rod_slides_whatever_its_friction():
+    # A straight rod leaning on the floor from a clamp: its tip is a rod's
+    # length from the clamp, which a bent rod cannot keep, so it must slide
+    # (no finite friction holds it); the shape is the free solve's under the
+    # contact's force.
+    alpha = math.radians(30.0)
+    half = (math.pi / 2 + alpha) / 2
+    lean = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+            "base_quaternion": [math.cos(half), 0.0, math.sin(half), 0.0],
+            "base_position": [0.0, 0.0, math.sin(alpha)],
+            "gravity": {"linear_density": 1.0, "vector": [0.0, 0.0, -1.0]}}
+    for mu in (0.1, 2.0):
+        floor = {"shape": "half_space", "point": [0, 0, 0], "normal": [0, 0, 1],
+                 "friction": mu}
+        sol = softspine.solve({**lean, "obstacles": [floor]}, n_elements=N)
+        assert sol.converged, sol.message
+        c = sol.contacts
+        assert c["sliding"][0]
+        assert np.linalg.norm(c["friction"][0]) == pytest.approx(mu * c["force"][0],
+                                                                 rel=1e-12)
+        force = c["force"][0] * c["normal"][0] + c["friction"][0]
+        free = softspine.solve({**lean, "tip_force": list(force)}, n_elements=N)
+        np.testing.assert_allclose(free.positions, sol.positions, atol=1e-8)
+
+
+def test_zero_friction_is_the_frictionless_answer(rest_tip):
+    plain = arc(1.0, 0.0, floor=rest_tip[2])
+    del plain["obstacles"][0]["friction"]
+    a = softspine.solve(plain, n_elements=N)
+    b = softspine.solve(arc(1.0, 0.0, floor=rest_tip[2]), n_elements=N)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(b.contacts["friction"], np.zeros((1, 3)))
+
+
+def test_friction_is_written_back_and_survives_a_round_trip(rest_tip):
+    scene = softspine.Scene(arc(1.0, 0.3, floor=rest_tip[2]))
+    assert scene.to_dict()["obstacles"][0]["friction"] == 0.3
+    sol = softspine.solve(scene, n_elements=N)
+    d = sol.to_dict()
+    assert d["contact_sliding"].dtype == bool
+    again = softspine.Solution.from_dict(d)
+    np.testing.assert_array_equal(again.contacts["friction"], sol.contacts["friction"])
+    np.testing.assert_array_equal(again.contacts["sliding"], sol.contacts["sliding"])
+
+
+@pytest.mark.parametrize("mu", [-0.1, float("nan"), float("inf")])
+def test_a_bad_friction_is_refused_by_name(mu):
+    with pytest.raises(ValueError, match=r"obstacles\[0\]\.friction"):
+        softspine.Scene(arc(1.0, mu))
+
+
+def test_sensitivities_are_refused_with_friction(rest_tip):
+    solver = softspine.Solver(arc(1.0, 0.3, floor=rest_tip[2]), n_elements=N)
+    solver.solve()
+    with pytest.raises(ValueError, match=r"obstacles\[0\]\.friction.*history"):
+        solver.sensitivity("gravity.linear_density")

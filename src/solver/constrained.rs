@@ -75,8 +75,7 @@ impl KktWorkspace {
             .for_each(|r| *r = Vector3::zeros());
         self.contact.active.clear();
         self.contact.held.clear();
-        let f = &mut self.contact.friction;
-        f.sliding.iter_mut().for_each(|d| *d = None);
+        self.contact.friction.clear();
     }
 
     /// Keep the multipliers and the contact set as the last equilibrium
@@ -86,8 +85,7 @@ impl KktWorkspace {
         self.reactions_saved.copy_from_slice(&self.reactions);
         self.contact.saved_active.clone_from(&self.contact.active);
         self.contact.saved_held.clone_from(&self.contact.held);
-        let f = &mut self.contact.friction;
-        f.saved_sliding.clone_from(&f.sliding);
+        self.contact.friction.save();
     }
 
     /// Go back to the kept multipliers and contact set.
@@ -95,8 +93,7 @@ impl KktWorkspace {
         self.reactions.copy_from_slice(&self.reactions_saved);
         self.contact.active.clone_from(&self.contact.saved_active);
         self.contact.held.clone_from(&self.contact.saved_held);
-        let f = &mut self.contact.friction;
-        f.sliding.clone_from(&f.saved_sliding);
+        self.contact.friction.restore_saved();
     }
 
     /// Keep the rest shape's: no multiplier, no contact.
@@ -106,8 +103,7 @@ impl KktWorkspace {
             .for_each(|r| *r = Vector3::zeros());
         self.contact.saved_active.clear();
         self.contact.saved_held.clear();
-        let f = &mut self.contact.friction;
-        f.saved_sliding.iter_mut().for_each(|d| *d = None);
+        self.contact.friction.clear_saved();
     }
 
     pub fn new(model: &RodModel) -> Self {
@@ -145,7 +141,7 @@ pub(crate) struct Snapshot {
     reactions: Vec<Vector3<f64>>,
     active: Vec<usize>,
     held: Vec<bool>,
-    sliding: Vec<Option<Vector3<f64>>>,
+    friction: super::friction::FrictionWork,
 }
 
 impl Snapshot {
@@ -155,7 +151,7 @@ impl Snapshot {
             reactions: w.kkt.reactions.clone(),
             active: w.kkt.contact.active.clone(),
             held: w.kkt.contact.held.clone(),
-            sliding: w.kkt.contact.friction.sliding.clone(),
+            friction: w.kkt.contact.friction.clone(),
         }
     }
 
@@ -164,7 +160,7 @@ impl Snapshot {
         w.kkt.reactions.copy_from_slice(&self.reactions);
         w.kkt.contact.active = self.active;
         w.kkt.contact.held = self.held;
-        w.kkt.contact.friction.sliding = self.sliding;
+        w.kkt.contact.friction = self.friction;
     }
 }
 

@@ -102,6 +102,7 @@ fn start_from_rest(model: &RodModel, w: &mut Workspace) {
     // No contact is held at the rest shape (an attempt before may have left some).
     w.kkt.contact.active.clear();
     w.kkt.contact.held.clear();
+    w.kkt.contact.friction.clear();
     super::friction::anchor_at_saved(model, w);
 }
 

@@ -41,7 +41,7 @@
 //! continuation's steps bound. The stick multipliers live in the `y` and
 //! `z` of each slot's vector in `reactions` (its `x` the normal force).
 
-use super::contact::{self, Place, Site};
+use super::contact::{self, ContactWork, Place, Site};
 use super::Workspace;
 use crate::model::RodModel;
 use nalgebra::Vector3;
@@ -77,8 +77,11 @@ pub(crate) struct FrictionWork {
     /// Every slot's sliding direction: the unit direction of its friction
     /// force while it slides, `None` while it sticks (or touches nothing).
     pub sliding: Vec<Option<Vector3<f64>>>,
-    /// The sliding directions at the continuation's last equilibrium.
+    /// The anchors, sliding directions and sticking contacts at the
+    /// continuation's last equilibrium.
+    pub saved_anchors: Vec<Option<Anchor>>,
     pub saved_sliding: Vec<Option<Vector3<f64>>>,
+    pub saved_sticks: Vec<Stick>,
     /// The sticking contacts of this Newton step, by slot: two rows each,
     /// after the ports' and before the contact candidates'.
     pub sticks: Vec<Stick>,
@@ -94,9 +97,39 @@ impl FrictionWork {
             start: vec![Vector3::zeros(); model.n() + 1],
             anchors: vec![None; slots],
             sliding: vec![None; slots],
+            saved_anchors: vec![None; slots],
             saved_sliding: vec![None; slots],
             sticks: Vec::new(),
+            saved_sticks: Vec::new(),
         }
+    }
+
+    /// Keep the state as the last equilibrium's (with the contact set).
+    pub fn save(&mut self) {
+        self.saved_anchors.clone_from(&self.anchors);
+        self.saved_sliding.clone_from(&self.sliding);
+        self.saved_sticks.clone_from(&self.sticks);
+    }
+
+    /// Go back to the kept state.
+    pub fn restore_saved(&mut self) {
+        self.anchors.clone_from(&self.saved_anchors);
+        self.sliding.clone_from(&self.saved_sliding);
+        self.sticks.clone_from(&self.saved_sticks);
+    }
+
+    /// No contact held: nothing anchored, sliding or sticking.
+    pub fn clear(&mut self) {
+        self.anchors.iter_mut().for_each(|a| *a = None);
+        self.sliding.iter_mut().for_each(|d| *d = None);
+        self.sticks.clear();
+    }
+
+    /// The kept state is the rest shape's: nothing held.
+    pub fn clear_saved(&mut self) {
+        self.saved_anchors.iter_mut().for_each(|a| *a = None);
+        self.saved_sliding.iter_mut().for_each(|d| *d = None);
+        self.saved_sticks.clear();
     }
 
     /// The rows of this step: two a sticking contact.
@@ -169,6 +202,11 @@ pub(crate) fn anchor_at_saved(model: &RodModel, w: &mut Workspace) {
     for (i, anchor) in kept {
         f.anchors[i] = Some(anchor);
     }
+    // Every sticking contact is anchored (its rows need its material point).
+    let anchors = &f.anchors;
+    f.sticks.retain(|s| anchors[s.slot].is_some());
+    f.saved_anchors.clone_from(&f.anchors);
+    f.saved_sticks.clone_from(&f.sticks);
 }
 
 /// The anchor of slot `i` first held with its site `site`: its material
@@ -408,14 +446,21 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
     }
 }
 
+/// The nodes and weights of a sticking contact's rows: its material
+/// point's (every sticking contact is anchored; else its site's, so that
+/// the rows keep their count).
+pub(crate) fn stick_shares(model: &RodModel, c: &ContactWork, i: usize) -> [(usize, f64); 2] {
+    match &c.friction.anchors[i] {
+        Some(anchor) => shares(model, i, anchor),
+        None => contact::shares(model, i, &c.sites[i]),
+    }
+}
+
 /// The sticking contacts' rows into `rows` from index `from`.
 pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
     for j in 0..w.kkt.contact.friction.sticks.len() {
         let stick = w.kkt.contact.friction.sticks[j];
-        let Some(anchor) = &w.kkt.contact.friction.anchors[stick.slot] else {
-            continue;
-        };
-        let shares = shares(model, stick.slot, anchor);
+        let shares = stick_shares(model, &w.kkt.contact, stick.slot);
         for (e, direction) in stick.directions.iter().enumerate() {
             contact::load_row(model, w, from + 2 * j + e, shares, direction);
         }

@@ -335,10 +335,7 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
         }
     }
     for stick in &contact.friction.sticks {
-        let Some(anchor) = &contact.friction.anchors[stick.slot] else {
-            continue;
-        };
-        let [(a, wa), (b, wb)] = super::friction::shares(model, stick.slot, anchor);
+        let [(a, wa), (b, wb)] = super::friction::stick_shares(model, contact, stick.slot);
         for d in stick.directions {
             work.rows.push([(a, wa * d), (b, wb * d)]);
         }

@@ -107,7 +107,7 @@ def test_the_answer_is_the_end_of_its_history(rest_tip):
     for sol in (loaded, direct, unloaded):
         assert sol.converged and sol.stable, sol.message
     x = [s.tip_position[0] - rest_tip[0] for s in (loaded, direct, unloaded)]
-    assert x[2] == pytest.approx(x[0], abs=1e-12) and x[1] - x[0] > 5e-4, x
+    assert x[2] == pytest.approx(x[0], abs=1e-10) and x[1] - x[0] > 5e-4, x
     assert loaded.contacts["sliding"][0] and direct.contacts["sliding"][0]
     c = unloaded.contacts
     assert not c["sliding"][0]
@@ -176,18 +176,27 @@ def test_sensitivities_are_refused_with_friction(rest_tip):
         solver.sensitivity("gravity.linear_density")
 
 
-def test_a_rod_lying_on_a_frictional_floor_answers_without_a_panic():
-    # Regression: a bent rod lying flat on a floor with friction (every node
-    # in contact, the mixed form) panicked twice: a mixed step left the Schur
-    # right-hand side its own size, and a restart from the rest shape kept the
-    # last attempt's sticking contacts, unanchored. Whether it converges is
-    # not asserted here (every node sticks, the rows are redundant: it does
-    # not yet); that it answers with its status is.
+def test_a_rod_lying_on_a_frictional_floor_sticks_with_no_friction():
+    # Every node touches and sticks: the sticking rows hold each node twice
+    # over (the chords' lengths are fixed already), which made the step's
+    # matrix singular (no convergence), and before that panicked twice (a
+    # mixed step left the Schur right-hand side its own size; a restart from
+    # the rest shape kept the last attempt's sticking contacts, unanchored).
+    # The rows' compliance (friction.rs) picks the least friction that holds
+    # them: none, the weight pressing straight down.
     scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
              "base_quaternion": ALONG_X, "rest_curvature": [[2.0, 0.0]],
              "gravity": {"linear_density": 1.0, "vector": [0.0, 0.0, -1.0]},
              "obstacles": [{"shape": "half_space", "point": [0, 0, 0], "normal": [0, 0, 1],
                             "friction": 0.3}]}
-    sol = softspine.solve(scene, n_elements=N, max_iterations=100)
-    assert sol.status in ("converged", "not_converged", "iteration_limit")
-    assert sol.converged or "no convergence" in sol.message
+    sol = softspine.solve(scene, n_elements=N)
+    assert sol.converged and sol.stable, sol.message
+    c = sol.contacts
+    assert len(c["force"]) == N and not c["sliding"].any()
+    assert np.abs(c["friction"]).max() < 1e-9
+    # The floor carries the weight but the base's half element.
+    assert c["force"].sum() == pytest.approx(1.0 - 0.5 / N, rel=1e-9)
+    rest = softspine.solve({**scene, "obstacles": [], "gravity": {"linear_density": 0.0,
+                                                                  "vector": [0, 0, -1.0]}},
+                           n_elements=N)
+    np.testing.assert_allclose(sol.positions, rest.positions, atol=1e-12)

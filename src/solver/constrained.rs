@@ -450,6 +450,12 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
         let mut block = w.kkt.schur.view_mut((0, 0), (held, held));
         block += e;
     }
+    // The sticking contacts' rows give with their forces (see `friction.rs`).
+    let first_stick = 3 * w.kkt.h.len() + 2 * w.kkt.contact.ports.len();
+    let sticks = w.kkt.contact.friction.row_count();
+    for r in first_stick..first_stick + sticks {
+        w.kkt.schur[(r, r)] += w.kkt.contact.friction.compliance;
+    }
     let candidates = w.kkt.contact.gaps.len();
     if candidates == 0 {
         if !solve_small_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
@@ -875,10 +881,9 @@ pub(crate) fn newton(
         // The contact candidates of this step (see `contact.rs`); a step
         // whose QP changes which are held certifies nothing.
         let mut held_before = Vec::new();
-        let mut grips_changed = false;
         if model.has_obstacles() {
             contact::select_candidates(model, w, contact_margin(model));
-            grips_changed = friction::update(model, w);
+            friction::update(model, w);
             merit_now = evaluate(model, w, lambda, true);
             held_before = contact::held_slots(w);
         }
@@ -906,8 +911,7 @@ pub(crate) fn newton(
         if !solved {
             return (false, it);
         }
-        let settled =
-            !model.has_obstacles() || (contact::held_slots(w) == held_before && !grips_changed);
+        let settled = !model.has_obstacles() || contact::held_slots(w) == held_before;
         if settled && super::newton::certified(norm, &w.step, tol) {
             // Sliding contacts that did not slide stick, those whose
             // direction is not against their move turn, and the solve goes

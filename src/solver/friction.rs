@@ -13,9 +13,10 @@
 //! a held contact either
 //!
 //! * **sticks**: its material point has not moved along the obstacle, two
-//!   equality rows `t_j . (p - a) = 0` (`t_1`, `t_2` tangent to the
-//!   obstacle, `a` the anchor) whose multipliers are the friction force
-//!   `f_t = mu_1 t_1 + mu_2 t_2`, and `|f_t| <= mu lambda`; or
+//!   equality rows `t_j . (p - a) + c f_j = 0` (`t_1`, `t_2` tangent to the
+//!   obstacle, `a` the anchor, `c` a compliance far below the rod's, see
+//!   [`compliance`]) whose multipliers are the friction force `f_t = f_1 t_1
+//!   + f_2 t_2`, and `|f_t| <= mu lambda`; or
 //! * **slides**: the friction force is `mu lambda d`, `d` against the
 //!   material point's move along the obstacle since the anchor (`lambda`
 //!   the normal force), and no row.
@@ -85,6 +86,8 @@ pub(crate) struct FrictionWork {
     /// The sticking contacts of this Newton step, by slot: two rows each,
     /// after the ports' and before the contact candidates'.
     pub sticks: Vec<Stick>,
+    /// The sticking rows' compliance (see [`compliance`]) [m/N].
+    pub compliance: f64,
 }
 
 impl FrictionWork {
@@ -101,6 +104,7 @@ impl FrictionWork {
             saved_sliding: vec![None; slots],
             sticks: Vec::new(),
             saved_sticks: Vec::new(),
+            compliance: compliance(model),
         }
     }
 
@@ -253,31 +257,38 @@ fn first(model: &RodModel, w: &Workspace) -> usize {
     contact::offset(model, w)
 }
 
-/// At the start of a Newton step, after the candidates are chosen: update
-/// each held contact's sticking or sliding (see the module), zero the
-/// friction of every other slot, and list the sticking contacts (their
-/// rows are filled by [`gather_sticks`]). Returns whether any contact
-/// changed between sticking and sliding.
-pub(crate) fn update(model: &RodModel, w: &mut Workspace) -> bool {
+/// At the start of a Newton step, after the candidates are chosen: hold the
+/// candidates that touch, let go of sticking contacts that pull, anchor
+/// the contacts first held (they stick), zero the friction of every other
+/// slot, and list the sticking contacts (their rows are filled by
+/// [`gather_sticks`]). Whether a contact sticks or slides is settled when
+/// the Newton solve converges ([`settle`]).
+pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
     if !model.has_friction() {
-        return false;
+        return;
     }
     let first = first(model, w);
     // A sticking contact's force is free of its bound within a step (its
     // rows are equalities, see `lower_bound`): one that pulls is let go
     // here, its friction with it.
+    // A candidate that touches its obstacle is held with its friction: it
+    // sticks from the step's start (left free, the step would slide it
+    // along the obstacle before its friction acts).
+    let touching = TOUCHING * model.length();
     let c = &mut w.kkt.contact;
     for (&i, held) in c.active.iter().zip(c.held.iter_mut()) {
         let reaction = &mut w.kkt.reactions[first + i];
+        let mu = model.friction(contact::slot(model, i).0);
         if *held && c.friction.sliding[i].is_none() && reaction.x < 0.0 {
             *held = false;
             *reaction = Vector3::zeros();
+        } else if !*held && mu > 0.0 && c.sites[i].gap <= touching {
+            *held = true;
         }
     }
     let held = contact::held_slots(w);
     let c = &mut w.kkt.contact;
     let f = &mut c.friction;
-    let mut changed = false;
     let mut is_held = vec![false; f.sliding.len()];
     for &i in &held {
         is_held[i] = true;
@@ -293,26 +304,26 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) -> bool {
             continue;
         }
         let site = &c.sites[i];
+        // A sticking contact slides where its friction left the cone at the
+        // last step, along it (a contact that cannot stick, which no Newton
+        // step would settle, slides so); [`settle`] checks the others when
+        // the solve converges.
+        if f.anchors[i].is_some() && f.sliding[i].is_none() {
+            let t = tangents(&site.normal);
+            let force = reaction.y * t[0] + reaction.z * t[1];
+            let size = force.norm();
+            if size > mu * reaction.x.max(0.0) * (1.0 + CONE_SLACK) {
+                f.sliding[i] = Some(force / size);
+                reaction.y = 0.0;
+                reaction.z = 0.0;
+            }
+        }
         if f.anchors[i].is_none() {
             // First held in this step: it sticks while the step finds its
             // friction (its move before it touched is no sliding).
             f.anchors[i] = Some(anchor(model, i, site, &f.start));
             f.sliding[i] = None;
             continue;
-        }
-        let t = tangents(&site.normal);
-        let lambda = reaction.x.max(0.0);
-        // A sticking contact slides where its friction leaves the cone,
-        // along it; a sliding one is settled when the solve converges.
-        if f.sliding[i].is_none() {
-            let force = reaction.y * t[0] + reaction.z * t[1];
-            let size = force.norm();
-            if size > mu * lambda * (1.0 + CONE_SLACK) {
-                f.sliding[i] = Some(force / size);
-                reaction.y = 0.0;
-                reaction.z = 0.0;
-                changed = true;
-            }
         }
     }
     f.sticks.clear();
@@ -325,7 +336,6 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) -> bool {
                 residual: [0.0; 2],
             }),
     );
-    changed
 }
 
 /// At a Newton solve's end, each sliding contact: one whose material point
@@ -343,7 +353,23 @@ pub(crate) fn settle(model: &RodModel, w: &mut Workspace) -> bool {
     let f = &mut c.friction;
     let mut changed = false;
     for (i, sliding) in f.sliding.iter_mut().enumerate() {
-        let (Some(d), Some(anchor)) = (*sliding, f.anchors[i]) else {
+        let Some(anchor) = f.anchors[i] else {
+            continue;
+        };
+        let Some(d) = *sliding else {
+            // A sticking contact slides where its friction left the cone,
+            // along it.
+            let mu = model.friction(contact::slot(model, i).0);
+            let reaction = &mut w.kkt.reactions[first + i];
+            let t = tangents(&c.sites[i].normal);
+            let force = reaction.y * t[0] + reaction.z * t[1];
+            let size = force.norm();
+            if size > mu * reaction.x.max(0.0) * (1.0 + CONE_SLACK) {
+                *sliding = Some(force / size);
+                reaction.y = 0.0;
+                reaction.z = 0.0;
+                changed = true;
+            }
             continue;
         };
         let normal = &c.sites[i].normal;
@@ -377,13 +403,36 @@ const TURN_ANGLE: f64 = 1e-6;
 /// to stay sliding (of the length): round-off.
 const MOVE_SLACK: f64 = 1e-14;
 
+/// How near its obstacle a candidate touches it (of the length).
+const TOUCHING: f64 = 1e-12;
+
 /// How far outside its cone a sticking contact's friction goes before it
 /// slides (relative): round-off.
 const CONE_SLACK: f64 = 1e-9;
 
+/// The compliance `c` of a sticking contact's rows [m/N]: the rows are
+/// `t_j . (p - a) + c f_j = 0`, the material point held by a spring this
+/// soft (it gives `c |f|`, below 1e-9 of an element's sag under that force).
+/// Without it, contacts that all stick along a stretch are held twice over
+/// (each chord's length is fixed already), their rows redundant and the
+/// step's matrix singular; with it, the friction forces there are the
+/// least that hold them.
+pub(crate) fn compliance(model: &RodModel) -> f64 {
+    let h = model.length() / model.n() as f64;
+    STICK_COMPLIANCE * h * h * h / model.stiffness().max()
+}
+
+/// [`compliance`] over an element's bending compliance `h^3 / k`.
+const STICK_COMPLIANCE: f64 = 1e-9;
+
 /// The sticking contacts' directions and residuals at the last evaluation's
 /// sites and positions.
 pub(crate) fn gather_sticks(model: &RodModel, w: &mut Workspace) {
+    if !model.has_friction() {
+        return;
+    }
+    let first = first(model, w);
+    let compliance = compliance(model);
     let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
     for stick in &mut c.friction.sticks {
@@ -393,8 +442,12 @@ pub(crate) fn gather_sticks(model: &RodModel, w: &mut Workspace) {
         };
         let t = tangents(&c.sites[i].normal);
         let moved = material_point(model, i, anchor, r) - anchor.point;
+        let f = &w.kkt.reactions[first + i];
         stick.directions = t;
-        stick.residual = [t[0].dot(&moved), t[1].dot(&moved)];
+        stick.residual = [
+            t[0].dot(&moved) + compliance * f.y,
+            t[1].dot(&moved) + compliance * f.z,
+        ];
     }
 }
 

@@ -55,6 +55,9 @@ pub(crate) struct MixedWork {
     pub rows: Vec<[(usize, Vector3<f64>); 2]>,
     /// Each row's residual for this step.
     pub residuals: Vec<f64>,
+    /// Each row's compliance (its diagonal entry: a sticking contact's, see
+    /// `friction.rs`; zero for the others).
+    pub compliance: Vec<f64>,
     band: BandLu,
     /// First unknown of each node's group (`n + 1` entries) and each row's
     /// unknown (`None` while its multiplier is fixed).
@@ -157,6 +160,9 @@ impl Mixed<'_> {
             }
             if let Some(u) = unknown {
                 rhs[u] = -w.residuals[row];
+                if w.compliance[row] != 0.0 {
+                    emit(u, u, w.compliance[row]);
+                }
             }
         }
     }
@@ -334,10 +340,13 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
             work.rows.push([(a, wa * d), (b, wb * d)]);
         }
     }
+    work.compliance.clear();
+    work.compliance.resize(work.rows.len(), 0.0);
     for stick in &contact.friction.sticks {
         let [(a, wa), (b, wb)] = super::friction::stick_shares(model, contact, stick.slot);
         for d in stick.directions {
             work.rows.push([(a, wa * d), (b, wb * d)]);
+            work.compliance.push(contact.friction.compliance);
         }
     }
     for &i in &contact.active {
@@ -346,6 +355,7 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
         work.rows
             .push([(a, wa * site.normal), (b, wb * site.normal)]);
     }
+    work.compliance.resize(work.rows.len(), 0.0);
     work.in_use = true;
 }
 

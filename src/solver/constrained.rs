@@ -826,7 +826,21 @@ fn solve_small_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
 /// fixed) and the targets' motion. Near a held point's full reach the tangent
 /// is large and points along the buckling mode, which is what the predictor
 /// needs there. A clamped tip's orientation is left to the corrector.
+///
+/// With friction every held contact counts as sticking (see [`is_stable`]):
+/// the frictionless tangent of a contact sliding along a surface is the
+/// free slide, far off where friction lets it go.
 pub(crate) fn tangent(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool {
+    if !model.has_friction() {
+        return tangent_of_path(model, w, lambda);
+    }
+    let kept = friction::stick_all(model, w);
+    let predicted = tangent_of_path(model, w, lambda);
+    friction::unstick(w, kept);
+    predicted
+}
+
+fn tangent_of_path(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool {
     let n = model.n();
     let m = model.constraints().len();
     evaluate(model, w, lambda, true);
@@ -888,6 +902,13 @@ pub(crate) fn newton(
             held_before = contact::held_slots(w);
         }
         let norm = residual_norm(model, w);
+        if std::env::var("SOFTSPINE_DEBUG").is_ok() {
+            let f = &w.kkt.contact.friction;
+            let held = contact::held_slots(w);
+            let first = contact::offset(model, w);
+            let info: Vec<String> = held.iter().map(|&i| { let r = w.kkt.reactions[first + i]; format!("{i}:{:.2e},{:.2e},{:.2e} sl {:?}", r.x, r.y, r.z, f.sliding[i].map(|d| (d.x, d.y, d.z))) }).collect();
+            eprintln!("lambda {lambda:.4} it {it} norm {norm:.3e} cand {} sticks {} {info:?}", w.kkt.contact.active.len(), f.sticks.len());
+        }
         if !norm.is_finite() || interrupt::requested() {
             return (false, it);
         }
@@ -1129,7 +1150,22 @@ impl CurvatureInverse {
 /// null space of `D` is positive definite iff the KKT matrix has exactly 3m
 /// negative eigenvalues; by Haynsworth's inertia formula that number is
 /// `neg(A) + pos(D A^{-1} D^T)` (symmetric parts, `A` nonsingular).
+///
+/// With friction, the sliding contacts count as sticking: a small move of
+/// the rod along the obstacle meets their friction, which the frictionless
+/// Hessian leaves out (a robot leaning on a wall would count as unstable,
+/// free to slide down it).
 pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
+    if !model.has_friction() {
+        return reduced_hessian_is_positive(model, w);
+    }
+    let kept = friction::stick_all(model, w);
+    let stable = reduced_hessian_is_positive(model, w);
+    friction::unstick(w, kept);
+    stable
+}
+
+fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
     load_constraint_jacobian(model, w);
     mixed::densify(w);
     // The workspace's factorisation is free (every use refactors first) and

@@ -271,9 +271,10 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
     // A sticking contact's force is free of its bound within a step (its
     // rows are equalities, see `lower_bound`): one that pulls is let go
     // here, its friction with it.
-    // A candidate that touches its obstacle is held with its friction: it
-    // sticks from the step's start (left free, the step would slide it
-    // along the obstacle before its friction acts).
+    // A node that touches its obstacle is held with its friction: it sticks
+    // from the step's start (left free, the step would slide it along the
+    // obstacle before its friction acts). Not an element's point: touching
+    // at a node, it would hold the node twice.
     let touching = TOUCHING * model.length();
     let c = &mut w.kkt.contact;
     for (&i, held) in c.active.iter().zip(c.held.iter_mut()) {
@@ -282,7 +283,11 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
         if *held && c.friction.sliding[i].is_none() && reaction.x < 0.0 {
             *held = false;
             *reaction = Vector3::zeros();
-        } else if !*held && mu > 0.0 && c.sites[i].gap <= touching {
+        } else if !*held
+            && mu > 0.0
+            && c.sites[i].gap.abs() <= touching
+            && matches!(contact::slot(model, i).1, Place::Node(_))
+        {
             *held = true;
         }
     }
@@ -405,6 +410,38 @@ const MOVE_SLACK: f64 = 1e-14;
 
 /// How near its obstacle a candidate touches it (of the length).
 const TOUCHING: f64 = 1e-12;
+
+/// Count every held, anchored contact with friction as sticking (its rows
+/// in the step's), for the stability verdict; returns the state to put back
+/// with [`unstick`].
+pub(crate) fn stick_all(
+    model: &RodModel,
+    w: &mut Workspace,
+) -> (Vec<Option<Vector3<f64>>>, Vec<Stick>) {
+    let held = contact::held_slots(w);
+    let f = &mut w.kkt.contact.friction;
+    let kept = (f.sliding.clone(), f.sticks.clone());
+    f.sticks.clear();
+    for i in held {
+        if model.friction(contact::slot(model, i).0) > 0.0 && f.anchors[i].is_some() {
+            f.sliding[i] = None;
+            f.sticks.push(Stick {
+                slot: i,
+                directions: [Vector3::zeros(); 2],
+                residual: [0.0; 2],
+            });
+        }
+    }
+    gather_sticks(model, w);
+    kept
+}
+
+/// Put back what [`stick_all`] changed.
+pub(crate) fn unstick(w: &mut Workspace, (sliding, sticks): (Vec<Option<Vector3<f64>>>, Vec<Stick>)) {
+    let f = &mut w.kkt.contact.friction;
+    f.sliding = sliding;
+    f.sticks = sticks;
+}
 
 /// How far outside its cone a sticking contact's friction goes before it
 /// slides (relative): round-off.

@@ -177,6 +177,16 @@ pub struct InverseSolver {
 impl InverseSolver {
     /// The solver of `robot`'s own drive ([`Robot::actuation_space`]).
     pub fn new(robot: &Robot, load: &Load) -> Result<Self> {
+        // With friction an equilibrium is the end of a loading history, and
+        // which history an actuation found by search stands for is not
+        // defined (its steps are sensitivities, refused there too).
+        if let Some(i) = robot.friction.iter().position(|mu| *mu > 0.0) {
+            return Err(crate::error::Error::argument(
+                format!("obstacles[{i}].friction"),
+                "the inverse kinematics is not given with friction: an equilibrium with \
+                 friction depends on the loading history (solve forward instead)",
+            ));
+        }
         let drive = DriveSpace::of(robot)?;
         let scene = robot.scene(&Actuation::default(), load)?;
         let settings = Settings {

@@ -200,3 +200,27 @@ def test_a_rod_lying_on_a_frictional_floor_sticks_with_no_friction():
                                                                   "vector": [0, 0, -1.0]}},
                            n_elements=N)
     np.testing.assert_allclose(sol.positions, rest.positions, atol=1e-12)
+
+
+def test_a_robot_leaning_on_a_frictional_wall_slides_less_the_more_friction():
+    # The seed's robot bent into a wall (tests/test_contact.py) slides down
+    # it under its 30 g: its friction is mu times its normal force, upward,
+    # and more friction leaves its tip higher. Its inverse kinematics is
+    # refused by name (an actuation found by search has no history).
+    wall = {"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0]}
+    bend = np.zeros((10, 2))
+    bend[:, 1] = 0.6
+    plain = softspine.Robot({"obstacles": [wall]}).forward(bend, load=0.03)
+    heights = []
+    for mu in (0.05, 0.5, 2.0):
+        robot = softspine.Robot({"obstacles": [{**wall, "friction": mu}]})
+        sol = robot.forward(bend, load=0.03)
+        assert sol.converged and sol.stable, sol.message
+        c = sol.contacts
+        assert len(c["force"]) == 1 and c["sliding"][0]
+        assert c["friction"][0][2] > 0.0
+        assert np.linalg.norm(c["friction"][0]) == pytest.approx(mu * c["force"][0], rel=1e-12)
+        heights.append(sol.tip_position[2] - plain.tip_position[2])
+    assert 0.0 < heights[0] < heights[1] < heights[2], heights
+    with pytest.raises(ValueError, match=r"obstacles\[0\]\.friction.*history"):
+        robot.inverse([0.13, 0.0, -0.95], load=0.03)

@@ -59,6 +59,10 @@ pub(crate) struct KktWorkspace {
     /// How many leading entries of each row may be nonzero: a position
     /// depends on the rotations up to its node only.
     pub row_len: Vec<usize>,
+    /// What a row's multiplier adds to the equations beyond its own row
+    /// (`D^T` times a sliding contact's `mu d`, see `friction.rs`), by row:
+    /// the KKT system is unsymmetric where there are any.
+    pub force_extra: Vec<(usize, Vec<Vector3<f64>>)>,
     /// The contact rows' sites, active set and forces (see `contact.rs`).
     pub contact: ContactWork,
     /// The step in mixed form, for many rows (see `mixed.rs`).
@@ -128,6 +132,7 @@ impl KktWorkspace {
             rows: vec![vec![Vector3::zeros(); n]; 3 * m],
             row_count: 3 * m,
             row_len: Vec::new(),
+            force_extra: Vec::new(),
             contact: ContactWork::new(model),
             mixed: MixedWork::default(),
         }
@@ -332,8 +337,31 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
         friction::load_rows(model, w, 3 * held + ports);
         contact::load_rows(model, w, 3 * held + ports + sticks);
     }
+    load_slide_forces(model, w, 3 * held + ports + sticks);
     if model.has_contact() {
         contact::curvature(model, w, dense);
+    }
+}
+
+/// The sliding contacts' extra columns (see `KktWorkspace::force_extra`),
+/// dense, and in the mixed form's rows; `first` the first candidate's row.
+fn load_slide_forces(model: &RodModel, w: &mut Workspace, first: usize) {
+    w.kkt.force_extra.clear();
+    w.kkt.mixed.force_extra.clear();
+    let slides = friction::slide_forces(model, w);
+    let scratch = w.kkt.row_count;
+    let n = model.n();
+    while !slides.is_empty() && w.kkt.rows.len() <= scratch {
+        w.kkt.rows.push(vec![Vector3::zeros(); n]);
+    }
+    for slide in slides {
+        let (row, force) = (first + slide.candidate, slide.force);
+        contact::load_row(model, w, scratch, slide.shares, &force);
+        let extra = w.kkt.rows[scratch].clone();
+        w.kkt.force_extra.push((row, extra));
+        let [(na, wa), (nb, wb)] = slide.shares;
+        let directions = [(na, wa * force), (nb, wb * force)];
+        w.kkt.mixed.force_extra.push((row, directions));
     }
 }
 
@@ -418,6 +446,13 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     }
     for (col, row) in w.kkt.columns.iter_mut().zip(&w.kkt.rows[..rows]) {
         col.copy_from_slice(row);
+    }
+    for (r, extra) in &w.kkt.force_extra {
+        for (x, e) in w.kkt.columns[*r].iter_mut().zip(extra) {
+            *x += e;
+        }
+    }
+    for col in &mut w.kkt.columns[..rows] {
         lu.solve_in_place(col);
     }
     // The contacts' curvature: the Jacobian is `A + U M U^T`, whose inverse
@@ -467,6 +502,7 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
         let mut schur = Schur {
             s: &w.kkt.schur,
             b: &w.kkt.rhs,
+            symmetric: w.kkt.force_extra.is_empty(),
         };
         let Some(x) = bounded_qp(
             &mut schur,
@@ -557,6 +593,8 @@ pub(crate) trait Subproblem {
 struct Schur<'a> {
     s: &'a DMatrix<f64>,
     b: &'a DVector<f64>,
+    /// Whether `S` is symmetric (no sliding contact's friction in it).
+    symmetric: bool,
 }
 
 impl Subproblem for Schur<'_> {
@@ -574,7 +612,12 @@ impl Subproblem for Schur<'_> {
                 .map(|j| s[(i, j)] * x[j])
                 .sum::<f64>()
         });
-        if !solve_positive_in_place(&mut sub, &mut rhs) {
+        let solved = if self.symmetric {
+            solve_positive_in_place(&mut sub, &mut rhs)
+        } else {
+            solve_general_in_place(&mut sub, &mut rhs)
+        };
+        if !solved {
             return false;
         }
         for (r, &i) in rows.iter().enumerate() {
@@ -795,6 +838,18 @@ fn solve_positive_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
     solve_small_in_place(a, b)
 }
 
+/// Solve `a x = b` for a general (unsymmetric) `a` by LU, or by the
+/// pseudo-inverse where it is singular.
+fn solve_general_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
+    if let Some(x) = a.clone().lu().solve(b) {
+        if x.iter().all(|v| v.is_finite()) {
+            b.copy_from(&x);
+            return true;
+        }
+    }
+    solve_small_in_place(a, b)
+}
+
 /// Minimum-norm solution of the small Schur system by SVD. `S` is singular where
 /// a held point cannot move to first order: at the straight rod, along its axis
 /// (the rod is inextensible). The pseudo-inverse leaves that reaction component
@@ -902,13 +957,6 @@ pub(crate) fn newton(
             held_before = contact::held_slots(w);
         }
         let norm = residual_norm(model, w);
-        if std::env::var("SOFTSPINE_DEBUG").is_ok() {
-            let f = &w.kkt.contact.friction;
-            let held = contact::held_slots(w);
-            let first = contact::offset(model, w);
-            let info: Vec<String> = held.iter().map(|&i| { let r = w.kkt.reactions[first + i]; format!("{i}:{:.2e},{:.2e},{:.2e} sl {:?}", r.x, r.y, r.z, f.sliding[i].map(|d| (d.x, d.y, d.z))) }).collect();
-            eprintln!("lambda {lambda:.4} it {it} norm {norm:.3e} cand {} sticks {} {info:?}", w.kkt.contact.active.len(), f.sticks.len());
-        }
         if !norm.is_finite() || interrupt::requested() {
             return (false, it);
         }

@@ -411,6 +411,48 @@ const MOVE_SLACK: f64 = 1e-14;
 /// How near its obstacle a candidate touches it (of the length).
 const TOUCHING: f64 = 1e-12;
 
+/// A sliding candidate's friction per unit normal force (see
+/// [`slide_forces`]).
+pub(crate) struct SlideForce {
+    /// Its index among the candidates.
+    pub candidate: usize,
+    /// Its nodes and weights.
+    pub shares: [(usize, f64); 2],
+    /// `mu d`.
+    pub force: Vector3<f64>,
+}
+
+/// The sliding contacts' friction in the Newton step: each sliding
+/// candidate's force `mu lambda d` moves with its normal force `lambda`, so
+/// its multiplier's column carries `mu d` beside the normal (the KKT system
+/// is then unsymmetric).
+pub(crate) fn slide_forces(model: &RodModel, w: &Workspace) -> Vec<SlideForce> {
+    if !model.has_friction() {
+        return Vec::new();
+    }
+    let c = &w.kkt.contact;
+    c.active
+        .iter()
+        .zip(&c.held)
+        .enumerate()
+        .filter_map(|(a, (&i, &held))| {
+            let d = c.friction.sliding[i]?;
+            c.friction.anchors[i]?;
+            let site = &c.sites[i];
+            let d = along_surface(&d, &site.normal);
+            let size = d.norm();
+            (held && size > 0.0).then(|| {
+                let mu = model.friction(contact::slot(model, i).0);
+                SlideForce {
+                    candidate: a,
+                    shares: contact::shares(model, i, site),
+                    force: mu * d / size,
+                }
+            })
+        })
+        .collect()
+}
+
 /// Count every held, anchored contact with friction as sticking (its rows
 /// in the step's), for the stability verdict; returns the state to put back
 /// with [`unstick`].
@@ -437,7 +479,10 @@ pub(crate) fn stick_all(
 }
 
 /// Put back what [`stick_all`] changed.
-pub(crate) fn unstick(w: &mut Workspace, (sliding, sticks): (Vec<Option<Vector3<f64>>>, Vec<Stick>)) {
+pub(crate) fn unstick(
+    w: &mut Workspace,
+    (sliding, sticks): (Vec<Option<Vector3<f64>>>, Vec<Stick>),
+) {
     let f = &mut w.kkt.contact.friction;
     f.sliding = sliding;
     f.sticks = sticks;

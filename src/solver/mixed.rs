@@ -43,6 +43,9 @@ const FORCE: usize = 3;
 const POSITION: usize = 6;
 const NODE_UNKNOWNS: usize = 9;
 
+/// A row's directions at its (up to two) nodes.
+pub(crate) type RowDirections = [(usize, Vector3<f64>); 2];
+
 /// The mixed form's buffers, sized by the first use.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct MixedWork {
@@ -58,6 +61,9 @@ pub(crate) struct MixedWork {
     /// Each row's compliance (its diagonal entry: a sticking contact's, see
     /// `friction.rs`; zero for the others).
     pub compliance: Vec<f64>,
+    /// What a row's multiplier adds to the nodes' balance beyond its own
+    /// directions (a sliding contact's `mu d`), by row.
+    pub force_extra: Vec<(usize, RowDirections)>,
     band: BandLu,
     /// First unknown of each node's group (`n + 1` entries) and each row's
     /// unknown (`None` while its multiplier is fixed).
@@ -155,6 +161,17 @@ impl Mixed<'_> {
                             emit(u, position + a, v[a]);
                         }
                         None => rhs[position + a] += v[a] * x[row],
+                    }
+                }
+            }
+            for (_, extra) in w.force_extra.iter().filter(|(r, _)| *r == row) {
+                for &(node, v) in extra.iter().filter(|(node, _)| *node > 0) {
+                    let position = at(node, POSITION);
+                    for a in 0..3 {
+                        match unknown {
+                            Some(u) => emit(position + a, u, -v[a]),
+                            None => rhs[position + a] += v[a] * x[row],
+                        }
                     }
                 }
             }

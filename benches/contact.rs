@@ -3,7 +3,9 @@
 //! the seed's robot bent into a wall, beside the same robot without it.
 //! Sliding ports: a heavy cantilever bent through a port off its line, the
 //! seed's robot bent through a port, and its inverse kinematics along a
-//! circle with the insertion as one more coordinate.
+//! circle with the insertion as one more coordinate. Friction: the rod on a
+//! floor with `mu = 0.3` (every node sticks) and the robot against the wall
+//! with `mu = 0.5` (its contact slides down it).
 //!
 //! `cargo bench --bench contact`; the medians go into docs/model.md's
 //! "Contact with obstacles" and the notes.
@@ -61,6 +63,12 @@ fn through_port() -> Scene {
     s
 }
 
+/// `scene` with every obstacle's friction `mu`.
+fn with_friction(mut scene: Scene, mu: f64) -> Scene {
+    scene.friction = vec![mu; scene.obstacles.len()];
+    scene
+}
+
 fn scenes(c: &mut Criterion) {
     let mut group = c.benchmark_group("contact");
     for (name, scene, sizes) in [
@@ -68,6 +76,11 @@ fn scenes(c: &mut Criterion) {
         ("rod_lifted_5cm", rod_on_floor(0.05), &[20, 80, 320][..]),
         ("knife_edge", knife_edge(), &[20, 80][..]),
         ("through_port", through_port(), &[20, 80, 320][..]),
+        (
+            "rod_on_floor_friction",
+            with_friction(rod_on_floor(0.0), 0.3),
+            &[20, 80][..],
+        ),
     ] {
         for &n in sizes {
             let settings = Settings {
@@ -94,6 +107,10 @@ fn scenes(c: &mut Criterion) {
         }],
         ..Robot::default()
     };
+    let walled_friction = Robot {
+        friction: vec![0.5],
+        ..walled.clone()
+    };
     // Through a port 0.3 m below its base, fed 0.1 m in by its stage.
     let ported = Robot {
         ports: vec![Port::new(Vector3::new(0.0, 0.0, -0.3), -Vector3::z())],
@@ -107,6 +124,7 @@ fn scenes(c: &mut Criterion) {
     for (name, robot, drive) in [
         ("robot_free", Robot::default(), &bend),
         ("robot_wall", walled, &bend),
+        ("robot_wall_friction", walled_friction, &bend),
         ("robot_port", ported.clone(), &inserted),
     ] {
         let sol = robot.forward(drive, &load, None).unwrap();

@@ -21,20 +21,16 @@
 //!   material point's move along the obstacle since the anchor (`lambda`
 //!   the normal force), and no row.
 //!
-//! Which is chosen like the normal contact's set (`contact.rs`), as a
-//! semismooth Newton on the cone (Alart and Curnier's, as a primal-dual
-//! active set: Hueber, Stadler and Wohlmuth 2008): at each Newton step
-//! every held contact's trial force `z = f_t - c u` (`f_t` its friction
-//! force, `u` its material point's move along the obstacle since the
-//! anchor, `c` a stiffness that only weighs the two) decides: inside the
-//! cone, `|z| <= mu lambda`, it sticks; outside, it slides with `d = z /
-//! |z|`. So a sliding contact that moved along its friction force (which
-//! would have to push it back) sticks again, and the noise of a move much
-//! smaller than the rod's compliance does not turn a force around. The
-//! solve has converged only when no contact changed between the two. The sliding force's dependence on `lambda` is left out of the
-//! Jacobian (it would make the KKT system unsymmetric): the residual is
-//! exact, so is the answer, and Newton converges linearly while contacts
-//! slide.
+//! Which is chosen like the normal contacts' set (`contact.rs`): a node
+//! touching its obstacle at the step's start, and a contact first held in
+//! the step, sticks; at each Newton step a sticking contact whose friction
+//! left the cone slides, along it ([`update`]); when the solve converges a
+//! sliding contact that did not move against its friction (which would have
+//! to push it back) sticks, and one whose direction is off its move turns
+//! ([`settle`]). The solve has converged only when none changed. A sliding
+//! contact's force moves with its normal force: its multiplier's column in
+//! the step carries `mu d` ([`slide_forces`]), which makes the KKT system
+//! unsymmetric and keeps Newton quadratic while contacts slide.
 //!
 //! An increment finds the exact end of the history for loads under which
 //! no contact that slid comes to rest within the step and none reverses

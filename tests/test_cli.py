@@ -66,6 +66,14 @@ def test_demo_saves_the_solution_as_npz_and_csv(tmp_path):
     assert table.shape == (sol.n_elements + 1, 14)
     assert np.array_equal(table[:, 1:4], sol.positions)
     assert np.array_equal(table[:, 11:14], sol.moments)
+    # What np.load gives back (0-d arrays for the scalars, the None fields
+    # left out) is a solution again: it failed with "solution.n_elements:
+    # expected an integer, got ndarray", then "tip_reaction_force: missing".
+    again = softspine.Solution.from_dict(dict(np.load(tmp_path / "sol.npz")))
+    assert again.n_elements == sol.n_elements and again.status == "converged"
+    assert again.tip_reaction_force is None and again.stable == sol.stable
+    np.testing.assert_array_equal(again.positions, sol.positions)
+    np.testing.assert_array_equal(again.quaternions, sol.quaternions)
 
 
 def test_track_reads_a_robot_and_a_trajectory_file_and_saves_csv(tmp_path, capsys):

@@ -36,11 +36,13 @@ def _save_format(path: str) -> str:
 
 
 def _save_solution(sol, path: str) -> None:
-    """The solution's arrays: NPZ holds every field of ``to_dict()``, CSV one row
-    per node (arc length, position, quaternion, internal force and moment)."""
+    """The solution's arrays: NPZ holds the fields of ``to_dict()`` (those that
+    are None left out), so that ``Solution.from_dict(dict(np.load(path)))``
+    reads it back; CSV one row per node (arc length, position, quaternion,
+    internal force and moment)."""
     if _save_format(path) == "npz":
         fields = {k: v for k, v in sol.to_dict().items() if v is not None}
-        np.savez(path, arc_length=sol.arc_length, **fields)
+        np.savez(path, **fields)
         return
     table = np.column_stack([sol.arc_length, sol.positions, sol.quaternions,
                              sol.forces, sol.moments])

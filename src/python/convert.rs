@@ -455,9 +455,22 @@ impl<'py> Fields<'py> {
                 )));
             }
         }
+        // What `np.load` gives back for a scalar (a 0-d array) is read as
+        // the scalar: a dict saved by `np.savez(**to_dict())` loads again.
+        let unwrapped = PyDict::new(dict.py());
+        for (key, value) in dict.iter() {
+            let scalar = value
+                .cast::<numpy::PyUntypedArray>()
+                .is_ok_and(|a| numpy::PyUntypedArrayMethods::ndim(a) == 0);
+            if scalar {
+                unwrapped.set_item(key, value.call_method0("item")?)?;
+            } else {
+                unwrapped.set_item(key, value)?;
+            }
+        }
         Ok(Fields {
             owner,
-            dict: dict.clone(),
+            dict: unwrapped,
         })
     }
 
@@ -539,8 +552,14 @@ impl<'py> Fields<'py> {
         }
     }
 
+    /// A field that may be None: left out (as `np.savez` must leave out a
+    /// None) it is None.
+    pub(super) fn optional(&self, key: &str) -> PyResult<Option<Bound<'py, PyAny>>> {
+        Ok(given(self.dict.get_item(key)?.as_ref()))
+    }
+
     pub(super) fn optional_vector(&self, key: &str) -> PyResult<Option<Vector3<f64>>> {
-        given(Some(&self.get(key)?))
+        self.optional(key)?
             .map(|v| vector_of(&self.name(key), &v))
             .transpose()
     }

@@ -362,7 +362,8 @@ impl PySolution {
             energy: number_or_infinite("solution.energy", &d.get("energy")?)?,
             stable: bool_arg("solution.stable", &d.get("stable")?)?,
             message: str_arg("solution.message", &d.get("message")?)?,
-            error_estimate: given(Some(&d.get("error_estimate")?))
+            error_estimate: d
+                .optional("error_estimate")?
                 .map(|e| float_arg("solution.error_estimate", &e))
                 .transpose()?,
             extrapolated_tip: d.optional_vector("extrapolated_tip")?,

@@ -255,3 +255,36 @@ def test_every_public_property_and_method_has_a_docstring(cls):
         if not name.startswith("_") and not (getattr(member, "__doc__", None) or "").strip()
     ]
     assert not missing, f"{cls.__name__}: {missing}"
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".json"])
+def test_a_solution_is_saved_and_loaded_exactly(tmp_path, suffix):
+    # A solution with contacts, friction and fields that are None: every
+    # field of to_dict() comes back equal (issue 29, item 3).
+    import math
+    along_x = [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0]
+    floor = {"shape": "half_space", "point": [0, 0, -0.7080206], "normal": [0, 0, 1],
+             "friction": 0.02}
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+             "base_quaternion": along_x, "rest_curvature": [[0.0, 2.0]],
+             "gravity": {"linear_density": 1.0, "vector": [0, 0, -1.0]}, "obstacles": [floor]}
+    sol = softspine.solve(scene, n_elements=40)
+    assert len(sol.contacts["force"]) == 1 and sol.tip_reaction_force is None
+    path = tmp_path / f"solution{suffix}"
+    sol.save(path)
+    again = softspine.Solution.load(path)
+    a, b = sol.to_dict(), again.to_dict()
+    assert a.keys() == b.keys()
+    for key, value in a.items():
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(b[key], value, err_msg=key)
+        else:
+            assert b[key] == value, key
+
+
+def test_a_solution_file_needs_a_known_suffix(tmp_path):
+    sol = softspine.solve({"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}})
+    with pytest.raises(ValueError, match=r"path: expected a file ending in \.npz or \.json"):
+        sol.save(tmp_path / "solution.txt")
+    with pytest.raises(ValueError, match="path: expected"):
+        softspine.Solution.load(tmp_path / "solution.csv")

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy.typing as npt
 
+from . import files as _files  # noqa: F401  (Solution.save and Solution.load)
 from . import trajectories
 from ._core import (
     Accuracy,

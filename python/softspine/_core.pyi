@@ -178,6 +178,12 @@ class Solution:
     @staticmethod
     def from_dict(data: dict[str, Any]) -> Solution: ...
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write every field of ``to_dict()`` to ``path``: NPZ (``.npz``) or
+        JSON (``.json``), by its suffix."""
+    @staticmethod
+    def load(path: str | PathLike[str]) -> Solution:
+        """The solution that ``save`` wrote to ``path`` (NPZ or JSON)."""
 
 @final
 class IkResult:

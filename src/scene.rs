@@ -1316,11 +1316,22 @@ pub(crate) fn read_stiffness(v: &Value) -> Result<Stiffness> {
             ky: p("ky")?,
             kz: p("kz")?,
         }),
-        (false, true) => Ok(Stiffness::RoundRod {
-            e: p("E")?,
-            g: p("G")?,
-            diameter: p("diameter")?,
-        }),
+        (false, true) => {
+            if t.get("G").is_none() {
+                // The shear modulus is the one a user most often lacks.
+                return Err(Error::scene(
+                    t.key("G"),
+                    "missing: the shear modulus [Pa] of the round rod {E, G, diameter} \
+                     (isotropic: G = E / (2 (1 + nu)), E / 3 for a rubber with nu = 0.5); \
+                     or give the stiffnesses {kx, ky, kz} [N m^2] instead",
+                ));
+            }
+            Ok(Stiffness::RoundRod {
+                e: p("E")?,
+                g: p("G")?,
+                diameter: p("diameter")?,
+            })
+        }
         (true, true) => Err(Error::scene(
             "stiffness",
             "give either {kx, ky, kz} or {E, G, diameter}, not both",

@@ -32,6 +32,12 @@ def with_(**changes):
         (with_(stiffness={"kx": 1, "ky": 1}), "stiffness.kz", "missing"),
         (with_(stiffness={"kx": 1, "ky": 1, "kz": 1, "E": 1}), "stiffness", "not both"),
         (with_(stiffness={"E": 2e11, "G": 8e10, "diameter": 0}), "stiffness.diameter", "positive"),
+        # The shear modulus missing: how to get it, and the other way to give
+        # the stiffness (issue 29, item 8).
+        (with_(stiffness={"E": 2e6, "diameter": 0.01}), "stiffness.G",
+         "missing: the shear modulus [Pa] of the round rod"),
+        (with_(stiffness={"E": 2e6, "diameter": 0.01}), "stiffness.G",
+         "or give the stiffnesses {kx, ky, kz} [N m^2] instead"),
         (with_(stiffness={"kx": 1, "ky": 1, "kz": math.inf}), "stiffness.kz", "finite"),
         (with_(tip_force=[1.0, 2.0]), "tip_force", "3 numbers"),
         (with_(tip_force=[1.0, math.nan, 0.0]), "tip_force[1]", "finite"),

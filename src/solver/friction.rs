@@ -166,6 +166,15 @@ pub(crate) fn tangents(normal: &Vector3<f64>) -> [Vector3<f64>; 2] {
     [t1, normal.cross(&t1)]
 }
 
+/// A sliding direction `d` along the surface of unit `normal` (the surface
+/// turns under a contact sliding on a curved obstacle), unit; `None` where
+/// it is along the normal.
+fn slide_direction(d: &Vector3<f64>, normal: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let d = along_surface(d, normal);
+    let size = d.norm();
+    (size > 0.0).then(|| d / size)
+}
+
 /// `v` along the surface of unit `normal`.
 fn along_surface(v: &Vector3<f64>, normal: &Vector3<f64>) -> Vector3<f64> {
     v - normal * normal.dot(v)
@@ -435,15 +444,11 @@ pub(crate) fn slide_forces(model: &RodModel, w: &Workspace) -> Vec<SlideForce> {
             let d = c.friction.sliding[i]?;
             c.friction.anchors[i]?;
             let site = &c.sites[i];
-            let d = along_surface(&d, &site.normal);
-            let size = d.norm();
-            (held && size > 0.0).then(|| {
-                let mu = model.friction(contact::slot(model, i).0);
-                SlideForce {
-                    candidate: a,
-                    shares: contact::shares(model, i, site),
-                    force: mu * d / size,
-                }
+            let d = slide_direction(&d, &site.normal).filter(|_| held)?;
+            Some(SlideForce {
+                candidate: a,
+                shares: contact::shares(model, i, site),
+                force: model.friction(contact::slot(model, i).0) * d,
             })
         })
         .collect()
@@ -551,15 +556,10 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
             None => shares(model, i, anchor),
         };
         let force = match c.friction.sliding[i] {
-            Some(d) => {
-                let mu = model.friction(contact::slot(model, i).0);
-                let d = along_surface(&d, &site.normal);
-                let size = d.norm();
-                if size == 0.0 {
-                    continue;
-                }
-                mu * reaction.x.max(0.0) * d / size
-            }
+            Some(d) => match slide_direction(&d, &site.normal) {
+                Some(d) => model.friction(contact::slot(model, i).0) * reaction.x.max(0.0) * d,
+                None => continue,
+            },
             None => {
                 if reaction.y == 0.0 && reaction.z == 0.0 {
                     continue;
@@ -609,14 +609,8 @@ pub(crate) fn force(model: &RodModel, w: &Workspace, i: usize) -> (Vector3<f64>,
     match w.kkt.contact.friction.sliding[i] {
         Some(d) => {
             let mu = model.friction(contact::slot(model, i).0);
-            let d = along_surface(&d, &site.normal);
-            let size = d.norm();
-            let force = if size > 0.0 {
-                mu * reaction.x.max(0.0) * d / size
-            } else {
-                Vector3::zeros()
-            };
-            (force, true)
+            let d = slide_direction(&d, &site.normal).unwrap_or_default();
+            (mu * reaction.x.max(0.0) * d, true)
         }
         None => {
             let t = tangents(&site.normal);

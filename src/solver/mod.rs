@@ -439,9 +439,11 @@ impl Solver {
             None => w.q.copy_from_slice(&model.initial_guess()),
         }
         w.kkt.clear_multipliers();
-        // A warm start's history starts at its shape: its contacts stick there.
-        w.saved.copy_from_slice(&w.q);
-        friction::anchor_at_saved(model, w);
+        if model.has_friction() {
+            // A warm start's history starts at its shape: its contacts stick there.
+            w.saved.copy_from_slice(&w.q);
+            friction::anchor_at_saved(model, w);
+        }
         let direct = if follow_path {
             LocalOutcome {
                 converged: false,

@@ -253,7 +253,7 @@ pub(crate) fn orientation(v: &Value, key: &str) -> Result<Quat> {
     let q = Quat::from_array(numbers::<4>(v, key).map_err(|_| {
         Error::scene(
             key,
-            "expected a quaternion [w, x, y, z] (scalar first) or a 3x3 rotation matrix",
+            "expected a quaternion [w, x, y, z] (scalar first), a 3x3 rotation matrix or a scipy Rotation",
         )
     })?);
     let norm = q.norm();

@@ -17,7 +17,7 @@
 //! tip_force         [Px, Py, Pz] N, world frame
 //! tip_moment        [Mx, My, Mz] N m, world frame
 //! tip_force_offset  [x, y, z] m, the tip frame: where tip_force acts (a tool)
-//! base_quaternion   [w, x, y, z] or a 3x3 rotation matrix, default identity (tangent +z)
+//! base_quaternion   [w, x, y, z], a 3x3 rotation matrix or (Python) a scipy Rotation, default identity (tangent +z)
 //! base_position     [x, y, z] m, world frame, default the origin
 //! obstacles         [{shape, ...}, ...] rigid obstacles (see `contact::Obstacle`)
 //! ports             [{position, axis}, ...] m: points the rod slides through
@@ -488,6 +488,18 @@ impl Scene {
 
     pub fn from_toml_str(text: &str) -> Result<Self> {
         Scene::from_value(&Value::from_toml_str(text)?)
+    }
+
+    /// The scene as JSON or TOML text (`from_json_str` / `from_toml_str`
+    /// of it is the same scene).
+    pub fn to_text(&self, format: crate::value::Format) -> Result<String> {
+        self.to_value().to_text(format)
+    }
+
+    /// Write the scene to a `.json` or `.toml` file (by its extension),
+    /// which `from_file` reads back to the same scene.
+    pub fn write_file(&self, path: &std::path::Path) -> Result<()> {
+        self.to_value().write_file(path)
     }
 
     /// Read a `.json` or `.toml` file.

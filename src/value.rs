@@ -199,6 +199,179 @@ impl<'de> Visitor<'de> for JsonSeed<'_> {
     }
 }
 
+/// The formats a tree is written in (read back by [`Value::from_file`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Json,
+    Toml,
+}
+
+impl Format {
+    /// The format of a file's name (`.json` or `.toml`), refused otherwise.
+    pub fn of_path(path: &std::path::Path) -> Result<Format> {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("json") => Ok(Format::Json),
+            Some("toml") => Ok(Format::Toml),
+            _ => Err(Error::argument(
+                "path",
+                format!("expected a .json or .toml file, got {}", path.display()),
+            )),
+        }
+    }
+}
+
+impl Value {
+    /// The tree as text in `format`, read back to the same tree (numbers
+    /// in their shortest round-trip form, an integral one as an integer,
+    /// a table's keys in order). A table's null entries are left out (an
+    /// absent key reads as its default, and TOML has no null); a null in a
+    /// list, a non-table at the top (TOML) and a non-finite number (JSON
+    /// has none) are refused by their path.
+    pub fn to_text(&self, format: Format) -> Result<String> {
+        check_writable(self, format, &mut Vec::new())?;
+        match format {
+            Format::Json => {
+                let mut out = String::new();
+                write_json(self, 0, &mut out);
+                out.push('\n');
+                Ok(out)
+            }
+            Format::Toml => {
+                if !matches!(self, Value::Map(_)) {
+                    return Err(Error::Parse(format!(
+                        "TOML needs a table at the top, got {}",
+                        self.kind()
+                    )));
+                }
+                toml::to_string(self).map_err(|e| Error::Parse(format!("TOML: {e}")))
+            }
+        }
+    }
+
+    /// Write the tree to a `.json` or `.toml` file (by its extension).
+    pub fn write_file(&self, path: &std::path::Path) -> Result<()> {
+        let text = self.to_text(Format::of_path(path)?)?;
+        std::fs::write(path, text)
+            .map_err(|e| Error::argument("path", format!("{}: {e}", path.display())))
+    }
+}
+
+fn check_writable(v: &Value, format: Format, path: &mut Vec<Segment>) -> Result<()> {
+    let refuse = |path: &[Segment], reason: &str| Err(Error::scene(render(path), reason));
+    match v {
+        Value::Number(x) if format == Format::Json && !x.is_finite() => {
+            refuse(path, &format!("JSON has no {x}: write a .toml file"))
+        }
+        Value::List(items) => {
+            for (i, item) in items.iter().enumerate() {
+                path.push(Segment::Index(i));
+                if *item == Value::Null {
+                    return refuse(path, "a list cannot hold null in a file");
+                }
+                check_writable(item, format, path)?;
+                path.pop();
+            }
+            Ok(())
+        }
+        Value::Map(entries) => {
+            for (key, item) in entries {
+                path.push(Segment::Key(key.clone()));
+                check_writable(item, format, path)?;
+                path.pop();
+            }
+            Ok(())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// JSON a person reads: a table's entries one a line, indented; a list of
+/// numbers on one line; numbers as [`Value`]'s `Serialize` writes them.
+fn write_json(v: &Value, depth: usize, out: &mut String) {
+    let indent = |out: &mut String, depth: usize| out.push_str(&"  ".repeat(depth));
+    let scalar = |v: &Value| serde_json::to_string(v).unwrap_or_default();
+    match v {
+        Value::Map(entries) => {
+            let kept: Vec<_> = entries.iter().filter(|(_, v)| *v != Value::Null).collect();
+            if kept.is_empty() {
+                out.push_str("{}");
+                return;
+            }
+            out.push_str("{\n");
+            for (i, (key, item)) in kept.iter().enumerate() {
+                indent(out, depth + 1);
+                out.push_str(&scalar(&Value::String(key.clone())));
+                out.push_str(": ");
+                write_json(item, depth + 1, out);
+                out.push_str(if i + 1 < kept.len() { ",\n" } else { "\n" });
+            }
+            indent(out, depth);
+            out.push('}');
+        }
+        Value::List(items) if items.iter().any(|x| matches!(x, Value::Map(_))) => {
+            out.push_str("[\n");
+            for (i, item) in items.iter().enumerate() {
+                indent(out, depth + 1);
+                write_json(item, depth + 1, out);
+                out.push_str(if i + 1 < items.len() { ",\n" } else { "\n" });
+            }
+            indent(out, depth);
+            out.push(']');
+        }
+        Value::List(items) => {
+            let parts: Vec<String> = items
+                .iter()
+                .map(|item| {
+                    let mut part = String::new();
+                    write_json(item, depth + 1, &mut part);
+                    part
+                })
+                .collect();
+            out.push('[');
+            out.push_str(&parts.join(", "));
+            out.push(']');
+        }
+        other => out.push_str(&scalar(other)),
+    }
+}
+
+/// Integral numbers below this are written as integers (exact in a double).
+const EXACT_INTEGER: f64 = 9_007_199_254_740_992.0;
+
+impl serde::Serialize for Value {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::{SerializeMap, SerializeSeq};
+        match self {
+            Value::Null => s.serialize_unit(),
+            Value::Bool(b) => s.serialize_bool(*b),
+            Value::Number(x)
+                if x.fract() == 0.0
+                    && x.abs() < EXACT_INTEGER
+                    && !(*x == 0.0 && x.is_sign_negative()) =>
+            {
+                s.serialize_i64(*x as i64)
+            }
+            Value::Number(x) => s.serialize_f64(*x),
+            Value::String(text) => s.serialize_str(text),
+            Value::List(items) => {
+                let mut seq = s.serialize_seq(Some(items.len()))?;
+                for item in items {
+                    seq.serialize_element(item)?;
+                }
+                seq.end()
+            }
+            Value::Map(entries) => {
+                let kept = entries.iter().filter(|(_, v)| *v != Value::Null);
+                let mut map = s.serialize_map(Some(kept.clone().count()))?;
+                for (key, item) in kept {
+                    map.serialize_entry(key, item)?;
+                }
+                map.end()
+            }
+        }
+    }
+}
+
 impl From<&toml::Value> for Value {
     fn from(v: &toml::Value) -> Self {
         use toml::Value as T;
@@ -306,6 +479,39 @@ mod tests {
             Err(Error::InvalidScene { key, reason }) => (key, reason),
             other => panic!("expected a refusal naming a key, got {other:?}"),
         }
+    }
+
+    #[test]
+    fn a_tree_written_reads_back_the_same() {
+        let text = r#"{"a": 1, "b": [0.1, -0.0, 1e-300, 3], "c": {"d": "x", "e": [[1, 2], [3, 4]]},
+                       "f": [{"g": true}, {"g": false}], "h": null}"#;
+        let tree = Value::from_json_str(text).unwrap();
+        let Value::Map(mut without_null) = tree.clone() else {
+            unreachable!()
+        };
+        without_null.retain(|(k, _)| k != "h");
+        for format in [Format::Json, Format::Toml] {
+            let written = tree.to_text(format).unwrap();
+            let back = match format {
+                Format::Json => Value::from_json_str(&written),
+                Format::Toml => Value::from_toml_str(&written),
+            };
+            assert_eq!(back.unwrap(), Value::Map(without_null.clone()), "{written}");
+        }
+    }
+
+    #[test]
+    fn what_a_file_cannot_hold_is_refused_by_path() {
+        let infinite = Value::Map(vec![(
+            "k".into(),
+            Value::List(vec![Value::Number(f64::INFINITY)]),
+        )]);
+        let message = infinite.to_text(Format::Json).unwrap_err().to_string();
+        assert!(message.starts_with("k[0]: JSON has no inf"), "{message}");
+        assert!(infinite.to_text(Format::Toml).is_ok());
+        let null_in_list = Value::Map(vec![("k".into(), Value::List(vec![Value::Null]))]);
+        let message = null_in_list.to_text(Format::Toml).unwrap_err().to_string();
+        assert!(message.starts_with("k[0]: "), "{message}");
     }
 
     #[test]

@@ -121,7 +121,7 @@ def test_a_scipy_rotation_matrix_is_the_same_orientation_as_its_quaternion():
         ([0.9, 0.0, 0.383, 0.0], "within 0.001 of norm 1"),
         ([[1, 0, 0], [0, 1, 0], [0, 0, -1]], "det R = -1"),
         ((1.01 * np.eye(3)).tolist(), "must be a rotation matrix"),
-        ([[1, 0], [0, 1]], "or a 3x3 rotation matrix"),
+        ([[1, 0], [0, 1]], "a 3x3 rotation matrix or a scipy Rotation"),
         ([[1, 0, 0], [0, 1, 0], [0, 0, "x"]], r"base_quaternion\[2\]\[2\]"),
     ],
 )

@@ -282,6 +282,61 @@ def test_a_solution_is_saved_and_loaded_exactly(tmp_path, suffix):
             assert b[key] == value, key
 
 
+def assert_same_fields(a: dict, b: dict, path: str = "") -> None:
+    """Every field equal (arrays bit for bit, dtypes too), nested dicts too."""
+    assert a.keys() == b.keys(), path
+    for key, value in a.items():
+        if isinstance(value, dict):
+            assert_same_fields(value, b[key], f"{path}{key}.")
+        elif isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(b[key], value, err_msg=path + key)
+            assert b[key].dtype == value.dtype, path + key
+        else:
+            assert b[key] == value, path + key
+
+
+@pytest.fixture(scope="module")
+def tendon_robot() -> softspine.Robot:
+    return softspine.Robot.from_file("examples/robots/tendon_robot.toml")
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".json"])
+def test_an_inverse_result_is_saved_and_loaded_exactly(tmp_path, suffix, tendon_robot):
+    # Its dict nests its solution's: NPZ keeps that under "solution/...".
+    ik = tendon_robot.inverse([0.05, 0.02, 0.27], load=0.02)
+    path = tmp_path / f"ik{suffix}"
+    ik.save(path)
+    again = softspine.IkResult.load(path)
+    assert isinstance(again, softspine.IkResult) and again.ending == ik.ending
+    assert_same_fields(ik.to_dict(), again.to_dict())
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".json"])
+def test_batch_results_are_saved_and_loaded_exactly(tmp_path, suffix, tendon_robot):
+    rng = np.random.default_rng(3)
+    forward = tendon_robot.forward_batch(tensions=rng.uniform(0, 5, (4, 9)), shapes=True,
+                                         load=0.01)
+    targets = forward.tip_positions[:2]
+    inverse = tendon_robot.inverse_batch(targets, load=0.01)
+    for result in (forward, inverse):
+        path = tmp_path / f"{type(result).__name__}{suffix}"
+        result.save(path)
+        again = type(result).load(path)
+        assert type(again) is type(result)
+        assert_same_fields(result.to_dict(), again.to_dict())
+    assert forward.positions is not None and forward.field is None
+
+
+def test_a_batch_result_from_a_bad_dict_is_refused_by_name(tendon_robot):
+    result = tendon_robot.forward_batch(tensions=np.zeros((2, 9)))
+    fields = result.to_dict()
+    with pytest.raises(ValueError, match=r"BatchResult\.tip_position: unknown field"):
+        softspine.BatchResult.from_dict({**fields, "tip_position": fields["tip_positions"]})
+    del fields["status"]
+    with pytest.raises(ValueError, match=r"BatchResult\.status: missing"):
+        softspine.BatchResult.from_dict(fields)
+
+
 def test_a_solution_file_needs_a_known_suffix(tmp_path):
     sol = softspine.solve({"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}})
     with pytest.raises(ValueError, match=r"path: expected a file ending in \.npz or \.json"):

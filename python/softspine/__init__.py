@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy.typing as npt
 
-from . import files as _files  # noqa: F401  (Solution.save and Solution.load)
+from . import files as _files  # noqa: F401  (save and load of Solution, IkResult)
 from . import trajectories
 from ._core import (
     Accuracy,

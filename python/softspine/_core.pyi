@@ -96,6 +96,13 @@ class Scene:
     def from_file(path: str | PathLike[str]) -> Scene:
         """Read a scene from a ``.json`` or ``.toml`` file."""
     def to_dict(self) -> dict[str, Any]: ...
+    def to_json(self) -> str:
+        """The scene as JSON text (``Scene.from_json`` reads it back)."""
+    def to_toml(self) -> str:
+        """The scene as TOML text (``Scene.from_toml`` reads it back)."""
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write the scene to a ``.json`` or ``.toml`` file (by its suffix),
+        which ``Scene.from_file`` reads back to the same scene."""
     @property
     def length(self) -> float: ...
     @property
@@ -228,6 +235,12 @@ class IkResult:
     def to_dict(self) -> dict[str, Any]: ...
     @staticmethod
     def from_dict(data: dict[str, Any]) -> IkResult: ...
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write every field of ``to_dict()`` to ``path``: NPZ (``.npz``; the
+        solution's fields under ``"solution/..."``) or JSON (``.json``)."""
+    @staticmethod
+    def load(path: str | PathLike[str]) -> IkResult:
+        """The result that ``IkResult.save`` wrote to ``path``."""
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
 
 @final
@@ -290,6 +303,13 @@ class Robot:
     @property
     def muscle_length_range(self) -> tuple[float, float] | None: ...
     def to_dict(self) -> dict[str, Any]: ...
+    def to_json(self) -> str:
+        """The robot as JSON text (``Robot.from_json`` reads it back)."""
+    def to_toml(self) -> str:
+        """The robot as TOML text (``Robot.from_toml`` reads it back)."""
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write the robot to a ``.json`` or ``.toml`` file (by its suffix),
+        which ``Robot.from_file`` reads back to the same robot."""
     def scene(
         self,
         rest_curvature: npt.ArrayLike | None = None,

@@ -13,13 +13,14 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, fields
+from os import PathLike
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from . import _core
+from . import _core, files
 from ._core import Robot
 
 if TYPE_CHECKING:
@@ -44,6 +45,32 @@ Progress = bool | Callable[[int, int], object] | None
 
 def _dict(result: Any) -> dict[str, Any]:
     return {f.name: getattr(result, f.name) for f in fields(result)}
+
+
+#: The NumPy type of each array field of the batch results (what JSON's
+#: lists are read back as).
+_DTYPES: dict[str, type] = {"status": np.str_, "ending": np.str_, "stable": np.bool_,
+                            "reached": np.bool_, "iterations": np.int64}
+
+
+def _from_dict(kind: Any, data: dict[str, Any]) -> Any:
+    """A batch result of ``kind`` from its fields, each refused by name."""
+    if not isinstance(data, dict):
+        raise TypeError(f"data: expected a dict, got {type(data).__name__}")
+    names = {f.name: f for f in fields(kind)}
+    unknown = sorted(set(data) - set(names))
+    if unknown:
+        raise ValueError(f"{kind.__name__}.{unknown[0]}: unknown field (expected one of: "
+                         f"{', '.join(names)})")
+    values: dict[str, Any] = {}
+    for name, f in names.items():
+        value = data.get(name)
+        if value is None:
+            if f.default is MISSING:
+                raise ValueError(f"{kind.__name__}.{name}: missing")
+            continue
+        values[name] = np.asarray(value, dtype=_DTYPES.get(name, np.float64))
+    return kind(**values)
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,9 +119,23 @@ class BatchResult:
         return len(self.tip_positions)
 
     def to_dict(self) -> dict[str, Any]:
-        """Every field (arrays or None): ``np.savez(path, **result.to_dict())``
-        after dropping the None ones, or a DataFrame of the per-sample columns."""
+        """Every field (arrays or None), e.g. a DataFrame of the per-sample
+        columns; ``save`` writes them to a file."""
         return _dict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> BatchResult:
+        """The result of ``to_dict()`` (also what ``np.load`` gives back)."""
+        return _from_dict(cls, data)
+
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write every field to ``path``: NPZ (``.npz``) or JSON (``.json``)."""
+        files.save(self, path)
+
+    @classmethod
+    def load(cls, path: str | PathLike[str]) -> BatchResult:
+        """The result ``save`` wrote to ``path``."""
+        return cls.from_dict(files.read(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,8 +165,22 @@ class IkBatchResult:
         return len(self.tip_positions)
 
     def to_dict(self) -> dict[str, Any]:
-        """Every field (arrays or None)."""
+        """Every field (arrays or None); ``save`` writes them to a file."""
         return _dict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> IkBatchResult:
+        """The result of ``to_dict()`` (also what ``np.load`` gives back)."""
+        return _from_dict(cls, data)
+
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write every field to ``path``: NPZ (``.npz``) or JSON (``.json``)."""
+        files.save(self, path)
+
+    @classmethod
+    def load(cls, path: str | PathLike[str]) -> IkBatchResult:
+        """The result ``save`` wrote to ``path``."""
+        return cls.from_dict(files.read(path))
 
 
 def concatenate(parts: list[Any]) -> Any:

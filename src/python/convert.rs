@@ -221,6 +221,9 @@ pub(super) fn to_value(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
             .collect::<PyResult<_>>()
             .map(Value::List);
     }
+    if let Some(q) = rotation(obj, path)? {
+        return Ok(q);
+    }
     // Arrays (NumPy's and every array library's speak its protocol), not
     // anything with a `tolist`: a memoryview of bytes became their codes.
     if (obj.hasattr("__array__")? || obj.hasattr("__array_interface__")?)
@@ -238,6 +241,31 @@ pub(super) fn to_value(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Value> {
             .map_err(|_| path.error("a path must be text, not bytes"));
     }
     Err(unsupported(obj, path))
+}
+
+/// A SciPy `Rotation` (anything with its `as_quat()`, scalar last) as the
+/// unit quaternion `[w, x, y, z]` every orientation key takes, scalar
+/// first; a stack of rotations as a list of them. `None` for anything else.
+fn rotation(obj: &Bound<'_, PyAny>, path: &Path) -> PyResult<Option<Value>> {
+    if !obj.hasattr("as_quat")? {
+        return Ok(None);
+    }
+    let scalar_first = |q: Value| match q {
+        Value::List(mut xyzw) if xyzw.len() == 4 => {
+            xyzw.rotate_right(1);
+            Ok(Value::List(xyzw))
+        }
+        _ => Err(path.error("as_quat() did not give 4 numbers a rotation")),
+    };
+    let quaternions = to_value(&obj.call_method0("as_quat")?, path)?;
+    match quaternions {
+        Value::List(items) if items.iter().all(|q| matches!(q, Value::List(_))) => items
+            .into_iter()
+            .map(scalar_first)
+            .collect::<PyResult<_>>()
+            .map(|qs| Some(Value::List(qs))),
+        single => scalar_first(single).map(Some),
+    }
 }
 
 /// A string argument, refused by name (pyo3's own refusal does not name it).
@@ -605,12 +633,11 @@ pub(super) fn vec3_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vector3<f
 /// first, normalised here) or anything with SciPy's `Rotation.as_quat()`
 /// (scalar last). The core refuses a zero or non-finite one by name.
 pub(super) fn orientation_arg(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<crate::quat::Quat> {
-    if obj.hasattr("as_quat")? {
-        let q = floats_arg(name, &obj.call_method0("as_quat")?)?;
-        if q.len() == 4 {
-            return Ok(crate::quat::Quat::new(q[3], q[0], q[1], q[2]));
-        }
-        return Err(Path::argument(name).error("expected a single rotation"));
+    let path = Path::argument(name);
+    if let Some(q) = rotation(obj, &path)? {
+        let [w, x, y, z] =
+            numbers::<4>(&q, &path).map_err(|_| path.error("expected a single rotation"))?;
+        return Ok(crate::quat::Quat::new(w, x, y, z));
     }
     let q = floats_arg(name, obj)?;
     match q[..] {

@@ -9,6 +9,7 @@ use super::scene::PyScene;
 use super::settings::ik_settings_arg;
 use super::solution::{quaternions_arg, PySolution};
 use crate::robot::{trajectory, Actuation, IkOptions, IkResult, IkStart, InverseSolver, Robot};
+use crate::value::Format;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -335,6 +336,24 @@ impl PyRobot {
             py,
             Robot::from_file(&path).map_err(|e| of_argument("path", e))?,
         )
+    }
+
+    /// The robot as JSON text (``Robot.from_json`` reads it back).
+    fn to_json(&self) -> PyResult<String> {
+        Ok(self.inner.to_text(Format::Json)?)
+    }
+
+    /// The robot as TOML text (``Robot.from_toml`` reads it back).
+    fn to_toml(&self) -> PyResult<String> {
+        Ok(self.inner.to_text(Format::Toml)?)
+    }
+
+    /// Write the robot to a ``.json`` or ``.toml`` file (by its suffix),
+    /// which ``Robot.from_file`` reads back to the same robot.
+    fn save(&self, #[pyo3(from_py_with = path_arg)] path: std::path::PathBuf) -> PyResult<()> {
+        self.inner
+            .write_file(&path)
+            .map_err(|e| of_argument("path", e))
     }
 
     /// Number of sections.

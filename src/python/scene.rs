@@ -1,6 +1,7 @@
 //! `Scene`: the core's scene, built from a dict or a file's text.
 
 use super::convert::*;
+use crate::value::Format;
 use crate::Scene;
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
@@ -73,6 +74,24 @@ impl PyScene {
         Ok(PyScene {
             inner: Scene::from_file(&path).map_err(|e| of_argument("path", e))?,
         })
+    }
+
+    /// The scene as JSON text (``Scene.from_json`` reads it back).
+    fn to_json(&self) -> PyResult<String> {
+        Ok(self.inner.to_text(Format::Json)?)
+    }
+
+    /// The scene as TOML text (``Scene.from_toml`` reads it back).
+    fn to_toml(&self) -> PyResult<String> {
+        Ok(self.inner.to_text(Format::Toml)?)
+    }
+
+    /// Write the scene to a ``.json`` or ``.toml`` file (by its suffix),
+    /// which ``Scene.from_file`` reads back to the same scene.
+    fn save(&self, #[pyo3(from_py_with = path_arg)] path: std::path::PathBuf) -> PyResult<()> {
+        self.inner
+            .write_file(&path)
+            .map_err(|e| of_argument("path", e))
     }
 
     /// Pickling goes through ``to_dict``.

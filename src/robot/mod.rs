@@ -632,6 +632,18 @@ impl Robot {
         Robot::from_value(&Value::from_toml_str(text)?)
     }
 
+    /// The robot as JSON or TOML text (`from_json_str` / `from_toml_str`
+    /// of it is the same robot).
+    pub fn to_text(&self, format: crate::value::Format) -> Result<String> {
+        self.to_value().to_text(format)
+    }
+
+    /// Write the robot to a `.json` or `.toml` file (by its extension),
+    /// which `from_file` reads back to the same robot.
+    pub fn write_file(&self, path: &std::path::Path) -> Result<()> {
+        self.to_value().write_file(path)
+    }
+
     /// Read a `.json` or `.toml` file.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
         let mut value = Value::from_file(path)?;

@@ -106,6 +106,27 @@ def test_progress_is_reported_to_the_end(robot, actuations):
     assert all(d <= t for d, t in calls)
 
 
+def test_the_progress_bar_ends_once_with_its_rate(robot, actuations, capfd):
+    # progress=True: tqdm's bar on standard error, from the start; one
+    # 100 % line however often the end is reported (the hand-written bar
+    # repeated it), with the rate.
+    robot.forward_batch(actuations, LOAD, progress=True)
+    lines = capfd.readouterr().err.replace("\r", "\n").splitlines()
+    ends = [line for line in lines if line.startswith("100%")]
+    total = len(actuations)
+    assert len(ends) == 1 and f"| {total}/{total} [" in ends[0] and "solve/s" in ends[0], lines
+    bar = softspine.batch.BarProgress(after=0.0, always=True)
+    for _ in range(3):
+        bar(total, total)
+    assert capfd.readouterr().err.count("100%") == 1
+
+
+def test_no_progress_bar_off_a_terminal_by_default(robot, actuations, capfd):
+    robot.forward_batch(actuations, LOAD)
+    robot.forward_batch(actuations, LOAD, progress=False)
+    assert capfd.readouterr().err == ""
+
+
 def test_an_exception_in_progress_stops_the_batch(robot, actuations):
     def fail(done, total):
         raise RuntimeError("stop here")

@@ -1,6 +1,7 @@
 """Issue 11, item 3: every Python block of the README runs, in order, in one
-fresh interpreter (they build on each other, as a reader types them). The Rust
-block is a doctest (``cargo test --doc``, see ``src/lib.rs``)."""
+fresh interpreter (they build on each other, as a reader types them); the
+guide's too (issue 29, item 7). The Rust block is a doctest (``cargo test
+--doc``, see ``src/lib.rs``)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 README = Path(__file__).resolve().parent.parent / "README.md"
+GUIDE = README.parent / "docs" / "guide.md"
 
 
 def python_blocks(text):
@@ -21,11 +25,12 @@ def test_the_readme_has_python_blocks():
     assert len(python_blocks(README.read_text())) >= 4
 
 
-def test_the_readmes_python_blocks_run(tmp_path):
+@pytest.mark.parametrize("page", [README, GUIDE], ids=["readme", "guide"])
+def test_the_python_blocks_run(tmp_path, page):
     # As a reader runs them from the repository's root, with its example files
     # (in a copy: the blocks write files).
     shutil.copytree(README.parent / "examples", tmp_path / "examples")
-    script = "\n\n".join(python_blocks(README.read_text()))
+    script = "\n\n".join(python_blocks(page.read_text()))
     run = subprocess.run(
         [sys.executable, "-c", script],
         cwd=tmp_path,

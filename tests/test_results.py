@@ -343,3 +343,25 @@ def test_a_solution_file_needs_a_known_suffix(tmp_path):
         sol.save(tmp_path / "solution.txt")
     with pytest.raises(ValueError, match="path: expected"):
         softspine.Solution.load(tmp_path / "solution.csv")
+
+
+def test_a_warm_start_brings_its_own_n():
+    # The guide's "Solving" block: a solution of accuracy on demand (at the n
+    # it chose) warm-starts the next solve without n_elements (issue 29,
+    # item 7; it raised "initial: has 17 nodes, the discretisation has 21").
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+             "rest_curvature": [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], "tip_force": [0.5, 0, 0]}
+    chosen = softspine.solve(scene, tol=1e-4)
+    assert chosen.n_elements != 21
+    warm = softspine.solve(scene, initial=chosen)
+    assert warm.converged and warm.n_elements == chosen.n_elements
+    assert warm.iterations <= 2
+    cold = softspine.solve(scene, n_elements=chosen.n_elements, scheme=warm.scheme.value)
+    np.testing.assert_allclose(warm.positions, cold.positions, atol=1e-12)
+    # Given both, they must agree; an n the sections do not divide is
+    # refused naming the warm start.
+    with pytest.raises(ValueError, match="initial: has"):
+        softspine.solve(scene, initial=chosen, n_elements=chosen.n_elements + 3)
+    with pytest.raises(ValueError, match=r"initial: has 5 nodes, 4 elements: must be a "
+                                         r"positive multiple of the number of sections \(3\)"):
+        softspine.solve(scene, initial=np.tile([1.0, 0, 0, 0], (5, 1)))

@@ -20,7 +20,7 @@ from typing import Any
 import numpy.typing as npt
 
 from . import files as _files  # noqa: F401  (save and load of Solution, IkResult)
-from . import trajectories
+from . import trajectories, types
 from ._core import (
     Accuracy,
     IkEnding,
@@ -43,6 +43,7 @@ from ._core import solve as _solve
 from .batch import BatchResult, IkBatchResult, solve_batch
 from .scenes import load_scene
 from .sensitivity import Calibration, Sensitivity, calibrate
+from .types import Method, Refine, RobotDict, SceneDict, SchemeName
 
 __all__ = [
     "Accuracy",
@@ -55,7 +56,9 @@ __all__ = [
     "InverseSolver",
     "PaperSettings",
     "Robot",
+    "RobotDict",
     "Scene",
+    "SceneDict",
     "Scheme",
     "Sensitivity",
     "Settings",
@@ -69,21 +72,22 @@ __all__ = [
     "solve",
     "solve_batch",
     "trajectories",
+    "types",
     "__version__",
 ]
 
 
 def solve(
-    scene: Scene | dict[str, Any] | str | PathLike[str],
+    scene: Scene | SceneDict | dict[str, Any] | str | PathLike[str],
     settings: Settings | dict[str, Any] | None = None,
     *,
     n_elements: int | None = None,
-    method: str | None = None,
-    scheme: str | None = None,
+    method: Method | None = None,
+    scheme: SchemeName | Scheme | None = None,
     initial: Solution | npt.ArrayLike | None = None,
     accuracy: Accuracy | dict[str, Any] | None = None,
     tol: float | None = None,
-    refine: str | None = None,
+    refine: Refine | None = None,
     residual_tol: float | None = None,
     max_iterations: int | None = None,
     check: bool = False,
@@ -122,7 +126,9 @@ def solve(
         held points; there it is the faster), ``"fd2"`` otherwise. The paper's
         method and shooting have their own.
     initial : Solution or array (n+1, 4), optional
-        Warm start, e.g. the solution of a neighbouring scene (fixed ``n`` only).
+        Warm start, e.g. the solution of a neighbouring scene: its ``n`` is the
+        solve's unless ``n_elements`` is given (then they must agree); not with
+        accuracy on demand.
     accuracy : Accuracy or dict, optional
         Accuracy on demand (``softspine.Accuracy``): from a first resolving
         ``n`` and ``2n``, the estimated error of the whole backbone (the largest

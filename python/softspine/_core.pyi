@@ -14,6 +14,7 @@ import numpy.typing as npt
 
 from .batch import BatchResult, IkBatchResult
 from .sensitivity import Sensitivity
+from .types import Method, Refine, RobotDict, SceneDict, SchemeName, Strategy
 
 # What a robot carries: a payload mass [kg], or a dict of mass, tip_force
 # [N], tip_moment [N m] (world frame) and point_loads [{s, force, moment}].
@@ -86,7 +87,7 @@ class SolverError(Exception):
 class Scene:
     """What is being solved; ``ValueError`` naming the key on invalid input."""
 
-    def __new__(cls, data: dict[str, Any] | Scene | str | PathLike[str]) -> Scene:
+    def __new__(cls, data: SceneDict | dict[str, Any] | Scene | str | PathLike[str]) -> Scene:
         """From a dict, a Scene or the path of a ``.json`` / ``.toml`` file."""
     @staticmethod
     def from_json(text: str) -> Scene: ...
@@ -251,9 +252,9 @@ class IkSettings:
     def validate(self) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     @property
-    def strategy(self) -> str: ...
+    def strategy(self) -> Strategy: ...
     @strategy.setter
-    def strategy(self, value: str) -> None: ...
+    def strategy(self, value: Strategy) -> None: ...
     tol: float
     max_iterations: int
     def __setstate__(self, state: dict[str, Any]) -> None: ...
@@ -284,7 +285,7 @@ class Robot:
     Its inverse kinematics searches the drive's coordinates: the muscles'
     curvature, the tendons' tensions or the field."""
 
-    def __new__(cls, data: dict[str, Any] | None = None) -> Robot: ...
+    def __new__(cls, data: RobotDict | dict[str, Any] | None = None) -> Robot: ...
     @staticmethod
     def from_json(text: str) -> Robot: ...
     @staticmethod
@@ -512,7 +513,7 @@ class Robot:
         direction: npt.ArrayLike | None = None,
         settings: IkSettings | dict[str, Any] | None = None,
         *,
-        strategy: str | None = None,
+        strategy: Strategy | None = None,
         tol: float | None = None,
         max_iterations: int | None = None,
         initial: IkResult | Solution | npt.ArrayLike | None = None,
@@ -536,7 +537,7 @@ class Robot:
         direction: npt.ArrayLike | None = None,
         settings: IkSettings | dict[str, Any] | None = None,
         *,
-        strategy: str | None = None,
+        strategy: Strategy | None = None,
         tol: float | None = None,
         max_iterations: int | None = None,
         pretension: npt.ArrayLike | None = None,
@@ -556,12 +557,12 @@ class Solver:
 
     def __new__(
         cls,
-        scene: Scene | dict[str, Any],
+        scene: Scene | SceneDict | dict[str, Any],
         settings: Settings | dict[str, Any] | None = None,
         *,
         n_elements: int | None = None,
-        method: str | None = None,
-        scheme: str | None = None,
+        method: Method | None = None,
+        scheme: SchemeName | Scheme | None = None,
         residual_tol: float | None = None,
         max_iterations: int | None = None,
     ) -> Solver: ...
@@ -645,13 +646,13 @@ class Settings:
     @n_elements.setter
     def n_elements(self, value: int | None) -> None: ...
     @property
-    def method(self) -> str: ...
+    def method(self) -> Method: ...
     @method.setter
-    def method(self, value: str) -> None: ...
+    def method(self, value: Method) -> None: ...
     @property
-    def scheme(self) -> str | None: ...
+    def scheme(self) -> SchemeName | None: ...
     @scheme.setter
-    def scheme(self, value: str | None) -> None: ...
+    def scheme(self, value: SchemeName | Scheme | None) -> None: ...
     residual_tol: float
     max_iterations: int
     min_continuation_step: float
@@ -667,30 +668,30 @@ class Accuracy:
     """Accuracy on demand: the n whose backbone's error is below ``tol * L``."""
 
     def __new__(
-        cls, tol: float, refine: str | None = None, max_elements: int = 10240
+        cls, tol: float, refine: Refine | None = None, max_elements: int = 10240
     ) -> Accuracy: ...
     def validate(self) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     tol: float
     @property
-    def refine(self) -> str | None: ...
+    def refine(self) -> Refine | None: ...
     @refine.setter
-    def refine(self, value: str | None) -> None: ...
+    def refine(self, value: Refine | None) -> None: ...
     max_elements: int
     def __setstate__(self, state: dict[str, Any]) -> None: ...
     def __reduce__(self) -> tuple[Any, tuple[float], dict[str, Any]]: ...
 
 def solve(
-    scene: Scene | dict[str, Any] | str | PathLike[str],
+    scene: Scene | SceneDict | dict[str, Any] | str | PathLike[str],
     settings: Settings | dict[str, Any] | None = None,
     *,
     n_elements: int | None = None,
-    method: str | None = None,
-    scheme: str | None = None,
+    method: Method | None = None,
+    scheme: SchemeName | Scheme | None = None,
     initial: Solution | npt.ArrayLike | None = None,
     accuracy: Accuracy | dict[str, Any] | None = None,
     tol: float | None = None,
-    refine: str | None = None,
+    refine: Refine | None = None,
     residual_tol: float | None = None,
     max_iterations: int | None = None,
     check: bool = False,
@@ -700,12 +701,12 @@ def solve(
 # cut of a cluster's batch) and of a Calibration (``softspine.solve_batch``
 # and ``softspine.calibrate`` build them).
 def _solve_batch(
-    scenes: Sequence[Scene | dict[str, Any]],
+    scenes: Sequence[Scene | SceneDict | dict[str, Any]],
     settings: Settings | dict[str, Any] | None = None,
     *,
     n_elements: int | None = None,
-    method: str | None = None,
-    scheme: str | None = None,
+    method: Method | None = None,
+    scheme: SchemeName | Scheme | None = None,
     residual_tol: float | None = None,
     max_iterations: int | None = None,
     shapes: bool | None = None,
@@ -725,7 +726,7 @@ def _calibrate(
     max_iterations: int | None = None,
     threads: int | None = None,
 ) -> dict[str, Any]: ...
-def residual(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
-def jacobian(scene: Scene | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
+def residual(scene: Scene | SceneDict | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
+def jacobian(scene: Scene | SceneDict | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def trajectory_points(name: str, points: int = 60, robot: Robot | None = None) -> _Array: ...
 def read_obstacle(obstacle: dict[str, Any]) -> dict[str, Any]: ...

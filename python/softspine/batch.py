@@ -24,7 +24,8 @@ from . import _core, files
 from ._core import Robot
 
 if TYPE_CHECKING:
-    from ._core import IkSettings, Scene, Settings, _Load
+    from ._core import IkSettings, Scene, Scheme, Settings, _Load
+    from .types import Method, SceneDict, SchemeName
 
 __all__ = [
     "BatchResult",
@@ -411,12 +412,12 @@ def inverse_batch(
 
 
 def solve_batch(
-    scenes: Sequence[Scene | dict[str, Any]],
+    scenes: Sequence[Scene | SceneDict | dict[str, Any]],
     settings: Settings | dict[str, Any] | None = None,
     *,
     n_elements: int | None = None,
-    method: str | None = None,
-    scheme: str | None = None,
+    method: Method | None = None,
+    scheme: SchemeName | Scheme | None = None,
     residual_tol: float | None = None,
     max_iterations: int | None = None,
     shapes: bool | None = None,

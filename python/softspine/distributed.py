@@ -23,8 +23,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ._core import Robot, Scene, _solve_batch
+from ._core import Robot, Scene, Scheme, _solve_batch
 from .batch import BatchResult, IkBatchResult, concatenate, progress_callback
+from .types import Method, SceneDict, SchemeName
 
 __all__ = ["forward_batch", "inverse_batch", "solve_batch", "workspace"]
 
@@ -213,13 +214,13 @@ def inverse_batch(
 
 
 def solve_batch(
-    scenes: Sequence[Scene | dict[str, Any]],
+    scenes: Sequence[Scene | SceneDict | dict[str, Any]],
     settings: Any = None,
     *,
     executor: Any,
     n_elements: int | None = None,
-    method: str | None = None,
-    scheme: str | None = None,
+    method: Method | None = None,
+    scheme: SchemeName | Scheme | None = None,
     residual_tol: float | None = None,
     max_iterations: int | None = None,
     shapes: bool | None = None,

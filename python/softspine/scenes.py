@@ -5,11 +5,13 @@ from __future__ import annotations
 import math
 from importlib import resources
 from os import PathLike
+from typing import Any
 
 from ._core import Scene
+from .types import SceneDict
 
 
-def load_scene(scene: Scene | dict | str | PathLike) -> Scene:
+def load_scene(scene: Scene | SceneDict | dict[str, Any] | str | PathLike[str]) -> Scene:
     """A ``Scene`` from a Scene, a dict, or the path of a ``.json``/``.toml`` file
     (``Scene(scene)``)."""
     return Scene(scene)

@@ -680,9 +680,29 @@ const DIRECT_ITERATIONS: usize = 60;
 
 /// Solve a scene once (see [`Solver`] to reuse the workspace).
 /// `solve_time` counts the set-up of the discretisation.
-pub fn solve(scene: &Scene, settings: Settings, initial: Option<&[Quat]>) -> Result<Solution> {
+pub fn solve(scene: &Scene, mut settings: Settings, initial: Option<&[Quat]>) -> Result<Solution> {
     let started = Instant::now();
-    let mut solution = Solver::new(scene, settings)?.solve(initial)?;
+    // A warm start brings its own n where none is asked for (a solution of
+    // accuracy on demand, at the n it chose, warm-starts the next solve).
+    let nodes = initial
+        .filter(|_| settings.n_elements.is_none())
+        .map(<[Quat]>::len);
+    if let Some(nodes) = nodes {
+        settings.n_elements = Some(nodes.saturating_sub(1));
+    }
+    let mut solver = Solver::new(scene, settings).map_err(|e| match (e, nodes) {
+        (Error::InvalidArgument { name, reason }, Some(nodes)) if name == "n_elements" => {
+            Error::argument(
+                "initial",
+                format!(
+                    "has {nodes} nodes, {} elements: {reason}",
+                    nodes.saturating_sub(1)
+                ),
+            )
+        }
+        (e, _) => e,
+    })?;
+    let mut solution = solver.solve(initial)?;
     solution.solve_time = started.elapsed().as_secs_f64();
     Ok(solution)
 }

@@ -71,8 +71,8 @@ def test_the_obstacle_dict_has_every_shapes_keys():
     ).split("expected one of:")[1]))
     every = set()
     for shape in shapes:
-        every |= accepted_keys(
-            lambda shape=shape: softspine.Scene({**ROD, "obstacles": [{"shape": shape, **UNKNOWN}]}))
+        obstacle = {"shape": shape, **UNKNOWN}
+        every |= accepted_keys(lambda o=obstacle: softspine.Scene({**ROD, "obstacles": [o]}))
     assert keys(types.ObstacleDict) == every
 
 

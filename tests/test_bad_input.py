@@ -81,7 +81,9 @@ def test_numpy_values_are_accepted():
         ({"tol": -1.0}, "tol"),
         ({"tol": math.nan}, "tol"),
         ({"max_iterations": 0}, "max_iterations"),
-        ({"initial": np.ones((5, 4))}, "initial"),
+        # A warm start brings its own n, but not against n_elements.
+        ({"initial": np.ones((5, 4)), "n_elements": 20}, "initial"),
+        ({"initial": np.ones((1, 4))}, "initial"),
         ({"initial": np.ones((21, 3))}, "initial"),
         ({"initial": np.full((21, 4), np.nan)}, "initial"),
     ],
@@ -169,3 +171,24 @@ def test_a_failed_solve_names_the_load_scale_it_reached():
         sol = softspine.solve(soft)
     assert not sol.converged
     assert re.search(r"at load scale \d\.\d{3} of 1\).*kappa L = 4\.02e8", sol.message), sol.message
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda r, t: r.forward(tensions=[1.0, 2.0, 3.0]),
+     "tensions: this robot has no tendons: it is driven by its pneumatic muscles"),
+    (lambda r, t: r.forward(field=[0.0, 0.0, 0.01]),
+     "field: this robot has no magnetised material: it is driven by its pneumatic muscles"),
+    (lambda r, t: r.forward_batch(tensions=[[1.0, 2.0, 3.0]]),
+     "tensions: this robot has no tendons"),
+    (lambda r, t: t.forward(field=[0.0, 0.0, 0.01]),
+     "field: this robot has no magnetised material: it is driven by its tendons"),
+    (lambda r, t: t.forward(tensions=[1.0, 2.0, 3.0]),
+     "tensions: expected 9 tensions, one a tendon, got 3"),
+])
+def test_a_drive_the_robot_lacks_is_refused_saying_what_drives_it(call, message):
+    # Issue 29, item 8: "tensions: expected one a tendon (0), got 3" was
+    # garbled, and a field on a robot without magnets moved nothing, silently.
+    robot = softspine.Robot()
+    tendons = softspine.Robot.from_file("examples/robots/tendon_robot.toml")
+    with pytest.raises(ValueError, match=re.escape(message)):
+        call(robot, tendons)

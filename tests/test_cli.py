@@ -4,6 +4,8 @@ shows every default; errors are one line."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -108,3 +110,19 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("softspine: error: "), err
         assert message in err[0], err
+
+
+@pytest.mark.parametrize("command", ["demo", "track"])
+def test_without_matplotlib_the_error_says_no_plot(command):
+    # Issue 29, item 8: the demo on a machine without the plot extra names
+    # the extra and the way around it, in one line, before any work.
+    hide = ("import sys; sys.modules['matplotlib'] = None; "
+            "from softspine.cli import main; sys.exit(main(sys.argv[1:]))")
+    run = subprocess.run([sys.executable, "-c", hide, command], capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 2, run.stderr
+    assert run.stderr.count("\n") == 1, run.stderr
+    assert "pip install 'softspine[plot]'" in run.stderr and "--no-plot" in run.stderr
+    ok = subprocess.run([sys.executable, "-c", hide, command, "--no-plot"],
+                        capture_output=True, text=True, timeout=300)
+    assert ok.returncode == 0, ok.stderr

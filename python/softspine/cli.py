@@ -25,7 +25,10 @@ def _check_outputs(args: argparse.Namespace) -> None:
     if args.save is not None:
         _save_format(args.save)
     if not args.no_plot:
-        require_matplotlib()
+        try:
+            require_matplotlib()
+        except ImportError as e:
+            raise ImportError(f"{e}; or run with --no-plot") from e
 
 
 def _save_format(path: str) -> str:

@@ -593,10 +593,16 @@ impl PyRobot {
             .map(|a| samples_arg::<2>("actuations", &a, robot.body.sections))
             .transpose()?;
         let t = given(tensions)
-            .map(|t| sample_rows("tensions", &t, robot.drive.tendon_routes().len()))
+            .map(|t| {
+                robot.check_drive_given("tensions")?;
+                sample_rows("tensions", &t, robot.drive.tendon_routes().len())
+            })
             .transpose()?;
         let b = given(field)
-            .map(|b| sample_rows("field", &b, 3))
+            .map(|b| {
+                robot.check_drive_given("field")?;
+                sample_rows("field", &b, 3)
+            })
             .transpose()?
             .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2]]).collect::<Vec<_>>());
         let d = given(insertion)

@@ -124,6 +124,15 @@ impl Drive {
         }
     }
 
+    /// What drives the robot, in a sentence: "pneumatic muscles", ...
+    pub fn description(&self) -> &'static str {
+        match self {
+            Drive::Muscles(_) => "its pneumatic muscles (rest_curvature)",
+            Drive::Tendons(_) => "its tendons (tensions)",
+            Drive::Field(_) => "a magnetic field acting on its magnetised material (field)",
+        }
+    }
+
     /// The muscles, if they drive the robot.
     pub fn muscles(&self) -> Option<&Muscles> {
         match self {

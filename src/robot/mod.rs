@@ -312,14 +312,46 @@ impl Robot {
         crate::solve(&self.scene(actuation, load)?, settings, initial)
     }
 
+    /// Refuse tensions (`name` "tensions") or a field (`name` "field")
+    /// given to a robot that has no tendons or no magnets: it would move
+    /// nothing.
+    pub fn check_drive_given(&self, name: &str) -> Result<()> {
+        let has = match name {
+            "tensions" => !self.drive.tendon_routes().is_empty(),
+            "field" => self.drive.magnets().is_some(),
+            _ => true,
+        };
+        if has {
+            return Ok(());
+        }
+        let what = if name == "field" {
+            "magnetised material"
+        } else {
+            "tendons"
+        };
+        Err(Error::argument(
+            name,
+            format!(
+                "this robot has no {what}: it is driven by {}",
+                self.drive.description()
+            ),
+        ))
+    }
+
     /// Refuse tensions or a field the robot's drives cannot apply, naming them.
     pub fn check_actuation(&self, tensions: &[f64], field: Vector3<f64>) -> Result<()> {
         let routes = self.drive.tendon_routes();
+        if !tensions.is_empty() {
+            self.check_drive_given("tensions")?;
+        }
+        if field != Vector3::zeros() {
+            self.check_drive_given("field")?;
+        }
         if !tensions.is_empty() && tensions.len() != routes.len() {
             return Err(Error::argument(
                 "tensions",
                 format!(
-                    "expected one a tendon ({}), got {}",
+                    "expected {} tensions, one a tendon, got {}",
                     routes.len(),
                     tensions.len()
                 ),

@@ -520,7 +520,11 @@ impl DriveSpace {
                 if p.len() != self.dimension {
                     return Err(Error::argument(
                         "pretension",
-                        format!("expected one a tendon ({}), got {}", self.dimension, p.len()),
+                        format!(
+                            "expected {} tensions, one a tendon, got {}",
+                            self.dimension,
+                            p.len()
+                        ),
                     ));
                 }
                 Ok(Some(p.to_vec()))

@@ -4,7 +4,7 @@
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: demo test docs bench report
+.PHONY: demo test test-fast wheel docs bench report
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -34,19 +34,25 @@ test: $(PY)
 	cargo test
 	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict -d site
 
+# A wheel to copy to another machine of the same platform (Linux x86-64
+# here; Python >= 3.10, one wheel for every version: abi3) in dist/:
+# pip install dist/softspine-*.whl there, no Rust needed.
+wheel: $(PY)
+	$(PY) -m pip wheel --no-deps -w dist .
+
 # The documentation site (site/): guide, conventions, the model, the examples
 # gallery (from examples/) and the API reference (mkdocstrings), --strict.
 docs: $(PY)
 	$(PY) -m pip install -q ".[docs]"
 	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict -d site
 
-# Speed against error of every method (docs/report.*, the README's table); a
+# Speed against error of every method (docs/report.*, the table of docs/reference.md); a
 # development tool: the references it compares with are in tools/validation.
 report: $(PY)
 	$(PY) -m pip install -q ".[test]"
-	$(PY) tools/report.py --out docs --readme README.md
+	$(PY) tools/report.py --out docs --readme docs/reference.md
 
-# Criterion benchmarks (medians in the README): forward statics, time to
+# Criterion benchmarks (medians in docs/reference.md): forward statics, time to
 # accuracy of every scheme and method, IK, the paper.
 bench:
 	cargo bench --bench forward

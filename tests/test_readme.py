@@ -15,6 +15,7 @@ import pytest
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 GUIDE = README.parent / "docs" / "guide.md"
+REFERENCE = README.parent / "docs" / "reference.md"
 
 
 def python_blocks(text):
@@ -22,10 +23,10 @@ def python_blocks(text):
 
 
 def test_the_readme_has_python_blocks():
-    assert len(python_blocks(README.read_text())) >= 4
+    assert len(python_blocks(README.read_text())) >= 2
 
 
-@pytest.mark.parametrize("page", [README, GUIDE], ids=["readme", "guide"])
+@pytest.mark.parametrize("page", [README, GUIDE, REFERENCE], ids=["readme", "guide", "reference"])
 def test_the_python_blocks_run(tmp_path, page):
     # As a reader runs them from the repository's root, with its example files
     # (in a copy: the blocks write files).

@@ -1,7 +1,7 @@
-"""Write the README's time-to-accuracy table from `cargo bench --bench accuracy`.
+"""Write the reference page's time-to-accuracy table from `cargo bench --bench accuracy`.
 
     cargo bench --bench accuracy 2>&1 | tee /tmp/accuracy.txt
-    python tools/accuracy_table.py /tmp/accuracy.txt --readme README.md
+    python tools/accuracy_table.py /tmp/accuracy.txt --readme docs/reference.md
 
 The bench prints `error <scene> <kind> n=<n>: <error>` (largest node distance
 from the reference over L) and then Criterion's medians; for each scene, kind

@@ -1,6 +1,6 @@
 """Speed against error: every method and scheme on a fixed suite of scenes.
 
-``python tools/report.py [--out docs] [--readme README.md]`` solves each scene
+``python tools/report.py [--out docs] [--readme docs/reference.md]`` solves each scene
 with Newton on both schemes (``fd2``, ``fe4``), ``shooting``, ``lm``, ``paper``
 (when the build has it) and the NumPy reference at n = 5 ... 160, and with
 accuracy on demand at tol = 1e-3 ... 1e-6. It measures the median wall time of

@@ -114,7 +114,7 @@ def solve(
         Levenberg-Marquardt on the same residual (dense, for comparison).
         ``"paper"``: the seed paper's method, particle swarm then LM over the raw
         quaternions and nodal forces, with the unit-norm rows; ``"paper-literal"``:
-        the published system without them (its |q| drifts: see the README).
+        the published system without them (its |q| drifts: see the model's documentation).
         ``"shooting"``: classic RK4 on the Kirchhoff rod equations, one step an
         element, and Newton on the base wrench (fourth order at the nodes; no
         guides); the baseline of the report.

@@ -254,7 +254,7 @@ def _track(args: argparse.Namespace) -> int:
 
 
 def _table(args: argparse.Namespace) -> int:
-    """Every trajectory with 0, 30 and 60 g: a Markdown table for the reference page (docs/reference.md)."""
+    """Every trajectory with 0, 30 and 60 g: a Markdown table (docs/reference.md)."""
     from . import trajectories
 
     robot = Robot()

@@ -40,6 +40,14 @@ test: $(PY)
 wheel: $(PY)
 	$(PY) -m pip wheel --no-deps -w dist .
 
+# The tests a change usually needs, in a few minutes: pytest without the
+# slow ones (the references' convergence studies, the examples, clusters,
+# Ctrl-C probes: marked slow), after ruff. make test runs everything.
+test-fast: $(PY)
+	$(PY) -m pip install -q ".[test]"
+	$(PY) -m ruff check python tests tools
+	$(PY) -m pytest -q -n auto --dist loadfile -m "not slow"
+
 # The documentation site (site/): guide, conventions, the model, the examples
 # gallery (from examples/) and the API reference (mkdocstrings), --strict.
 docs: $(PY)

@@ -265,6 +265,7 @@ def test_a_non_finite_actuation_names_its_sample(robot, actuations):
         robot.forward_batch(bad, LOAD)
 
 
+@pytest.mark.slow
 def test_ctrl_c_interrupts_a_long_batch():
     code = textwrap.dedent(
         """

@@ -11,6 +11,9 @@ import pytest
 import softspine
 from softspine.batch import BatchResult
 
+# Dask and Ray clusters start in seconds: the full tier only (make test).
+pytestmark = pytest.mark.slow
+
 LOAD = 0.03
 CHUNK = 8
 PART = 24  # three chunks a task

@@ -131,6 +131,7 @@ SHOOTING_CASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(SHOOTING_CASES))
 def test_hard_scene_against_shooting(name):
     scene, ns = SHOOTING_CASES[name]

@@ -33,6 +33,7 @@ def reference():
     return WrenchRod(SCENE).solve(STATIONS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "scheme, counts, order",
     [("fd2", [8, 16, 32, 64], 2.0), ("fe4", [4, 8, 16, 32], 4.0)],

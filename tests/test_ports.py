@@ -289,6 +289,7 @@ def test_tracking_through_a_port_keeps_the_insertion_and_the_result_comes_back()
     assert softspine.IkResult.from_dict(d).insertion == 0.0
 
 
+@pytest.mark.slow
 def test_a_catheter_fed_through_a_port_converges_at_every_step():
     # examples/catheter.py's vessel, sheath and port: the handle moves the
     # base 5 mm a step from 40 to 150 mm, each solve warm from the last;

@@ -26,6 +26,7 @@ def test_the_readme_has_python_blocks():
     assert len(python_blocks(README.read_text())) >= 2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", [README, GUIDE, REFERENCE], ids=["readme", "guide", "reference"])
 def test_the_python_blocks_run(tmp_path, page):
     # As a reader runs them from the repository's root, with its example files

@@ -247,6 +247,7 @@ INTERRUPT_DELAYS = {"newton": (0.3, 1.0, 2.0), "lm": (1.0,), "paper": (1.0,),
                     "fe4": (0.5, 2.0), "shooting": (0.5, 3.0)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("method", "delay"), [(m, d) for m in sorted(LONG_SOLVES) for d in INTERRUPT_DELAYS[m]]
 )

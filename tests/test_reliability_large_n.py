@@ -34,6 +34,9 @@ import softspine
 
 from validation import reference
 
+# Large n and property searches: the full tier only (make test).
+pytestmark = pytest.mark.slow
+
 EPS = np.finfo(float).eps
 RESIDUAL_TOL = 1e-10  # softspine's default residual_tol
 STATUSES = {

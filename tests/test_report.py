@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 import report
 
 
+@pytest.mark.slow
 def test_report_runs_and_writes_table_plot_and_readme(tmp_path):
     readme = tmp_path / "README.md"
     readme.write_text(f"intro\n{report.START}\nold\n{report.END}\nend\n")

@@ -35,6 +35,7 @@ def reference():
     return solve_reference(SCENE, list(np.linspace(0, 0.9, 49)), rtol=1e-11)
 
 
+@pytest.mark.slow
 def test_sections_of_their_own_converge_to_the_cosserat_rod_at_the_schemes_orders(reference):
     errors = {}
     for scheme, sizes in (("fd2", (12, 24, 48)), ("fe4", (6, 12, 24))):
@@ -84,6 +85,7 @@ UNEQUAL = {
 }
 
 
+@pytest.mark.slow
 def test_sections_of_their_own_lengths_converge_to_the_cosserat_rod_at_the_schemes_orders():
     fine = softspine.solve(UNEQUAL, n_elements=48, residual_tol=1e-13)
     s = fine.arc_length

@@ -49,6 +49,7 @@ def test_free_rod_whole_backbone_is_fourth_order():
     assert np.allclose(sol.forces[0], ref["base_force"], atol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["pinned", "clamped"])
 def test_held_tips_and_reactions_are_fourth_order(kind):
     scene = held_scenes()[kind]

@@ -106,6 +106,7 @@ def test_forward_with_tensions_and_a_field_is_the_robots_scene_with_them():
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["tendons", "magnetic"])
 def test_the_robot_converges_to_the_rucker_webster_rod_at_second_order(kind):
     """Own weight, a tip mass and the actuation (tendons anchored at section
@@ -153,6 +154,7 @@ def rerouted_robot(**fields) -> softspine.Robot:
     })
 
 
+@pytest.mark.slow
 def test_a_robot_of_unequal_sections_and_rerouted_tendons_converges_to_the_reference():
     robot = rerouted_robot()
     assert robot.length == pytest.approx(0.3)

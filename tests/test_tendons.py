@@ -43,6 +43,7 @@ def errors(scheme, sizes, reference):
     return out
 
 
+@pytest.mark.slow
 def test_both_schemes_converge_to_the_rucker_webster_rod_at_their_orders(reference):
     fd2 = errors("fd2", [8, 16, 32], reference)
     fe4 = errors("fe4", [4, 8, 16], reference)
@@ -118,6 +119,7 @@ ROUTED = {
 }
 
 
+@pytest.mark.slow
 def test_tendons_routed_section_by_section_converge_to_the_rucker_webster_rod():
     """At a section's start such a tendon crosses the disk to its new hole:
     the reference bends it there (two point loads); the potential only
@@ -175,6 +177,7 @@ MAGNETIC = {
 }
 
 
+@pytest.mark.slow
 def test_a_magnetised_rod_converges_to_the_shooting_reference_at_the_schemes_orders():
     reference = solve_reference(MAGNETIC, list(np.linspace(0, L, 33)), rtol=1e-10)
 

@@ -87,6 +87,7 @@ def test_the_literal_types_are_the_names_the_core_accepts():
     assert set(get_args(types.IkEndingName)) == {e.value for e in IkEnding}
 
 
+@pytest.mark.slow
 def test_mypy_catches_a_misspelt_key_and_method(tmp_path):
     api = pytest.importorskip("mypy.api")
     script = tmp_path / "user.py"

@@ -44,6 +44,7 @@ from .batch import BatchResult, IkBatchResult, solve_batch
 from .scenes import load_scene
 from .sensitivity import Calibration, Sensitivity, calibrate
 from .types import Method, Refine, RobotDict, SceneDict, SchemeName
+from .viewer import view
 
 __all__ = [
     "Accuracy",
@@ -73,6 +74,7 @@ __all__ = [
     "solve_batch",
     "trajectories",
     "types",
+    "view",
     "__version__",
 ]
 

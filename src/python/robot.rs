@@ -25,6 +25,32 @@ use std::sync::{Arc, Mutex};
 /// ``Robot().to_dict()``). Tendons (``tendons``, ``max_tension``) or magnets
 /// (``magnetization``, ``tip_magnet``, ``max_field``) replace the muscles
 /// (``muscle_*``, ``inflation_rate``): a robot has one drive.
+///
+/// Its fields, SI units (default in brackets):
+///
+/// * ``length`` m [1]; ``sections`` [10], equal unless ``section_properties``
+///   (one ``{length, stiffness, linear_density, disk_mass}`` a section, each
+///   optional) gives each its own; ``n_elements`` [20], a multiple of them.
+/// * ``stiffness``: ``{E, G, diameter}`` Pa, Pa, m [steel, 3 mm] or
+///   ``{kx, ky, kz}`` N m^2; ``linear_density`` kg/m [0.2]; ``disk_mass`` kg
+///   at each section end [0.01]; ``gravity`` m/s^2, world frame [0, 0, -9.81].
+/// * ``base_quaternion`` [w, x, y, z], a 3x3 matrix or a scipy Rotation
+///   [pointing down, -z]; ``base_position`` m [origin]; ``tool_mass`` kg [0] and
+///   ``tool_offset`` m from the tip in its frame [0]: where the tool and the
+///   payload act.
+/// * Muscles: ``muscle_radius`` m from the backbone [0.02]; ``muscle_angles``
+///   degrees in the cross-section [90, 210, 330]; ``muscle_rest_length`` m
+///   [the section length]; ``inflation_rate`` m/s in ``length =
+///   rest_length + rate * time`` [-0.01: 1 cm shorter a second];
+///   ``muscle_length_range`` m [0.8 and 1.05 rest lengths].
+/// * Tendons: ``tendons``, each ``{offset [x, y] m (or one a section it runs
+///   through), twist rad/m, section}`` anchored at that section's end;
+///   ``max_tension`` N [unbounded].
+/// * Magnets: ``magnetization`` A m^2/m a section, material frame;
+///   ``tip_magnet`` A m^2; ``max_field`` T [unbounded].
+/// * Surroundings: ``obstacles``, ``ports``, ``radius`` m for contact [the
+///   drive's reach off the backbone], ``insertion_range`` m [none: the base
+///   stays].
 #[pyclass(
     name = "Robot",
     module = "softspine._core",

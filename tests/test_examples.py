@@ -21,6 +21,15 @@ def test_there_are_examples():
     assert len(EXAMPLES) >= 3
 
 
+def test_the_gallery_shows_every_examples_figure():
+    # Issue 29, item 7: an example that draws a figure has it in docs/ under
+    # its own name, where the gallery (docs/hooks/gallery.py) shows it.
+    drawing = [p for p in EXAMPLES if "savefig" in p.read_text(encoding="utf-8")]
+    assert len(drawing) >= 4
+    missing = [p.name for p in drawing if not (p.parent.parent / "docs" / f"{p.stem}.png").exists()]
+    assert not missing, f"run each with its figure's path docs/<name>.png: {missing}"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_example_runs(path, tmp_path):

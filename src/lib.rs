@@ -35,6 +35,7 @@ pub mod contact;
 pub mod disc;
 pub mod error;
 pub mod interrupt;
+pub mod keys;
 pub mod mesh;
 pub mod methods;
 pub mod model;

@@ -110,3 +110,27 @@ def test_mypy_catches_a_misspelt_key_and_method(tmp_path):
     # The robot's dict is not annotated: its typo is for the core to refuse.
     with pytest.raises(ValueError, match="muscle_angels: unknown key"):
         softspine.Robot({"sections": 3, "muscle_angels": [0, 120, 240]})
+
+
+def reference_names(kind: str) -> set[str]:
+    from softspine._core import keys
+
+    return {row["name"] for row in keys()[kind]}
+
+
+def test_the_key_reference_names_exactly_the_keys_the_readers_take():
+    # docs' key page (docs/hooks/keys.py) comes from the core's tables
+    # (src/keys.rs): every key a reader accepts is there, and no other.
+    scene, robot = reference_names("scene"), reference_names("robot")
+    assert {n for n in scene if "." not in n} == accepted_keys(CASES["SceneDict"][1])
+    assert {n for n in robot if "." not in n} == accepted_keys(CASES["RobotDict"][1])
+    nested = {"stiffness": "StiffnessDict", "gravity": "GravityDict", "tip": "TipDict",
+              "sections[]": "SectionDict", "point_loads[]": "PointLoadDict",
+              "guides[]": "GuideDict", "ports[]": "PortDict", "tendons[]": "SceneTendonDict"}
+    for parent, case in nested.items():
+        listed = {n.split(".", 1)[1] for n in scene if n.startswith(parent + ".")}
+        assert listed == accepted_keys(CASES[case][1]), parent
+    assert {n.split(".", 1)[1] for n in scene if n.startswith("obstacles[].")} == {
+        "shape", "friction"}
+    for row in (*softspine._core.keys()["scene"], *softspine._core.keys()["robot"]):
+        assert all(row[field] for field in ("unit", "default", "meaning")), row

@@ -40,6 +40,7 @@ __all__ = [
     "_calibrate",
     "_solve_batch",
     "jacobian",
+    "keys",
     "read_obstacle",
     "residual",
     "solve",
@@ -730,3 +731,6 @@ def residual(scene: Scene | SceneDict | dict[str, Any], quaternions: npt.ArrayLi
 def jacobian(scene: Scene | SceneDict | dict[str, Any], quaternions: npt.ArrayLike) -> _Array: ...
 def trajectory_points(name: str, points: int = 60, robot: Robot | None = None) -> _Array: ...
 def read_obstacle(obstacle: dict[str, Any]) -> dict[str, Any]: ...
+def keys() -> dict[str, list[dict[str, str]]]:
+    """The key reference: every key of a scene and a robot with its unit,
+    default and meaning (``{"scene": [...], "robot": [...]}``)."""

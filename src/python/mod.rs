@@ -48,6 +48,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(robot::trajectory_points, m)?)?;
     m.add_class::<scene::PyScene>()?;
     m.add_function(wrap_pyfunction!(scene::read_obstacle, m)?)?;
+    m.add_function(wrap_pyfunction!(scene::keys, m)?)?;
     m.add_class::<settings::PySettings>()?;
     m.add_class::<settings::PyPaperSettings>()?;
     m.add_class::<settings::PyAccuracy>()?;

@@ -165,3 +165,24 @@ pub(super) fn read_obstacle<'py>(obstacle: &Bound<'py, PyAny>) -> PyResult<Bound
     let read = crate::contact::Obstacle::from_value(&value, "obstacle")?;
     from_value(obstacle.py(), &read.to_value())
 }
+
+/// The key reference: ``{"scene": [...], "robot": [...]}``, each key a dict
+/// of its ``name`` (``stiffness.E``, ``point_loads[].s``), ``unit``,
+/// ``default`` and ``meaning``, as the core documents what its readers take.
+#[pyfunction]
+pub(super) fn keys(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let out = PyDict::new(py);
+    for (kind, table) in [("scene", crate::keys::SCENE), ("robot", crate::keys::ROBOT)] {
+        let rows = pyo3::types::PyList::empty(py);
+        for k in table {
+            let row = PyDict::new(py);
+            row.set_item("name", k.name)?;
+            row.set_item("unit", k.unit)?;
+            row.set_item("default", k.default)?;
+            row.set_item("meaning", k.meaning)?;
+            rows.append(row)?;
+        }
+        out.set_item(kind, rows)?;
+    }
+    Ok(out)
+}

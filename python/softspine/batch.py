@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import MISSING, dataclass, fields
 from os import PathLike
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -48,10 +48,35 @@ def _dict(result: Any) -> dict[str, Any]:
     return {f.name: getattr(result, f.name) for f in fields(result)}
 
 
+R = TypeVar("R", bound="_Arrays")
+
 #: The NumPy type of each array field of the batch results (what JSON's
 #: lists are read back as).
 _DTYPES: dict[str, type] = {"status": np.str_, "ending": np.str_, "stable": np.bool_,
                             "reached": np.bool_, "iterations": np.int64}
+
+
+class _Arrays:
+    """What the batch results share: their fields as a dict, and in files."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Every field (arrays or None), e.g. a DataFrame of the per-sample
+        columns; ``save`` writes them to a file."""
+        return _dict(self)
+
+    @classmethod
+    def from_dict(cls: type[R], data: dict[str, Any]) -> R:
+        """The result of ``to_dict()`` (also what ``np.load`` gives back)."""
+        return _from_dict(cls, data)
+
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write every field to ``path``: NPZ (``.npz``) or JSON (``.json``)."""
+        files.save(self, path)
+
+    @classmethod
+    def load(cls: type[R], path: str | PathLike[str]) -> R:
+        """The result ``save`` wrote to ``path``."""
+        return _from_dict(cls, files.read(path))
 
 
 def _from_dict(kind: Any, data: dict[str, Any]) -> Any:
@@ -75,7 +100,7 @@ def _from_dict(kind: Any, data: dict[str, Any]) -> Any:
 
 
 @dataclass(frozen=True, eq=False)
-class BatchResult:
+class BatchResult(_Arrays):
     """Forward equilibria of a batch, one row a sample.
 
     ``status`` holds each solve's ``softspine.Status`` name (``"converged"``,
@@ -119,28 +144,10 @@ class BatchResult:
     def __len__(self) -> int:
         return len(self.tip_positions)
 
-    def to_dict(self) -> dict[str, Any]:
-        """Every field (arrays or None), e.g. a DataFrame of the per-sample
-        columns; ``save`` writes them to a file."""
-        return _dict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> BatchResult:
-        """The result of ``to_dict()`` (also what ``np.load`` gives back)."""
-        return _from_dict(cls, data)
-
-    def save(self, path: str | PathLike[str]) -> None:
-        """Write every field to ``path``: NPZ (``.npz``) or JSON (``.json``)."""
-        files.save(self, path)
-
-    @classmethod
-    def load(cls, path: str | PathLike[str]) -> BatchResult:
-        """The result ``save`` wrote to ``path``."""
-        return cls.from_dict(files.read(path))
 
 
 @dataclass(frozen=True, eq=False)
-class IkBatchResult:
+class IkBatchResult(_Arrays):
     """Inverse kinematics of a batch of targets, one row a target."""
 
     rest_curvature: npt.NDArray[np.float64]
@@ -165,23 +172,6 @@ class IkBatchResult:
     def __len__(self) -> int:
         return len(self.tip_positions)
 
-    def to_dict(self) -> dict[str, Any]:
-        """Every field (arrays or None); ``save`` writes them to a file."""
-        return _dict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> IkBatchResult:
-        """The result of ``to_dict()`` (also what ``np.load`` gives back)."""
-        return _from_dict(cls, data)
-
-    def save(self, path: str | PathLike[str]) -> None:
-        """Write every field to ``path``: NPZ (``.npz``) or JSON (``.json``)."""
-        files.save(self, path)
-
-    @classmethod
-    def load(cls, path: str | PathLike[str]) -> IkBatchResult:
-        """The result ``save`` wrote to ``path``."""
-        return cls.from_dict(files.read(path))
 
 
 def concatenate(parts: list[Any]) -> Any:

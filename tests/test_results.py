@@ -337,6 +337,23 @@ def test_a_batch_result_from_a_bad_dict_is_refused_by_name(tendon_robot):
         softspine.BatchResult.from_dict(fields)
 
 
+def test_every_result_is_json_text_and_back(tendon_robot):
+    # json.dumps(sol.to_dict()) cannot write NumPy arrays (issue 29, item 3):
+    # to_json() is that dict as JSON text, from_json reads it back exactly.
+    sol = tendon_robot.forward(tensions=np.full(9, 2.0), load=0.01)
+    ik = tendon_robot.inverse(sol.tip_position, load=0.01)
+    batch = tendon_robot.forward_batch(tensions=np.full((2, 9), 1.0), shapes=True)
+    for result in (sol, ik, batch):
+        text = result.to_json()
+        assert isinstance(json.loads(text), dict)
+        again = type(result).from_json(text)
+        assert_same_fields(result.to_dict(), again.to_dict())
+    with pytest.raises(ValueError, match="text: expected a JSON object, got list"):
+        softspine.Solution.from_json("[1, 2]")
+    with pytest.raises(TypeError, match="text: expected a JSON string, got dict"):
+        softspine.Solution.from_json(sol.to_dict())
+
+
 def test_a_solution_file_needs_a_known_suffix(tmp_path):
     sol = softspine.solve({"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}})
     with pytest.raises(ValueError, match=r"path: expected a file ending in \.npz or \.json"):

@@ -193,6 +193,12 @@ class Solution:
     @staticmethod
     def load(path: str | PathLike[str]) -> Solution:
         """The solution that ``save`` wrote to ``path`` (NPZ or JSON)."""
+    def to_json(self) -> str:
+        """Every field of ``to_dict()`` as JSON text (arrays as nested lists,
+        floats exactly); ``json.dumps(to_dict())`` cannot write the arrays."""
+    @staticmethod
+    def from_json(text: str) -> Solution:
+        """The solution that ``to_json()`` wrote."""
 
 @final
 class IkResult:
@@ -243,6 +249,11 @@ class IkResult:
     @staticmethod
     def load(path: str | PathLike[str]) -> IkResult:
         """The result that ``IkResult.save`` wrote to ``path``."""
+    def to_json(self) -> str:
+        """Every field of ``to_dict()`` as JSON text (its solution's nested)."""
+    @staticmethod
+    def from_json(text: str) -> IkResult:
+        """The result that ``to_json()`` wrote."""
     def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
 
 @final

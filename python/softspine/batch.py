@@ -78,6 +78,15 @@ class _Arrays:
         """The result ``save`` wrote to ``path``."""
         return _from_dict(cls, files.read(path))
 
+    def to_json(self) -> str:
+        """Every field as JSON text (what ``save`` writes to a ``.json``)."""
+        return files.to_json(self)
+
+    @classmethod
+    def from_json(cls: type[R], text: str) -> R:
+        """The result ``to_json()`` wrote."""
+        return _from_dict(cls, files.from_json(text))
+
 
 def _from_dict(kind: Any, data: dict[str, Any]) -> Any:
     """A batch result of ``kind`` from its fields, each refused by name."""

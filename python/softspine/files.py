@@ -1,7 +1,9 @@
 """Saving and loading results: ``save(path)`` and ``load(path)`` on
 ``Solution``, ``IkResult``, ``BatchResult`` and ``IkBatchResult``, NPZ or
 JSON by the file's suffix, every field of ``to_dict()`` and exactly (JSON
-writes each float's shortest round-trip form).
+writes each float's shortest round-trip form); ``to_json()`` and
+``from_json(text)`` give the same JSON as a string (``to_dict()`` holds
+NumPy arrays, which ``json.dumps`` does not write).
 
 A result's ``to_dict()`` may nest (an ``IkResult`` holds its solution's
 dict): NPZ, which holds one level, keeps a nested field under its path
@@ -69,15 +71,30 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def to_json(result: Saved) -> str:
+    """Every field of ``result.to_dict()`` as JSON text (arrays as nested
+    lists; each float's shortest round-trip form, so exactly)."""
+    return json.dumps(_plain(result.to_dict()))
+
+
 def save(result: Saved, path: str | PathLike[str]) -> None:
     """Write every field of ``result.to_dict()`` to ``path``: NPZ (``.npz``)
     or JSON (``.json``; arrays as nested lists)."""
-    fields = result.to_dict()
     if _format(path) == ".npz":
-        np.savez(path, **_flat(fields))
+        np.savez(path, **_flat(result.to_dict()))
         return
     with open(path, "w", encoding="utf-8") as f:
-        json.dump(_plain(fields), f)
+        f.write(to_json(result))
+
+
+def from_json(text: str) -> dict[str, Any]:
+    """The fields ``to_json`` wrote (a dict of lists), refused unless a JSON object."""
+    if not isinstance(text, str):
+        raise TypeError(f"text: expected a JSON string, got {type(text).__name__}")
+    fields = json.loads(text)
+    if not isinstance(fields, dict):
+        raise ValueError(f"text: expected a JSON object, got {type(fields).__name__}")
+    return fields
 
 
 def read(path: str | PathLike[str]) -> dict[str, Any]:
@@ -87,8 +104,7 @@ def read(path: str | PathLike[str]) -> dict[str, Any]:
         with np.load(path) as data:
             return _nested(dict(data))
     with open(path, encoding="utf-8") as f:
-        fields: dict[str, Any] = json.load(f)
-        return fields
+        return from_json(f.read())
 
 
 def _attach(kind: Any) -> None:
@@ -101,10 +117,20 @@ def _attach(kind: Any) -> None:
     def load(path: str | PathLike[str]) -> Any:
         return kind.from_dict(read(path))
 
+    def to_json_method(self: Saved) -> str:
+        return to_json(self)
+
+    def from_json_text(text: str) -> Any:
+        return kind.from_dict(from_json(text))
+
     save_method.__doc__ = save.__doc__
     load.__doc__ = f"The ``{kind.__name__}`` that ``save`` wrote to ``path``."
+    to_json_method.__doc__ = to_json.__doc__
+    from_json_text.__doc__ = f"The ``{kind.__name__}`` that ``to_json()`` wrote."
     kind.save = save_method
     kind.load = staticmethod(load)
+    kind.to_json = to_json_method
+    kind.from_json = staticmethod(from_json_text)
 
 
 for _kind in (Solution, IkResult):

@@ -934,7 +934,103 @@ fn tangent_of_path(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool {
 }
 
 /// Newton on the KKT system with a backtracking line search on the merit.
+///
+/// With friction, where the sticking rows' own compliance does not settle
+/// (a stretch of sticking contacts whose end carries a moment: its forces
+/// alternate above their cones and the contacts slide and stick in turn),
+/// the step is solved again from its start with the rows relaxed: a
+/// compliance far above the rod's, taken down level by level, each level
+/// from the last one's equilibrium (see [`relaxed_friction`]).
 pub(crate) fn newton(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    (max_iter, tol): (usize, f64),
+) -> (bool, usize) {
+    if !model.has_friction() {
+        return newton_at(model, w, lambda, (max_iter, tol));
+    }
+    let start = Snapshot::take(w);
+    let mut iterations = 0;
+    if !w.kkt.contact.friction.relax {
+        // The rows' own compliance first, until a step of this solve has
+        // needed the levels.
+        w.kkt.contact.friction.compliance = friction::compliance(model);
+        let budget = max_iter.min(friction::DIRECT_ITERATIONS);
+        let (converged, spent) = newton_at(model, w, lambda, (budget, tol));
+        if converged || interrupt::requested() {
+            return (converged, spent);
+        }
+        iterations = spent;
+        start.restore(w);
+    }
+    let (converged, more) = relaxed_friction(model, w, lambda, (max_iter, tol));
+    (converged, iterations + more)
+}
+
+/// Friction's homotopy: Newton with the sticking rows' compliance `c` from
+/// [`friction::relaxed_compliance`] (softer than the whole rod) down level by
+/// level, each level from the last one's equilibrium. While relaxed, a
+/// sliding contact whose slip the rows' spring would hold sticks, and the
+/// others slide against their slip (`friction::update`): a spring that
+/// yields at `mu lambda`, whose contact set changes little from one level
+/// to the next. The levels part by [`friction::RELAXED_FACTOR`], by its
+/// square after a level that took at most [`friction::EASY_LEVEL`]
+/// iterations, by its square root after
+/// one that failed (from the last level's answer again). It ends at the
+/// first level whose sticking contacts creep by at most
+/// [`friction::STICK_CREEP`] of the length (`c |f|`), or at the rows' own
+/// compliance (below which round-off in the positions, divided by `c`,
+/// would be the friction forces).
+fn relaxed_friction(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    (max_iter, tol): (usize, f64),
+) -> (bool, usize) {
+    let exact = friction::compliance(model);
+    w.kkt.contact.friction.relax = true;
+    let mut compliance = friction::relaxed_compliance(model).max(exact);
+    let mut factor = friction::RELAXED_FACTOR;
+    // The last level that converged, and its compliance.
+    let mut last: Option<(Snapshot, f64)> = None;
+    let mut iterations = 0;
+    loop {
+        w.kkt.contact.friction.compliance = compliance.max(exact);
+        let budget = max_iter.min(friction::LEVEL_ITERATIONS);
+        let (converged, spent) = newton_at(model, w, lambda, (budget, tol));
+        iterations += spent;
+        if interrupt::requested() || iterations > max_iter * friction::RELAXED_LEVELS {
+            return (false, iterations);
+        }
+        if !converged {
+            // Back to the last level, a shorter way down.
+            let Some((kept, at)) = last.take() else {
+                return (false, iterations);
+            };
+            factor = factor.sqrt();
+            if factor > friction::SLOWEST_FACTOR {
+                return (false, iterations);
+            }
+            kept.restore(w);
+            last = Some((Snapshot::take(w), at));
+            compliance = at * factor;
+            continue;
+        }
+        let creep = friction::creep(model, w);
+        if compliance <= exact || creep <= friction::STICK_CREEP * model.length() {
+            return (true, iterations);
+        }
+        last = Some((Snapshot::take(w), compliance));
+        if spent <= friction::EASY_LEVEL {
+            factor = (factor * factor).max(friction::FASTEST_FACTOR);
+        }
+        compliance *= factor;
+    }
+}
+
+/// [`newton`] at the sticking rows' present compliance.
+fn newton_at(
     model: &RodModel,
     w: &mut Workspace,
     lambda: f64,

@@ -32,6 +32,10 @@
 //! the step carries `mu d` ([`slide_forces`]), which makes the KKT system
 //! unsymmetric and keeps Newton quadratic while contacts slide.
 //!
+//! Where that does not settle (a sticking stretch whose end carries a
+//! moment), the step is solved again with the rows relaxed, level by
+//! level (`constrained::relaxed_friction`, docs/model.md "Relaxed levels").
+//!
 //! An increment finds the exact end of the history for loads under which
 //! no contact that slid comes to rest within the step and none reverses
 //! its sliding; otherwise the answer has the error of the step, which the
@@ -82,8 +86,12 @@ pub(crate) struct FrictionWork {
     /// The sticking contacts of this Newton step, by slot: two rows each,
     /// after the ports' and before the contact candidates'.
     pub sticks: Vec<Stick>,
-    /// The sticking rows' compliance (see [`compliance`]) [m/N].
+    /// The sticking rows' compliance (see [`compliance`]; above it while
+    /// `constrained::relaxed_friction` relaxes them) [m/N].
     pub compliance: f64,
+    /// Whether a step of this solve has needed the relaxed levels: the
+    /// next ones start there.
+    pub relax: bool,
 }
 
 impl FrictionWork {
@@ -101,6 +109,7 @@ impl FrictionWork {
             sticks: Vec::new(),
             saved_sticks: Vec::new(),
             compliance: compliance(model),
+            relax: false,
         }
     }
 
@@ -297,6 +306,8 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
         }
     }
     let held = contact::held_slots(w);
+    let relaxed = w.kkt.contact.friction.compliance > compliance(model) * 1.5;
+    let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
     let f = &mut c.friction;
     let mut is_held = vec![false; f.sliding.len()];
@@ -318,6 +329,26 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
         // last step, along it (a contact that cannot stick, which no Newton
         // step would settle, slides so); [`settle`] checks the others when
         // the solve converges.
+        // Relaxed (see `constrained::relaxed_friction`): a sliding contact
+        // whose slip its spring would hold sticks, the others slide
+        // against their slip.
+        if let (Some(anchor), Some(_), true) = (f.anchors[i], f.sliding[i], relaxed) {
+            let slip = along_surface(
+                &(material_point(model, i, &anchor, r) - anchor.point),
+                &site.normal,
+            );
+            let size = slip.norm();
+            if size <= f.compliance * mu * reaction.x.max(0.0) {
+                let t = tangents(&site.normal);
+                let force = -slip / f.compliance;
+                f.sliding[i] = None;
+                reaction.y = force.dot(&t[0]);
+                reaction.z = force.dot(&t[1]);
+            } else {
+                f.sliding[i] = Some(-slip / size);
+            }
+            continue;
+        }
         if f.anchors[i].is_some() && f.sliding[i].is_none() {
             let t = tangents(&site.normal);
             let force = reaction.y * t[0] + reaction.z * t[1];
@@ -508,6 +539,52 @@ pub(crate) fn compliance(model: &RodModel) -> f64 {
 /// [`compliance`] over an element's bending compliance `h^3 / k`.
 const STICK_COMPLIANCE: f64 = 1e-9;
 
+/// Iterations of a step's Newton at the rows' own compliance before the
+/// relaxed levels take over (`constrained::relaxed_friction`).
+pub(crate) const DIRECT_ITERATIONS: usize = 40;
+
+/// The first relaxed level's compliance over the whole rod's bending
+/// compliance `L^3 / k`: a spring as soft as the rod, whatever `n`.
+const RELAXED_COMPLIANCE: f64 = 1.0;
+
+/// The first relaxed level's compliance [m/N] (see [`RELAXED_COMPLIANCE`]).
+pub(crate) fn relaxed_compliance(model: &RodModel) -> f64 {
+    RELAXED_COMPLIANCE * model.length().powi(3) / model.stiffness().max()
+}
+
+/// From one relaxed level to the next, at first; never less than
+/// `FASTEST_FACTOR`, and the levels fail past `SLOWEST_FACTOR`.
+pub(crate) const RELAXED_FACTOR: f64 = 0.5;
+pub(crate) const FASTEST_FACTOR: f64 = 0.1;
+pub(crate) const SLOWEST_FACTOR: f64 = 0.95;
+
+/// Iterations of one relaxed level (they take one to four).
+pub(crate) const LEVEL_ITERATIONS: usize = 8;
+
+/// A relaxed level this quick lets the next one go further down.
+pub(crate) const EASY_LEVEL: usize = 2;
+
+/// The relaxed levels of a step stop after this many times its iterations.
+pub(crate) const RELAXED_LEVELS: usize = 4;
+
+/// How far a sticking contact may creep on its rows' spring at a relaxed
+/// level's answer (of the length): `c |f|`, far below any discretisation
+/// error and above the positions' round-off.
+pub(crate) const STICK_CREEP: f64 = 1e-11;
+
+/// The most a sticking contact creeps on its rows' spring, `c |f|` [m].
+pub(crate) fn creep(model: &RodModel, w: &Workspace) -> f64 {
+    let first = first(model, w);
+    let f = &w.kkt.contact.friction;
+    f.sticks
+        .iter()
+        .map(|s| {
+            let r = &w.kkt.reactions[first + s.slot];
+            f.compliance * r.y.hypot(r.z)
+        })
+        .fold(0.0, f64::max)
+}
+
 /// The sticking contacts' directions and residuals at the last evaluation's
 /// sites and positions.
 pub(crate) fn gather_sticks(model: &RodModel, w: &mut Workspace) {
@@ -515,7 +592,7 @@ pub(crate) fn gather_sticks(model: &RodModel, w: &mut Workspace) {
         return;
     }
     let first = first(model, w);
-    let compliance = compliance(model);
+    let compliance = w.kkt.contact.friction.compliance;
     let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
     for stick in &mut c.friction.sticks {

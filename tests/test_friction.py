@@ -236,18 +236,20 @@ def pushed_rod(push: float) -> dict:
                            "friction": 0.3}]}
 
 
-def test_a_rod_pushed_along_a_floor_slides_partly_backwards_as_the_reference():
-    # Pushed at its tip by 0.05 of its weight (the friction could hold six
-    # times that): the sticking stretch's end carries a moment, which a
-    # sticking stretch of a discrete rod passes on as alternating shears
-    # above every cone. The rows' own compliance cycled there (no
-    # convergence at any n); the relaxed levels (constrained.rs) find the
-    # answer, which has contacts sliding backwards next to the forward slip
-    # zone, as the reference's (friction_reference.py, an Euler-Bernoulli
-    # beam of Hermite elements, the convex minimisation solved exactly).
+@pytest.mark.parametrize("push", [0.05, 0.1])
+def test_a_rod_pushed_along_a_floor_slides_partly_backwards_as_the_reference(push):
+    # Pushed at its tip by 0.05 or 0.1 of its weight (the friction could
+    # hold six or three times that): the sticking stretch's end carries a
+    # moment, which a sticking stretch of a discrete rod passes on as
+    # alternating shears above every cone. The rows' own compliance cycled
+    # there (no convergence at n = 20); the relaxed levels (constrained.rs)
+    # find the answer, which has contacts sliding backwards next to the
+    # forward slip zone, as the reference's (friction_reference.py, an
+    # Euler-Bernoulli beam of Hermite elements, the convex minimisation
+    # solved exactly). Sticking contacts may creep by 3e-9 L on the relaxed
+    # rows (friction.rs), which moves the tip by under 0.1 % of its move.
     from friction_reference import pushed_along_a_floor
 
-    push = 0.05
     reference = pushed_along_a_floor(1.0, 1.0, 0.3, 1.0, push, 320)[-1]
     errors = []
     for n in (20, 40, 80):
@@ -262,7 +264,9 @@ def test_a_rod_pushed_along_a_floor_slides_partly_backwards_as_the_reference():
         size = np.linalg.norm(c["friction"], axis=1)
         np.testing.assert_allclose(size[sliding], mu_lambda[sliding], rtol=1e-9)
         assert (size[~sliding] <= mu_lambda[~sliding] * (1 + 1e-9)).all()
-        errors.append(abs(sol.tip_position[1] - reference))
-    # Second order in n (errors 1.2 %, 0.57 %, 0.14 % of the tip's move).
-    assert errors[2] < 2e-3 * reference
-    assert errors[0] / errors[1] > 1.8 and errors[1] / errors[2] > 3.5, errors
+        errors.append(abs(sol.tip_position[1] - reference) / reference)
+    # Second order in n: 1.2 %, 0.57 %, 0.14 % of the tip's move (0.05) and
+    # 0.59 %, 0.15 %, 0.044 % (0.1; the reference's own error at 320
+    # elements is some 0.01 %).
+    assert errors[2] < 2e-3
+    assert errors[0] / errors[1] > 1.8 and errors[1] / errors[2] > 3.0, errors

@@ -981,7 +981,9 @@ pub(crate) fn newton(
 /// first level whose sticking contacts creep by at most
 /// [`friction::STICK_CREEP`] of the length (`c |f|`), or at the rows' own
 /// compliance (below which round-off in the positions, divided by `c`,
-/// would be the friction forces).
+/// would be the friction forces); where a level fails from a last one
+/// whose sticking contacts creep by at most [`friction::ACCEPTED_CREEP`],
+/// at that one.
 fn relaxed_friction(
     model: &RodModel,
     w: &mut Workspace,
@@ -992,8 +994,8 @@ fn relaxed_friction(
     w.kkt.contact.friction.relax = true;
     let mut compliance = friction::relaxed_compliance(model).max(exact);
     let mut factor = friction::RELAXED_FACTOR;
-    // The last level that converged, and its compliance.
-    let mut last: Option<(Snapshot, f64)> = None;
+    // The last level that converged, its compliance and creep.
+    let mut last: Option<(Snapshot, f64, f64)> = None;
     let mut iterations = 0;
     loop {
         w.kkt.contact.friction.compliance = compliance.max(exact);
@@ -1004,16 +1006,21 @@ fn relaxed_friction(
             return (false, iterations);
         }
         if !converged {
-            // Back to the last level, a shorter way down.
-            let Some((kept, at)) = last.take() else {
+            // Back to the last level: its answer where its sticking
+            // contacts creep little enough, else a shorter way down.
+            let Some((kept, at, creep)) = last.take() else {
                 return (false, iterations);
             };
+            kept.restore(w);
+            if creep <= friction::ACCEPTED_CREEP * model.length() {
+                evaluate(model, w, lambda, true);
+                return (true, iterations);
+            }
             factor = factor.sqrt();
             if factor > friction::SLOWEST_FACTOR {
                 return (false, iterations);
             }
-            kept.restore(w);
-            last = Some((Snapshot::take(w), at));
+            last = Some((Snapshot::take(w), at, creep));
             compliance = at * factor;
             continue;
         }
@@ -1021,7 +1028,7 @@ fn relaxed_friction(
         if compliance <= exact || creep <= friction::STICK_CREEP * model.length() {
             return (true, iterations);
         }
-        last = Some((Snapshot::take(w), compliance));
+        last = Some((Snapshot::take(w), compliance, creep));
         if spent <= friction::EASY_LEVEL {
             factor = (factor * factor).max(friction::FASTEST_FACTOR);
         }

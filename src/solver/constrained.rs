@@ -939,8 +939,9 @@ fn tangent_of_path(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool {
 /// (a stretch of sticking contacts whose end carries a moment: its forces
 /// alternate above their cones and the contacts slide and stick in turn),
 /// the step is solved again from its start with the rows relaxed: a
-/// compliance far above the rod's, taken down level by level, each level
-/// from the last one's equilibrium (see [`relaxed_friction`]).
+/// compliance as soft as the rod's, taken down level by level, each level
+/// from the last one's equilibrium (see [`relaxed_friction`]); where that
+/// fails too, at the rows' own compliance with the whole budget.
 pub(crate) fn newton(
     model: &RodModel,
     w: &mut Workspace,
@@ -950,22 +951,37 @@ pub(crate) fn newton(
     if !model.has_friction() {
         return newton_at(model, w, lambda, (max_iter, tol));
     }
-    let start = Snapshot::take(w);
+    let exact = friction::compliance(model);
+    let mut start = Snapshot::take(w);
+    // The rows' own compliance first, until a step of this solve has
+    // needed the levels.
+    let direct = if w.kkt.contact.friction.relax {
+        0
+    } else {
+        max_iter.min(friction::DIRECT_ITERATIONS)
+    };
     let mut iterations = 0;
-    if !w.kkt.contact.friction.relax {
-        // The rows' own compliance first, until a step of this solve has
-        // needed the levels.
-        w.kkt.contact.friction.compliance = friction::compliance(model);
-        let budget = max_iter.min(friction::DIRECT_ITERATIONS);
-        let (converged, spent) = newton_at(model, w, lambda, (budget, tol));
+    if direct > 0 {
+        w.kkt.contact.friction.compliance = exact;
+        let (converged, spent) = newton_at(model, w, lambda, (direct, tol));
         if converged || interrupt::requested() {
             return (converged, spent);
         }
         iterations = spent;
         start.restore(w);
+        start = Snapshot::take(w);
     }
-    let (converged, more) = relaxed_friction(model, w, lambda, (max_iter, tol));
-    (converged, iterations + more)
+    let (converged, spent) = relaxed_friction(model, w, lambda, (max_iter, tol));
+    iterations += spent;
+    if converged || interrupt::requested() || direct >= max_iter {
+        return (converged, iterations);
+    }
+    // Neither: the rows' own compliance with the whole budget (contacts
+    // that settle after many iterations).
+    start.restore(w);
+    w.kkt.contact.friction.compliance = exact;
+    let (converged, spent) = newton_at(model, w, lambda, (max_iter, tol));
+    (converged, iterations + spent)
 }
 
 /// Friction's homotopy: Newton with the sticking rows' compliance `c` from

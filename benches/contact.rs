@@ -4,8 +4,10 @@
 //! Sliding ports: a heavy cantilever bent through a port off its line, the
 //! seed's robot bent through a port, and its inverse kinematics along a
 //! circle with the insertion as one more coordinate. Friction: the rod on a
-//! floor with `mu = 0.3` (every node sticks) and the robot against the wall
-//! with `mu = 0.5` (its contact slides down it).
+//! floor with `mu = 0.3` (every node sticks), the same rod pushed sideways
+//! at its tip by 0.05 of its weight (part sticks, part slides, some of it
+//! backwards: the relaxed levels) and the robot against the wall with
+//! `mu = 0.5` (its contact slides down it).
 //!
 //! `cargo bench --bench contact`; the medians go into docs/model.md's
 //! "Contact with obstacles" and the notes.
@@ -63,6 +65,13 @@ fn through_port() -> Scene {
     s
 }
 
+/// The rod on the floor pushed sideways (+y) at its tip by `push` [N].
+fn pushed_along_floor(push: f64) -> Scene {
+    let mut s = with_friction(rod_on_floor(0.0), 0.3);
+    s.tip_force = Vector3::new(0.0, push, 0.0);
+    s
+}
+
 /// `scene` with every obstacle's friction `mu`.
 fn with_friction(mut scene: Scene, mu: f64) -> Scene {
     scene.friction = vec![mu; scene.obstacles.len()];
@@ -79,6 +88,11 @@ fn scenes(c: &mut Criterion) {
         (
             "rod_on_floor_friction",
             with_friction(rod_on_floor(0.0), 0.3),
+            &[20, 80][..],
+        ),
+        (
+            "rod_pushed_along_floor_friction",
+            pushed_along_floor(0.05),
             &[20, 80][..],
         ),
     ] {

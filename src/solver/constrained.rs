@@ -160,12 +160,13 @@ impl Snapshot {
         }
     }
 
-    pub fn restore(self, w: &mut Workspace) {
+    /// Put the state back (the snapshot stays, to go back to again).
+    pub fn restore(&self, w: &mut Workspace) {
         w.q.copy_from_slice(&self.q);
         w.kkt.reactions.copy_from_slice(&self.reactions);
-        w.kkt.contact.active = self.active;
-        w.kkt.contact.held = self.held;
-        w.kkt.contact.friction = self.friction;
+        w.kkt.contact.active.clone_from(&self.active);
+        w.kkt.contact.held.clone_from(&self.held);
+        w.kkt.contact.friction.clone_from(&self.friction);
     }
 }
 
@@ -952,7 +953,7 @@ pub(crate) fn newton(
         return newton_at(model, w, lambda, (max_iter, tol));
     }
     let exact = friction::compliance(model);
-    let mut start = Snapshot::take(w);
+    let start = Snapshot::take(w);
     // The rows' own compliance first, until a step of this solve has
     // needed the levels.
     let direct = if w.kkt.contact.friction.relax {
@@ -969,7 +970,6 @@ pub(crate) fn newton(
         }
         iterations = spent;
         start.restore(w);
-        start = Snapshot::take(w);
     }
     let (converged, spent) = relaxed_friction(model, w, lambda, (max_iter, tol));
     iterations += spent;
@@ -1024,9 +1024,10 @@ fn relaxed_friction(
         if !converged {
             // Back to the last level: its answer where its sticking
             // contacts creep little enough, else a shorter way down.
-            let Some((kept, at, creep)) = last.take() else {
+            let Some((kept, at, creep)) = &last else {
                 return (false, iterations);
             };
+            let (at, creep) = (*at, *creep);
             kept.restore(w);
             if creep <= friction::ACCEPTED_CREEP * model.length() {
                 evaluate(model, w, lambda, true);
@@ -1036,7 +1037,6 @@ fn relaxed_friction(
             if factor > friction::SLOWEST_FACTOR {
                 return (false, iterations);
             }
-            last = Some((Snapshot::take(w), at, creep));
             compliance = at * factor;
             continue;
         }

@@ -335,10 +335,6 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
             continue;
         }
         let site = &c.sites[i];
-        // A sticking contact slides where its friction left the cone at the
-        // last step, along it (a contact that cannot stick, which no Newton
-        // step would settle, slides so); [`settle`] checks the others when
-        // the solve converges.
         // Relaxed (see `constrained::relaxed_friction`): a sliding contact
         // whose slip its spring would hold sticks, the others slide
         // against their slip.
@@ -359,6 +355,10 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
             }
             continue;
         }
+        // A sticking contact slides where its friction left the cone at the
+        // last step, along it (a contact that cannot stick, which no Newton
+        // step would settle, slides so); [`settle`] checks the others when
+        // the solve converges.
         if f.anchors[i].is_some() && f.sliding[i].is_none() {
             let t = tangents(&site.normal);
             let force = reaction.y * t[0] + reaction.z * t[1];

@@ -80,9 +80,10 @@ pub const SCENE: &[Key] = &[
     key("obstacles", "list of tables", "none", "Rigid obstacles (see `obstacles[].shape`), world frame."),
     key("obstacles[].shape", "text", "required", "half_space {point, normal}, sphere {centre, radius}, capsule and cylinder {a, b, radius}, box {centre, half_extents, orientation}, lumen {centreline, radius: one or one a point}, mesh {file or vertices and triangles, scale, position, orientation, free}."),
     key("obstacles[].friction", "1", "0", "Coulomb's coefficient mu, >= 0."),
-    key("ports", "list of tables", "none", "Points the rod slides through without friction."),
+    key("ports", "list of tables", "none", "Points the rod slides through."),
     key("ports[].position", "[x, y, z] m", "required", "The port, world frame."),
     key("ports[].axis", "[x, y, z]", "the base tangent", "The direction the rod passes it."),
+    key("ports[].friction", "1", "0", "Coulomb's coefficient mu along the rod, >= 0."),
     key("radius", "m", "half a round rod's diameter, else 0", "The rod's radius for contact, >= 0."),
 ];
 

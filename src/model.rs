@@ -531,10 +531,16 @@ impl RodModel {
         self.friction[o]
     }
 
-    /// Whether any obstacle has friction: the answer then depends on the
-    /// loading history (see `solver::contact`).
+    /// Whether any obstacle or port has friction: the answer then depends
+    /// on the loading history (see `solver::friction`).
     pub fn has_friction(&self) -> bool {
-        self.friction.iter().any(|mu| *mu > 0.0)
+        self.friction.iter().any(|mu| *mu > 0.0) || self.frictional_ports().next().is_some()
+    }
+
+    /// The ports with friction, by index: each has a third row, its
+    /// friction along the rod (see `solver::port`).
+    pub fn frictional_ports(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.ports.len()).filter(|&j| self.ports[j].port.friction > 0.0)
     }
 
     /// The rod's radius for contact [m].

@@ -273,12 +273,15 @@ def rod_in_bend(ei: float, length: float, bend: float, clearance: float,
 
 
 def through_port(ei: float, length: float, port: tuple[float, float], tip_load: float,
-                 weight: float = 0.0, rtol: float = 1e-12) -> dict:
+                 weight: float = 0.0, rtol: float = 1e-12, friction: float = 0.0,
+                 slide: float = 1.0) -> dict:
     """A planar cantilever, clamped at the origin along +x, that passes
-    through a frictionless port at `port = (a, h)` [m] and may slide through
-    it, with a downward force `tip_load` [N] at its tip and its weight
-    `weight` [N/m]: the port's force `(f_x, f_z)` on the rod, the arc length
-    that passes it, the angle there and the tip `(x, z)`.
+    through a port at `port = (a, h)` [m] and slides through it, with a
+    downward force `tip_load` [N] at its tip and its weight `weight` [N/m]:
+    the port's force `(f_x, f_z)` on the rod, the arc length that passes it,
+    the angle there and the tip `(x, z)`. With `friction` (Coulomb's `mu`)
+    the port also pushes the rod along itself by `mu |f|`, towards the tip
+    for `slide = +1` (the rod sliding back through it) or the base for -1.
 
     Planar (x, z up, `theta` from +x), inextensible, as in `knife_edge`, with
     the internal force `F(s) = (0, -tip_load - weight (L - s))`, plus the
@@ -306,9 +309,11 @@ def through_port(ei: float, length: float, port: tuple[float, float], tip_load: 
     def shoot(u, scale):
         m0, f, s_c, theta_c = u
         normal = np.array([-np.sin(theta_c), np.cos(theta_c)])
-        before = integrate(np.array([0.0, 0.0, 0.0, m0]), 0.0, s_c, f * normal, scale)
+        tangent = np.array([np.cos(theta_c), np.sin(theta_c)])
+        force = f * normal + slide * friction * abs(f) * tangent
+        before = integrate(np.array([0.0, 0.0, 0.0, m0]), 0.0, s_c, force, scale)
         after = integrate(before, s_c, length, np.zeros(2), scale)
-        return before, after, normal
+        return before, after, force
 
     def conditions(u, scale):
         before, after, _ = shoot(u, scale)
@@ -325,6 +330,63 @@ def through_port(ei: float, length: float, port: tuple[float, float], tip_load: 
     miss = np.abs(conditions(u, 1.0)).max()
     if not miss < 1e-10:
         raise RuntimeError(f"through_port: shooting missed by {miss:.1e}")
-    _, after, normal = shoot(u, 1.0)
-    return {"force": u[1] * normal, "arc_length": float(u[2]), "angle": float(u[3]),
+    _, after, force = shoot(u, 1.0)
+    return {"force": force, "arc_length": float(u[2]), "angle": float(u[3]),
             "tip": (float(after[0]), float(after[1]))}
+
+
+def stuck_in_port(ei: float, length: float, curvature: float, s_port: float,
+                  tip_load: float, rtol: float = 1e-12) -> dict:
+    """A planar rod of uniform rest curvature `curvature` [1/m] (curling up,
+    `theta = curvature s` at rest), clamped at the origin along +x, whose
+    material point `s_port` is held in a port at its rest place (a port with
+    enough friction that the rod sticks in it), with a downward force
+    `tip_load` [N] at its tip: the port's force `(f_x, f_z)` on the rod, the
+    part of it along the rod there (its friction, towards the tip) and the
+    part across, and the tip `(x, z)`, for each load scale in `scales`
+    (`"ratios"`: `|along| / |across|` at each, the friction the path needs).
+
+    The port holds the point, so its force is free in the plane: unknowns
+    the base moment and that force, conditions the point at the port and no
+    moment at the tip; `scipy.optimize.root` along the load ramp from the
+    rest shape (zero force)."""
+    port = np.array([np.sin(curvature * s_port), 1.0 - np.cos(curvature * s_port)]) / curvature
+
+    def integrate(z0, s0, s1, extra, scale):
+        def rhs(s, z):
+            theta = z[2]
+            force = np.array([0.0, -scale * tip_load]) + extra
+            return [np.cos(theta), np.sin(theta), curvature + z[3] / ei,
+                    force[0] * np.sin(theta) - force[1] * np.cos(theta)]
+
+        return solve_ivp(rhs, (s0, s1), z0, rtol=rtol, atol=1e-14 * length,
+                         method="DOP853").y[:, -1]
+
+    def shoot(u, scale):
+        m0, fx, fz = u
+        before = integrate(np.array([0.0, 0.0, 0.0, m0]), 0.0, s_port, np.array([fx, fz]), scale)
+        after = integrate(before, s_port, length, np.zeros(2), scale)
+        return before, after
+
+    def conditions(u, scale):
+        before, after = shoot(u, scale)
+        return np.array([(before[0] - port[0]) / length, (before[1] - port[1]) / length,
+                         after[3] * length / ei])
+
+    u = np.zeros(3)
+    ratios = []
+    for scale in np.linspace(0.1, 1.0, 10):
+        u = root(conditions, u, args=(scale,), tol=1e-14).x
+        theta = shoot(u, scale)[0][2]
+        t = np.array([np.cos(theta), np.sin(theta)])
+        along = u[1:] @ t
+        ratios.append(abs(along) / np.linalg.norm(u[1:] - along * t))
+    miss = np.abs(conditions(u, 1.0)).max()
+    if not miss < 1e-10:
+        raise RuntimeError(f"stuck_in_port: shooting missed by {miss:.1e}")
+    before, after = shoot(u, 1.0)
+    t = np.array([np.cos(before[2]), np.sin(before[2])])
+    along = u[1:] @ t
+    return {"force": u[1:].copy(), "along": float(along),
+            "across": float(np.linalg.norm(u[1:] - along * t)), "ratios": ratios,
+            "point": port, "tip": (float(after[0]), float(after[1]))}

@@ -1,6 +1,7 @@
-"""Sliding ports: a point the backbone passes through and slides through
-without friction (a trocar, a guide tube's exit), against closed forms and
-shooting (`contact_reference.through_port`, `knife_edge`)."""
+"""Sliding ports: a point the backbone passes through and slides through,
+without friction or against Coulomb friction (a trocar, a guide tube's
+exit), against closed forms and shooting (`contact_reference.through_port`,
+`stuck_in_port`, `knife_edge`)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from contact_reference import knife_edge, through_port
+from contact_reference import knife_edge, stuck_in_port, through_port
 
 import softspine
 
@@ -151,6 +152,8 @@ def test_ports_come_back_from_dict_and_pickle():
     ({"position": [0.5, 0.0, 0.0], "axis": [0.0, 0.0, 0.0]}, "ports[0].axis", "zero"),
     ({"position": [0.5, 0.0, float("nan")]}, "ports[0].position", "finite"),
     ({"position": [0.5, 0.0, 0.0], "radius": 1.0}, "ports[0]", "radius"),
+    ({"position": [0.5, 0.0, 0.0], "friction": -0.1}, "ports[0].friction", ">= 0"),
+    ({"position": [0.5, 0.0, 0.0], "friction": float("nan")}, "ports[0].friction", "finite"),
     ({"axis": [1.0, 0.0, 0.0]}, "ports[0]", "position"),
     # Behind the base, and past the tip: the rod never crosses its plane.
     ({"position": [-0.5, 0.0, 0.0]}, "ports[0]", "does not pass"),
@@ -492,3 +495,132 @@ def test_a_robots_port_behind_its_base_is_refused_by_name():
                          "insertion_range")]:
         with pytest.raises(ValueError, match=key):
             softspine.Robot(fields)
+
+
+# Friction in a port: the history is the load path from the rest shape (see
+# docs/model.md); the rod slides where its friction would leave the cone.
+
+@pytest.mark.parametrize("mu", [0.1, 2.0])
+@pytest.mark.parametrize("case", [
+    ((0.5, 0.1), 1.0, 2.0, 0.7),
+    ((0.7, -0.2), 0.5, 3.0, -1.2),
+])
+def test_a_rod_bent_through_a_frictional_port_slides_back_as_shooting(case, mu):
+    # The rod bends to pass the port off its line: the arc up to it grows,
+    # so the rod slides back through it along the whole path, the port
+    # pushing it towards the tip by mu times its force across. The arc
+    # length and the tip at second order, the force at first (as without
+    # friction: the crossing inside an element).
+    port, tip_load, weight, tilt = case
+    ref = through_port(1.0, 1.0, port, tip_load, weight, friction=mu, slide=1.0)
+    size = np.linalg.norm(ref["force"])
+    tips, arcs = [], []
+    for n in (20, 40, 80, 160):
+        scene, up = port_scene(port, tip_load, weight, tilt)
+        scene["ports"][0]["friction"] = mu
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        ports = sol.ports
+        assert ports["sliding"].tolist() == [True]
+        force, friction = ports["force"][0], ports["friction"][0]
+        across = np.linalg.norm(force - friction)
+        assert abs(np.linalg.norm(friction) - mu * across) < 1e-9 * size
+        k = int(np.ceil(ports["arc_length"][0] * n))
+        chord = sol.positions[k] - sol.positions[k - 1]
+        assert friction @ chord > 0.0  # towards the tip: the rod slid back
+        tip = sol.tip_position
+        tips.append(np.hypot(tip[0] - ref["tip"][0], tip @ up - ref["tip"][1]))
+        arcs.append(abs(ports["arc_length"][0] - ref["arc_length"]))
+        in_plane = np.array([force[0], force @ up])
+        assert np.linalg.norm(in_plane - ref["force"]) < 2.5 * size / n
+    assert all(a / b > 2.8 for a, b in zip(arcs, arcs[1:], strict=False)), arcs
+    assert tips[-1] < 5e-5 and tips[0] / tips[-1] > 25, tips
+
+
+def curled_through_port(curvature: float, s_port: float, tip_load: float, mu: float) -> dict:
+    """A 1 m rod (EI = 1) curled up in the x-z plane, through a port at its
+    rest point `s_port` along its rest tangent there, loaded down at its tip."""
+    point = np.array([np.sin(curvature * s_port), 1.0 - np.cos(curvature * s_port)]) / curvature
+    axis = [np.cos(curvature * s_port), 0.0, np.sin(curvature * s_port)]
+    return {
+        "length": 1.0,
+        "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+        "base_quaternion": ALONG_X,
+        "rest_curvature": [[0.0, -curvature]],
+        "tip_force": [0.0, 0.0, -tip_load],
+        "ports": [{"position": [point[0], 0.0, point[1]], "axis": axis, "friction": mu}],
+    }
+
+
+def test_a_curled_rod_sticks_in_a_port_with_enough_friction_as_a_held_point():
+    # The rod's material in the port is held: against shooting with that
+    # point held, every step of whose load path needs a friction of at
+    # most `needed` (|along| / |across|, 2.36 to 2.45). With twice that the
+    # port holds the material at its rest crossing (the rest polygon's:
+    # within h^2 of the arc's); with less the rod slides.
+    curvature, s_port, load = 1.0, 0.5, 0.5
+    ref = stuck_in_port(1.0, 1.0, curvature, s_port, load)
+    needed = max(ref["ratios"])
+    # The rest polygon's crossing of the port's plane (at n = 20).
+    free = curled_through_port(curvature, s_port, 0.0, 0.0)
+    port = free.pop("ports")[0]
+    rest = softspine.solve(free, n_elements=20).positions
+    along = (rest - port["position"]) @ port["axis"]
+    k = int(np.argmax(along >= 0.0))
+    rest_arc = (k - along[k] / (along[k] - along[k - 1])) / 20
+    tips, forces = [], []
+    for n in (20, 40, 80, 160):
+        sol = softspine.solve(curled_through_port(curvature, s_port, load, 2.0 * needed),
+                              n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        ports = sol.ports
+        assert ports["sliding"].tolist() == [False]
+        force, friction = ports["force"][0], ports["friction"][0]
+        assert np.linalg.norm(friction) <= 2.0 * needed * np.linalg.norm(force - friction)
+        assert abs(ports["arc_length"][0] - s_port) < 0.2 / n**2
+        if n == 20:
+            assert abs(ports["arc_length"][0] - rest_arc) < 1e-12
+        tip = sol.tip_position
+        tips.append(np.hypot(tip[0] - ref["tip"][0], tip[2] - ref["tip"][1]))
+        forces.append(np.linalg.norm(force[[0, 2]] - ref["force"]))
+    for errors in (tips, forces):
+        assert all(a / b > 3.5 for a, b in zip(errors, errors[1:], strict=False)), errors
+    assert tips[-1] < 5e-6 and forces[-1] < 2e-4 * np.linalg.norm(ref["force"])
+    # A third of the friction it needs: the rod slides, at the cone's edge.
+    sol = softspine.solve(curled_through_port(curvature, s_port, load, needed / 3.0),
+                          n_elements=40)
+    assert sol.converged and sol.ports["sliding"].tolist() == [True]
+    force, friction = sol.ports["force"][0], sol.ports["friction"][0]
+    np.testing.assert_allclose(np.linalg.norm(friction),
+                               needed / 3.0 * np.linalg.norm(force - friction), rtol=1e-9)
+    assert abs(sol.tip_position[2] - ref["tip"][1]) > 1e-3
+
+
+def test_no_port_friction_is_the_frictionless_port_and_friction_comes_back():
+    scene = port_scene((0.5, 0.1), 1.0, 2.0)[0]
+    plain = softspine.solve(scene, n_elements=20)
+    scene["ports"][0]["friction"] = 0.0
+    zero = softspine.solve(scene, n_elements=20)
+    np.testing.assert_array_equal(zero.positions, plain.positions)
+    assert "friction" not in softspine.Scene(scene).to_dict()["ports"][0]
+    assert plain.ports["sliding"].tolist() == [False]
+    np.testing.assert_array_equal(plain.ports["friction"], 0.0)
+    scene["ports"][0]["friction"] = 0.4
+    assert softspine.Scene(scene).to_dict()["ports"][0]["friction"] == 0.4
+    sol = softspine.solve(scene, n_elements=20)
+    for back in (softspine.Solution.from_dict(sol.to_dict()),
+                 softspine.Solution.from_json(sol.to_json())):
+        for key, value in sol.ports.items():
+            np.testing.assert_array_equal(back.ports[key], value)
+
+
+def test_sensitivities_and_the_inverse_kinematics_are_refused_with_a_frictional_port():
+    scene = port_scene((0.5, 0.1), 1.0)[0]
+    scene["ports"][0]["friction"] = 0.3
+    solver = softspine.Solver(scene, n_elements=20)
+    assert solver.solve().converged
+    with pytest.raises(ValueError, match=r"ports\[0\]\.friction.*history"):
+        solver.sensitivity("tip_force[2]")
+    robot = inserted_robot(ports=[{"position": [0, 0, -0.3], "friction": 0.3}])
+    with pytest.raises(ValueError, match=r"ports\[0\]\.friction.*history"):
+        robot.inverse([0.0, 0.05, -1.0])

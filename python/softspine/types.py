@@ -109,6 +109,7 @@ class GuideDict(TypedDict, total=False):
 class PortDict(TypedDict, total=False):
     position: Vector
     axis: Vector
+    friction: float
 
 
 class SceneTendonDict(TypedDict, total=False):

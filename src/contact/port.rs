@@ -1,5 +1,6 @@
-//! A sliding port: a point the backbone passes through and slides through
-//! without friction (a trocar, the exit of a guide tube).
+//! A sliding port: a point the backbone passes through and slides through,
+//! without friction or against Coulomb friction (a trocar, the exit of a
+//! guide tube).
 //!
 //! The port is a point `p` with an axis `a`, the way the rod goes through
 //! it. Where the backbone (the polygon of its nodes) crosses the port's
@@ -11,6 +12,11 @@
 //! (`t` the chord): across the rod, so it does no work as the rod slides.
 //! The crossing is continuous from one element to the next, and so are the
 //! multipliers (a fixed frame), which a port's force then keeps.
+//!
+//! With friction (`solver/friction.rs`) a port also holds the rod along
+//! itself while it sticks: the arc length `sigma = sigma_(k-1) + s h_k` of
+//! the material in the port is held, a third row, whose gradient is
+//! `-(h_k / a . t) a` at the crossing's shares (see [`Port::axial_direction`]).
 
 use crate::error::{Error, Result};
 use crate::read::{vec3, Table};
@@ -24,6 +30,10 @@ pub struct Port {
     pub position: Vector3<f64>,
     /// The unit direction the rod goes through it (base to tip).
     pub axis: Vector3<f64>,
+    /// Its Coulomb friction coefficient (`>= 0`; 0: the rod slides freely).
+    /// With friction the answer depends on the loading history (see
+    /// `solver/friction.rs`).
+    pub friction: f64,
 }
 
 /// Where the backbone crosses a port's plane.
@@ -43,7 +53,14 @@ impl Port {
         Port {
             position,
             axis: axis.normalize(),
+            friction: 0.0,
         }
+    }
+
+    /// The same port with Coulomb friction `mu`.
+    pub fn with_friction(mut self, mu: f64) -> Port {
+        self.friction = mu;
+        self
     }
 
     /// The port's frame across its axis, `(b_1, b_2)`: fixed, so that the
@@ -94,11 +111,20 @@ impl Port {
             .map(|b| b - self.axis * (chord.dot(&b) / along))
     }
 
-    /// Read a port (`ports[i]`): `position`, and `axis` (default: the base's
-    /// tangent, `default_axis`).
+    /// The gradient of the arc length in the port, `sigma = sigma_(k-1) + s
+    /// h`, with respect to the crossing's nodes (weighted by their shares
+    /// `1 - s`, `s`) for an element of rest length `h` along `chord`:
+    /// `-(h / a . t) a`. A multiplier `f` of a row of `sigma` pushes the rod
+    /// by `f` times it, whose part along the chord is `-f h / |t|`.
+    pub fn axial_direction(&self, chord: &Vector3<f64>, h: f64) -> Vector3<f64> {
+        -self.axis * (h / self.axis.dot(chord))
+    }
+
+    /// Read a port (`ports[i]`): `position`, `axis` (default: the base's
+    /// tangent, `default_axis`) and `friction` (default 0).
     pub fn from_value(v: &Value, path: &str, default_axis: Vector3<f64>) -> Result<Port> {
         let t = Table::new(v, path)?;
-        t.only(&["position", "axis"])?;
+        t.only(&["position", "axis", "friction"])?;
         let position = vec3(t.require("position")?, &t.key("position"))?;
         let axis = match t.get("axis") {
             None => default_axis,
@@ -107,15 +133,26 @@ impl Port {
         if axis.norm() == 0.0 {
             return Err(Error::scene(t.key("axis"), "must not be zero"));
         }
-        Ok(Port::new(position, axis))
+        let friction = match t.get("friction") {
+            None => 0.0,
+            Some(v) => {
+                let key = t.key("friction");
+                crate::scene::check_friction(crate::read::finite(v, &key)?, &key)?
+            }
+        };
+        Ok(Port::new(position, axis).with_friction(friction))
     }
 
     pub fn to_value(&self) -> Value {
         let point = |v: &Vector3<f64>| Value::List(v.iter().map(|x| Value::Number(*x)).collect());
-        Value::Map(vec![
+        let mut entries = vec![
             ("position".into(), point(&self.position)),
             ("axis".into(), point(&self.axis)),
-        ])
+        ];
+        if self.friction != 0.0 {
+            entries.push(("friction".into(), Value::Number(self.friction)));
+        }
+        Value::Map(entries)
     }
 }
 
@@ -155,5 +192,42 @@ mod tests {
         }
         // A rod that stops short of the plane does not cross it.
         assert!(port.crossing(&r[..3]).is_none());
+    }
+
+    #[test]
+    fn the_axial_direction_is_the_gradient_of_the_arc_length_in_the_port() {
+        // sigma = (k - 1 + s) h: its differences over either node of the
+        // crossing chord, against the direction weighted by the node's share.
+        let port = Port::new(
+            Vector3::new(0.25, 0.01, -0.02),
+            Vector3::new(1.0, 0.2, -0.1),
+        );
+        let h = 0.1;
+        let r: Vec<Vector3<f64>> = (0..=4)
+            .map(|k| Vector3::new(0.1 * k as f64, 0.02 * (k * k) as f64, -0.01 * k as f64))
+            .collect();
+        let arc = |r: &[Vector3<f64>]| {
+            let c = port.crossing(r).unwrap();
+            ((c.element - 1) as f64 + c.s) * h
+        };
+        let c = port.crossing(&r).unwrap();
+        let g = port.axial_direction(&(r[c.element] - r[c.element - 1]), h);
+        let step = 1e-7;
+        for (node, share) in [(c.element - 1, 1.0 - c.s), (c.element, c.s)] {
+            for axis in 0..3 {
+                let mut plus = r.clone();
+                let mut minus = r.clone();
+                plus[node][axis] += step;
+                minus[node][axis] -= step;
+                let difference = (arc(&plus) - arc(&minus)) / (2.0 * step);
+                assert!(
+                    (difference - share * g[axis]).abs() < 1e-8,
+                    "{difference} {g}"
+                );
+            }
+        }
+        // Its part along the chord is -h / |t|.
+        let chord = r[c.element] - r[c.element - 1];
+        assert!((g.dot(&chord) / chord.norm() + h / chord.norm()).abs() < 1e-14);
     }
 }

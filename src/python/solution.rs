@@ -173,8 +173,11 @@ impl PySolution {
     /// Where the rod passes each port, in the scene's order: a dict of
     /// arrays ``port`` (index in the scene's list, shape (k,)),
     /// ``arc_length`` (k,) m, ``point`` (the backbone point in the port,
-    /// (k, 3) m) and ``force`` (the port's force on the rod, across the
-    /// rod, (k, 3) N). Empty without ports.
+    /// (k, 3) m), ``force`` (the port's force on the rod, (k, 3) N: across
+    /// the rod, and along it with friction), ``friction`` (the part of
+    /// ``force`` along the rod, (k, 3) N; zero without friction) and
+    /// ``sliding`` (whether the rod slides through the port, its friction
+    /// at ``mu`` times the rest of its force, (k,) bool). Empty without ports.
     #[getter]
     fn ports<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
@@ -400,7 +403,7 @@ impl PySolution {
 }
 
 /// The keys of `Solution.to_dict()`.
-const SOLUTION_KEYS: [&str; 37] = [
+const SOLUTION_KEYS: [&str; 39] = [
     "n_elements",
     "scheme",
     "length",
@@ -428,6 +431,8 @@ const SOLUTION_KEYS: [&str; 37] = [
     "port_arc_length",
     "port_point",
     "port_force",
+    "port_friction",
+    "port_sliding",
     "status",
     "iterations",
     "continuation_steps",
@@ -480,16 +485,20 @@ fn contact_arrays<'py>(
 fn port_arrays<'py>(
     py: Python<'py>,
     ports: &[crate::solver::PortReaction],
-) -> [(&'static str, Bound<'py, PyAny>); 4] {
+) -> [(&'static str, Bound<'py, PyAny>); 6] {
     let index: Vec<usize> = ports.iter().map(|p| p.port).collect();
     let arc_length: Vec<f64> = ports.iter().map(|p| p.arc_length).collect();
     let points: Vec<Vector3<f64>> = ports.iter().map(|p| p.point).collect();
     let forces: Vec<Vector3<f64>> = ports.iter().map(|p| p.force).collect();
+    let friction: Vec<Vector3<f64>> = ports.iter().map(|p| p.friction).collect();
+    let sliding: Vec<bool> = ports.iter().map(|p| p.sliding).collect();
     [
         ("port", index.into_pyarray(py).into_any()),
         ("arc_length", arc_length.into_pyarray(py).into_any()),
         ("point", rows3(py, &points).into_any()),
         ("force", rows3(py, &forces).into_any()),
+        ("friction", rows3(py, &friction).into_any()),
+        ("sliding", sliding.into_pyarray(py).into_any()),
     ]
 }
 
@@ -500,7 +509,23 @@ fn ports_of(d: &Fields) -> PyResult<Vec<crate::solver::PortReaction>> {
     let point = d.rows_or_empty::<3>("port_point")?;
     let force = d.rows_or_empty::<3>("port_force")?;
     let k = index.len();
-    if [arc_length.len(), point.len(), force.len()] != [k; 3] {
+    // Frictionless where absent (earlier versions').
+    let friction = match d.rows_or_empty::<3>("port_friction")? {
+        x if x.is_empty() => vec![[0.0; 3]; k],
+        x => x,
+    };
+    let sliding = match d.bools_or_empty("port_sliding")? {
+        x if x.is_empty() => vec![false; k],
+        x => x,
+    };
+    if [
+        arc_length.len(),
+        point.len(),
+        force.len(),
+        friction.len(),
+        sliding.len(),
+    ] != [k; 5]
+    {
         return Err(crate::error::Error::argument(
             "solution.port_port",
             "the port_* fields must have one row a port each",
@@ -522,6 +547,8 @@ fn ports_of(d: &Fields) -> PyResult<Vec<crate::solver::PortReaction>> {
                 arc_length: arc_length[i],
                 point: Vector3::from(point[i]),
                 force: Vector3::from(force[i]),
+                friction: Vector3::from(friction[i]),
+                sliding: sliding[i],
             })
         })
         .collect()

@@ -247,11 +247,17 @@ pub(crate) fn evaluate(
     merit(model, &w.g, &w.kkt.h, contact_rows + port_rows)
 }
 
-/// The ports' and the sticking contacts' rows' residuals [m].
+/// The ports' rows' residuals (their friction's too) and the sticking
+/// contacts' [m].
 fn port_residuals(w: &Workspace) -> impl Iterator<Item = f64> + '_ {
     let c = &w.kkt.contact;
     let sticks = c.friction.sticks.iter().flat_map(|s| s.residual);
-    c.ports.iter().flat_map(|p| p.residual).chain(sticks)
+    let axial = c.friction.ports.iter().map(|p| p.residual);
+    c.ports
+        .iter()
+        .flat_map(|p| p.residual)
+        .chain(axial)
+        .chain(sticks)
 }
 
 /// A candidate contact's error: a held one's gap, a free one's penetration.
@@ -310,6 +316,10 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     for site in &w.kkt.contact.ports {
         w.kkt.row_len.extend([port::last_node(site).min(n); 2]);
     }
+    for j in model.frictional_ports() {
+        let site = &w.kkt.contact.ports[j];
+        w.kkt.row_len.push(port::last_node(site).min(n));
+    }
     for stick in &w.kkt.contact.friction.sticks {
         w.kkt
             .row_len
@@ -349,14 +359,14 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
 fn load_slide_forces(model: &RodModel, w: &mut Workspace, first: usize) {
     w.kkt.force_extra.clear();
     w.kkt.mixed.force_extra.clear();
-    let slides = friction::slide_forces(model, w);
+    let slides = friction::slide_forces(model, w, first);
     let scratch = w.kkt.row_count;
     let n = model.n();
     while !slides.is_empty() && w.kkt.rows.len() <= scratch {
         w.kkt.rows.push(vec![Vector3::zeros(); n]);
     }
     for slide in slides {
-        let (row, force) = (first + slide.candidate, slide.force);
+        let (row, force) = (slide.row, slide.force);
         contact::load_row(model, w, scratch, slide.shares, &force);
         let extra = w.kkt.rows[scratch].clone();
         w.kkt.force_extra.push((row, extra));
@@ -376,14 +386,18 @@ fn dot(x: &[Vector3<f64>], y: &[Vector3<f64>]) -> f64 {
 fn row_residual(w: &Workspace, r: usize) -> f64 {
     let held = 3 * w.kkt.h.len();
     let ports = held + 2 * w.kkt.contact.ports.len();
+    let frictional = &w.kkt.contact.friction.frictional_ports;
+    let axial = ports + frictional.len();
     let equalities = w.kkt.row_count - w.kkt.contact.gaps.len();
     if r < held {
         w.kkt.h[r / 3][r % 3]
     } else if r < ports {
         let p = r - held;
         w.kkt.contact.ports[p / 2].residual[p % 2]
+    } else if r < axial {
+        w.kkt.contact.friction.ports[frictional[r - ports]].residual
     } else if r < equalities {
-        let p = r - ports;
+        let p = r - axial;
         w.kkt.contact.friction.sticks[p / 2].residual[p % 2]
     } else {
         w.kkt.contact.gaps[r - equalities]
@@ -486,11 +500,16 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
         let mut block = w.kkt.schur.view_mut((0, 0), (held, held));
         block += e;
     }
-    // The sticking contacts' rows give with their forces (see `friction.rs`).
-    let first_stick = 3 * w.kkt.h.len() + 2 * w.kkt.contact.ports.len();
-    let sticks = w.kkt.contact.friction.row_count();
-    for r in first_stick..first_stick + sticks {
-        w.kkt.schur[(r, r)] += w.kkt.contact.friction.compliance;
+    // The sticking contacts' and ports' rows give with their forces, a
+    // sliding port's keeps its multiplier at zero (see `friction.rs`).
+    let friction = &w.kkt.contact.friction;
+    let first_axial = 3 * w.kkt.h.len() + 2 * w.kkt.contact.ports.len();
+    for (a, &j) in friction.frictional_ports.iter().enumerate() {
+        w.kkt.schur[(first_axial + a, first_axial + a)] += friction.ports[j].diagonal;
+    }
+    let first_stick = first_axial + friction.frictional_ports.len();
+    for r in first_stick..first_stick + friction.row_count() {
+        w.kkt.schur[(r, r)] += friction.compliance;
     }
     let candidates = w.kkt.contact.gaps.len();
     if candidates == 0 {
@@ -653,10 +672,13 @@ fn take_multiplier_step(model: &RodModel, w: &mut Workspace) {
     {
         *d = Vector3::new(rhs[first_port + 2 * j], rhs[first_port + 2 * j + 1], 0.0);
     }
+    for (a, j) in model.frictional_ports().enumerate() {
+        w.kkt.reaction_step[held + j].z = rhs[port::first_axial_row(model) + a];
+    }
     if model.has_obstacles() {
         let first = contact::offset(model, w);
         let sticks = &w.kkt.contact.friction.sticks;
-        let first_stick = 3 * held + 2 * ports;
+        let first_stick = 3 * held + port::row_count(model);
         let first_row = first_stick + 2 * sticks.len();
         w.kkt.reaction_step[first..]
             .iter_mut()
@@ -1069,8 +1091,10 @@ fn newton_at(
         // The contact candidates of this step (see `contact.rs`); a step
         // whose QP changes which are held certifies nothing.
         let mut held_before = Vec::new();
-        if model.has_obstacles() {
-            contact::select_candidates(model, w, contact_margin(model));
+        if model.has_obstacles() || model.has_friction() {
+            if model.has_obstacles() {
+                contact::select_candidates(model, w, contact_margin(model));
+            }
             friction::update(model, w);
             merit_now = evaluate(model, w, lambda, true);
             held_before = contact::held_slots(w);
@@ -1358,7 +1382,16 @@ fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
     // obstacles (a free candidate constrains nothing).
     let contact = &w.kkt.contact;
     let held_rows = w.kkt.row_count - contact.gaps.len();
+    // A sliding port's friction row holds nothing (its direction zero).
+    let first_axial = 3 * w.kkt.h.len() + 2 * contact.ports.len();
+    let friction = &contact.friction;
+    let idle = |r: usize| {
+        r.checked_sub(first_axial)
+            .and_then(|a| friction.frictional_ports.get(a))
+            .is_some_and(|&j| friction.ports[j].direction == Vector3::zeros())
+    };
     let kept: Vec<usize> = (0..held_rows)
+        .filter(|&r| !idle(r))
         .chain(
             contact
                 .held

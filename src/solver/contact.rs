@@ -346,8 +346,11 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
     c.force_nodes
         .extend(model.constraints().iter().map(|constraint| constraint.node));
     c.force_vectors.extend(&w.kkt.reactions[..held]);
-    for (site, lambda) in c.ports.iter().zip(&w.kkt.reactions[port::offset(model)..]) {
-        let force = port::force(site, lambda);
+    let first_port = port::offset(model);
+    for (j, site) in c.ports.iter().enumerate() {
+        let axial = friction::port_axial_of(model, &c.friction, &w.kkt.reactions, j);
+        let lambda = &w.kkt.reactions[first_port + j];
+        let force = port::force(&model.ports()[j].port, site, lambda, axial);
         for (node, weight) in port::shares(site) {
             if weight != 0.0 {
                 c.force_nodes.push(node);
@@ -616,7 +619,8 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
     let first = port::offset(model);
     for j in 0..w.kkt.contact.ports.len() {
         let (site, lambda) = (&w.kkt.contact.ports[j], &w.kkt.reactions[first + j]);
-        let block = port::curvature_block(model, j, site, lambda, &w.kkt.positions);
+        let axial = friction::port_axial(model, w, j);
+        let block = port::curvature_block(model, j, site, lambda, axial, &w.kkt.positions);
         if let Some((block, moving)) = block {
             push_curvature(model, w, block, moving, with_columns, &mut used);
         }

@@ -36,6 +36,12 @@
 //! moment), the step is solved again with the rows relaxed, level by
 //! level (`constrained::relaxed_friction`, docs/model.md "Relaxed levels").
 //!
+//! A port with friction (`port.rs`) is held the same way along the rod:
+//! its anchor the arc length of the material in it at the step's start,
+//! sticking while its friction, the part of its force along the chord, is
+//! at most `mu` times the rest (across the rod), sliding otherwise with
+//! `mu N` against the material's move through it ([`PortSlip`]).
+//!
 //! An increment finds the exact end of the history for loads under which
 //! no contact that slid comes to rest within the step and none reverses
 //! its sliding; otherwise the answer has the error of the step, which the
@@ -43,6 +49,7 @@
 //! `z` of each slot's vector in `reactions` (its `x` the normal force).
 
 use super::contact::{self, ContactWork, Place, Site};
+use super::port::{self, Axial, PortSite};
 use super::Workspace;
 use crate::model::RodModel;
 use nalgebra::Vector3;
@@ -66,6 +73,26 @@ pub(crate) struct Stick {
     pub directions: [Vector3<f64>; 2],
     /// `t_j . (p - a)` [m].
     pub residual: [f64; 2],
+}
+
+/// A port's friction state (see the module's comment; kept for every port,
+/// used for those with friction).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct PortSlip {
+    /// The arc length of the material in the port at the step's start,
+    /// offset by its row's spring (see [`anchor_at_saved`]) [m]; `None`
+    /// until the step anchors it.
+    pub anchor: Option<f64>,
+    /// While it slides, the sign of its friction force on the rod along the
+    /// chord (+1 towards the tip); `None` while it sticks.
+    pub sliding: Option<f64>,
+    /// Its row at the last evaluation: the direction at its crossing
+    /// (zero while it slides), `sigma - anchor + c f` [m] (zero while it
+    /// slides), and its diagonal: the compliance while it sticks, 1 while
+    /// the row only keeps its multiplier at zero.
+    pub direction: Vector3<f64>,
+    pub residual: f64,
+    pub diagonal: f64,
 }
 
 /// The friction state of a solve (empty without friction).
@@ -92,6 +119,12 @@ pub(crate) struct FrictionWork {
     /// Whether a step of this solve has needed the relaxed levels: the
     /// next ones start there.
     pub relax: bool,
+    /// Every port's friction state, and at the last equilibrium.
+    pub ports: Vec<PortSlip>,
+    pub saved_ports: Vec<PortSlip>,
+    /// The ports with friction (`RodModel::frictional_ports`), in the order
+    /// of their rows.
+    pub frictional_ports: Vec<usize>,
 }
 
 impl FrictionWork {
@@ -110,6 +143,9 @@ impl FrictionWork {
             saved_sticks: Vec::new(),
             compliance: compliance(model),
             relax: false,
+            ports: vec![PortSlip::default(); model.ports().len()],
+            saved_ports: vec![PortSlip::default(); model.ports().len()],
+            frictional_ports: model.frictional_ports().collect(),
         }
     }
 
@@ -118,6 +154,7 @@ impl FrictionWork {
         self.saved_anchors.clone_from(&self.anchors);
         self.saved_sliding.clone_from(&self.sliding);
         self.saved_sticks.clone_from(&self.sticks);
+        self.saved_ports.clone_from(&self.ports);
     }
 
     /// Go back to the kept state.
@@ -125,6 +162,7 @@ impl FrictionWork {
         self.anchors.clone_from(&self.saved_anchors);
         self.sliding.clone_from(&self.saved_sliding);
         self.sticks.clone_from(&self.saved_sticks);
+        self.ports.clone_from(&self.saved_ports);
     }
 
     /// No contact held: nothing anchored, sliding or sticking.
@@ -132,6 +170,7 @@ impl FrictionWork {
         self.anchors.iter_mut().for_each(|a| *a = None);
         self.sliding.iter_mut().for_each(|d| *d = None);
         self.sticks.clear();
+        self.ports.iter_mut().for_each(|p| *p = PortSlip::default());
     }
 
     /// The kept state is the rest shape's: nothing held.
@@ -139,6 +178,9 @@ impl FrictionWork {
         self.saved_anchors.iter_mut().for_each(|a| *a = None);
         self.saved_sliding.iter_mut().for_each(|d| *d = None);
         self.saved_sticks.clear();
+        self.saved_ports
+            .iter_mut()
+            .for_each(|p| *p = PortSlip::default());
     }
 
     /// The rows of this step: two a sticking contact.
@@ -233,8 +275,143 @@ pub(crate) fn anchor_at_saved(model: &RodModel, w: &mut Workspace) {
     // Every sticking contact is anchored (its rows need its material point).
     let anchors = &f.anchors;
     f.sticks.retain(|s| anchors[s.slot].is_some());
+    // A port's material where it stands, a sticking one's where its row's
+    // spring rests (it keeps its friction, as a contact).
+    let first_port = port::offset(model);
+    for j in model.frictional_ports() {
+        let slip = &mut f.ports[j];
+        let spring = match slip.sliding {
+            None => f.compliance * w.kkt.reactions[first_port + j].z,
+            Some(_) => 0.0,
+        };
+        slip.anchor = port_arc(model, j, &f.start).map(|arc| arc + spring);
+    }
     f.saved_anchors.clone_from(&f.anchors);
     f.saved_sticks.clone_from(&f.sticks);
+    f.saved_ports.clone_from(&f.ports);
+}
+
+/// The arc length of the material in port `j` for node positions `r`.
+fn port_arc(model: &RodModel, j: usize, r: &[Vector3<f64>]) -> Option<f64> {
+    let c = model.ports()[j].port.crossing(r)?;
+    Some(model.arc(c.element - 1) + c.s * model.h(c.element))
+}
+
+/// Port `j`'s friction at the last evaluation (its multipliers `reactions`).
+pub(crate) fn port_axial_of(
+    model: &RodModel,
+    f: &FrictionWork,
+    reactions: &[Vector3<f64>],
+    j: usize,
+) -> Axial {
+    let mu = model.ports()[j].port.friction;
+    if mu == 0.0 {
+        return Axial::Free;
+    }
+    match f.ports[j].sliding {
+        Some(sign) => Axial::Slide(mu * sign),
+        None => Axial::Stick(reactions[port::offset(model) + j].z),
+    }
+}
+
+/// [`port_axial_of`] of the workspace's state.
+pub(crate) fn port_axial(model: &RodModel, w: &Workspace, j: usize) -> Axial {
+    port_axial_of(model, &w.kkt.contact.friction, &w.kkt.reactions, j)
+}
+
+/// A port's force split along its chord: `(N, F_t)`, the size of the part
+/// across the rod and the part along it (towards the tip) [N].
+fn port_parts(
+    model: &RodModel,
+    j: usize,
+    site: &PortSite,
+    lambda: &Vector3<f64>,
+    axial: Axial,
+) -> (f64, f64) {
+    let force = port::force(&model.ports()[j].port, site, lambda, axial);
+    let t = site.chord.normalize();
+    let along = t.dot(&force);
+    ((force - along * t).norm(), along)
+}
+
+/// Port `j` at a Newton step: anchored where the step first holds it
+/// (sticking); while relaxed, a sliding port whose slip its spring would
+/// hold sticks and the others slide against their slip; a sticking port
+/// whose friction left its cone slides, along it.
+fn update_port(model: &RodModel, w: &mut Workspace, j: usize, relaxed: bool) {
+    let site = w.kkt.contact.ports[j];
+    if site.crossing.is_none() {
+        return;
+    }
+    let mu = model.ports()[j].port.friction;
+    let index = port::offset(model) + j;
+    let f = &mut w.kkt.contact.friction;
+    let Some(anchor) = f.ports[j].anchor else {
+        f.ports[j].anchor = port_arc(model, j, &f.start);
+        f.ports[j].sliding = None;
+        return;
+    };
+    let reaction = w.kkt.reactions[index];
+    let slip = site.arc - anchor;
+    let (normal, along) = port_parts(
+        model,
+        j,
+        &site,
+        &reaction,
+        port_axial_of(model, f, &w.kkt.reactions, j),
+    );
+    let state = &mut f.ports[j];
+    let mut axial = reaction.z;
+    if relaxed && state.sliding.is_some() {
+        if slip.abs() <= f.compliance * mu * normal {
+            state.sliding = None;
+            axial = -slip / f.compliance;
+        } else {
+            state.sliding = Some(slip.signum());
+        }
+    } else if state.sliding.is_none() && along.abs() > mu * normal * (1.0 + CONE_SLACK) {
+        state.sliding = Some(along.signum());
+        axial = 0.0;
+    }
+    w.kkt.reactions[index].z = axial;
+}
+
+/// Port `j` at a Newton solve's end (see [`settle`]): a sticking port
+/// whose friction left its cone slides; a sliding one that did not move
+/// against its friction sticks, its friction as it was. Returns whether it
+/// changed.
+fn settle_port(model: &RodModel, w: &mut Workspace, j: usize) -> bool {
+    let site = w.kkt.contact.ports[j];
+    let f = &w.kkt.contact.friction;
+    let (Some(_), Some(anchor)) = (site.crossing, f.ports[j].anchor) else {
+        return false;
+    };
+    let mu = model.ports()[j].port.friction;
+    let index = port::offset(model) + j;
+    let axial = port_axial_of(model, f, &w.kkt.reactions, j);
+    let reaction = w.kkt.reactions[index];
+    let (normal, along) = port_parts(model, j, &site, &reaction, axial);
+    let state = &mut w.kkt.contact.friction.ports[j];
+    match state.sliding {
+        None if along.abs() > mu * normal * (1.0 + CONE_SLACK) => {
+            state.sliding = Some(along.signum());
+            w.kkt.reactions[index].z = 0.0;
+            true
+        }
+        None => false,
+        Some(sign) => {
+            // The material moves through it by `-(sigma - anchor)` along
+            // the chord, against a friction of sign `sign` where
+            // `sign (sigma - anchor) > 0`.
+            if sign * (site.arc - anchor) > MOVE_SLACK * model.length() {
+                return false;
+            }
+            // The row's force along the chord is `-f h / |t|`.
+            state.sliding = None;
+            w.kkt.reactions[index].z = -along * site.chord.norm() / site.h;
+            true
+        }
+    }
 }
 
 /// The anchor of slot `i` first held with its site `site`: its material
@@ -387,6 +564,10 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
                 residual: [0.0; 2],
             }),
     );
+    let frictional: Vec<usize> = model.frictional_ports().collect();
+    for j in frictional {
+        update_port(model, w, j, relaxed);
+    }
 }
 
 /// At a Newton solve's end, each sliding contact: one whose material point
@@ -398,11 +579,15 @@ pub(crate) fn settle(model: &RodModel, w: &mut Workspace) -> bool {
     if !model.has_friction() {
         return false;
     }
+    let mut changed = false;
+    let frictional: Vec<usize> = model.frictional_ports().collect();
+    for j in frictional {
+        changed |= settle_port(model, w, j);
+    }
     let first = first(model, w);
     let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
     let f = &mut c.friction;
-    let mut changed = false;
     for (i, sliding) in f.sliding.iter_mut().enumerate() {
         let Some(anchor) = f.anchors[i] else {
             continue;
@@ -457,11 +642,11 @@ const MOVE_SLACK: f64 = 1e-14;
 /// How near its obstacle a candidate touches it (of the length).
 const TOUCHING: f64 = 1e-12;
 
-/// A sliding candidate's friction per unit normal force (see
-/// [`slide_forces`]).
+/// A sliding candidate's friction per unit normal force, or a sliding
+/// port's per unit lateral multiplier (see [`slide_forces`]).
 pub(crate) struct SlideForce {
-    /// Its index among the candidates.
-    pub candidate: usize,
+    /// The KKT row of its multiplier.
+    pub row: usize,
     /// Its nodes and weights.
     pub shares: [(usize, f64); 2],
     /// `mu d`.
@@ -471,13 +656,22 @@ pub(crate) struct SlideForce {
 /// The sliding contacts' friction in the Newton step: each sliding
 /// candidate's force `mu lambda d` moves with its normal force `lambda`, so
 /// its multiplier's column carries `mu d` beside the normal (the KKT system
-/// is then unsymmetric).
-pub(crate) fn slide_forces(model: &RodModel, w: &Workspace) -> Vec<SlideForce> {
+/// is then unsymmetric). A sliding port's `mu s N t` moves with its lateral
+/// multipliers, `N = |lambda_1 d_1 + lambda_2 d_2|`: their columns carry
+/// `mu s (n . d_i) t` (`n` the lateral force's unit; `N` is homogeneous in
+/// the multipliers, so that is exact). The candidates' rows start at
+/// `first_candidate`.
+pub(crate) fn slide_forces(
+    model: &RodModel,
+    w: &Workspace,
+    first_candidate: usize,
+) -> Vec<SlideForce> {
     if !model.has_friction() {
         return Vec::new();
     }
     let c = &w.kkt.contact;
-    c.active
+    let contacts = c
+        .active
         .iter()
         .zip(&c.held)
         .enumerate()
@@ -487,21 +681,43 @@ pub(crate) fn slide_forces(model: &RodModel, w: &Workspace) -> Vec<SlideForce> {
             let site = &c.sites[i];
             let d = slide_direction(&d, &site.normal).filter(|_| held)?;
             Some(SlideForce {
-                candidate: a,
+                row: first_candidate + a,
                 shares: contact::shares(model, i, site),
                 force: model.friction(contact::slot(model, i).0) * d,
             })
+        });
+    let first_port = port::offset(model);
+    let ports = model.frictional_ports().flat_map(move |j| {
+        let site = &c.ports[j];
+        let lambda = &w.kkt.reactions[first_port + j];
+        let lateral = port::force(&model.ports()[j].port, site, lambda, Axial::Free);
+        let size = lateral.norm();
+        let slide = match (
+            port_axial(model, w, j),
+            site.crossing.is_some() && size > 0.0,
+        ) {
+            (Axial::Slide(mu_s), true) => Some(mu_s),
+            _ => None,
+        };
+        (0..2).filter_map(move |i| {
+            let mu_s = slide?;
+            let t = site.chord.normalize();
+            Some(SlideForce {
+                row: port::first_row(model) + 2 * j + i,
+                shares: port::shares(site),
+                force: (mu_s * lateral.dot(&site.directions[i]) / size) * t,
+            })
         })
-        .collect()
+    });
+    contacts.chain(ports).collect()
 }
 
 /// Count every held, anchored contact with friction as sticking (its rows
-/// in the step's), for the stability verdict; returns the state to put back
-/// with [`unstick`].
-pub(crate) fn stick_all(
-    model: &RodModel,
-    w: &mut Workspace,
-) -> (Vec<Option<Vector3<f64>>>, Vec<Stick>) {
+/// in the step's), for the stability verdict and the path's tangent;
+/// returns the state to put back with [`unstick`]. A port keeps its state:
+/// the tangent of one that slides slides (measured: held, the predictor
+/// missed by enough that every continuation step was taken twice).
+pub(crate) fn stick_all(model: &RodModel, w: &mut Workspace) -> StuckState {
     let held = contact::held_slots(w);
     let f = &mut w.kkt.contact.friction;
     let kept = (f.sliding.clone(), f.sticks.clone());
@@ -520,11 +736,12 @@ pub(crate) fn stick_all(
     kept
 }
 
+/// What [`stick_all`] changed: the contacts' sliding and their sticking
+/// rows.
+pub(crate) type StuckState = (Vec<Option<Vector3<f64>>>, Vec<Stick>);
+
 /// Put back what [`stick_all`] changed.
-pub(crate) fn unstick(
-    w: &mut Workspace,
-    (sliding, sticks): (Vec<Option<Vector3<f64>>>, Vec<Stick>),
-) {
+pub(crate) fn unstick(w: &mut Workspace, (sliding, sticks): StuckState) {
     let f = &mut w.kkt.contact.friction;
     f.sliding = sliding;
     f.sticks = sticks;
@@ -593,12 +810,18 @@ pub(crate) const ACCEPTED_CREEP: f64 = 3e-9;
 pub(crate) fn creep(model: &RodModel, w: &Workspace) -> f64 {
     let first = first(model, w);
     let f = &w.kkt.contact.friction;
+    let first_port = port::offset(model);
+    let ports = model
+        .frictional_ports()
+        .filter(|&j| f.ports[j].sliding.is_none())
+        .map(|j| f.compliance * w.kkt.reactions[first_port + j].z.abs());
     f.sticks
         .iter()
         .map(|s| {
             let r = &w.kkt.reactions[first + s.slot];
             f.compliance * r.y.hypot(r.z)
         })
+        .chain(ports)
         .fold(0.0, f64::max)
 }
 
@@ -612,6 +835,26 @@ pub(crate) fn gather_sticks(model: &RodModel, w: &mut Workspace) {
     let compliance = w.kkt.contact.friction.compliance;
     let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
+    // A sticking port's row holds the arc length in it; a sliding one's
+    // (or one not anchored) keeps its multiplier at zero.
+    let first_port = port::offset(model);
+    for j in model.frictional_ports() {
+        let site = &c.ports[j];
+        let state = &mut c.friction.ports[j];
+        let axial = w.kkt.reactions[first_port + j].z;
+        match (site.crossing, state.anchor, state.sliding) {
+            (Some(_), Some(anchor), None) => {
+                state.direction = model.ports()[j].port.axial_direction(&site.chord, site.h);
+                state.residual = site.arc - anchor + compliance * axial;
+                state.diagonal = compliance;
+            }
+            _ => {
+                state.direction = Vector3::zeros();
+                state.residual = 0.0;
+                state.diagonal = 1.0;
+            }
+        }
+    }
     for stick in &mut c.friction.sticks {
         let i = stick.slot;
         let Some(anchor) = &c.friction.anchors[i] else {

@@ -359,6 +359,13 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
     }
     work.compliance.clear();
     work.compliance.resize(work.rows.len(), 0.0);
+    for &j in &contact.friction.frictional_ports {
+        let [(a, wa), (b, wb)] = super::port::shares(&contact.ports[j]);
+        let state = &contact.friction.ports[j];
+        let d = state.direction;
+        work.rows.push([(a, wa * d), (b, wb * d)]);
+        work.compliance.push(state.diagonal);
+    }
     for stick in &contact.friction.sticks {
         let [(a, wa), (b, wb)] = super::friction::stick_shares(model, contact, stick.slot);
         for d in stick.directions {

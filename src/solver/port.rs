@@ -10,9 +10,16 @@
 //! d_i` is shared between the two nodes like a contact's. The multipliers
 //! live after the held points' reactions in the workspace's `reactions`
 //! (`x` and `y` of one vector a port).
+//!
+//! A port with friction has a third row, after every port's two: while it
+//! sticks, the arc length of the material in it is held (`friction.rs`),
+//! its multiplier the `z` of the port's vector; while it slides, its
+//! friction `mu N` along the chord (`N` the lateral force's size) is a
+//! force that moves with the lateral multipliers, and its row only keeps
+//! its multiplier at zero.
 
 use super::Workspace;
-use crate::contact::Crossing;
+use crate::contact::{Crossing, Port};
 use crate::model::RodModel;
 use nalgebra::{DMatrix, Vector3};
 
@@ -26,6 +33,44 @@ pub(crate) struct PortSite {
     pub directions: [Vector3<f64>; 2],
     /// The rows' residuals `b_i . (c - p(lambda))` [m].
     pub residual: [f64; 2],
+    /// The chord it crosses [m] and that element's rest length [m].
+    pub chord: Vector3<f64>,
+    pub h: f64,
+    /// The arc length of the rod's material in the port [m].
+    pub arc: f64,
+}
+
+/// A port's force along the rod beside the lateral one (see `friction.rs`).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) enum Axial {
+    /// Frictionless (or not crossed).
+    #[default]
+    Free,
+    /// Sticking: its row's multiplier `f`, the force `f g` (`g` the row's
+    /// direction, [`Port::axial_direction`]).
+    Stick(f64),
+    /// Sliding: `mu s`, the force `mu s N t` (`t` the chord's unit, `N` the
+    /// size of the lateral force, `s = +-1`).
+    Slide(f64),
+}
+
+/// A port's force on the rod with its multipliers `lambda` (lateral `x`,
+/// `y`) and its friction `axial`, where it crosses `chord` of an element of
+/// rest length `h` [N].
+pub(crate) fn port_force(
+    port: &Port,
+    lambda: &Vector3<f64>,
+    axial: Axial,
+    chord: &Vector3<f64>,
+    h: f64,
+) -> Vector3<f64> {
+    let [d1, d2] = port.force_directions(chord);
+    let lateral = lambda.x * d1 + lambda.y * d2;
+    match axial {
+        Axial::Free => lateral,
+        Axial::Stick(f) => lateral + f * port.axial_direction(chord, h),
+        Axial::Slide(mu_s) => lateral + (mu_s * lateral.norm() / chord.norm()) * chord,
+    }
 }
 
 /// The index of the first port's multiplier in `reactions`.
@@ -38,20 +83,32 @@ pub(crate) fn first_row(model: &RodModel) -> usize {
     3 * model.constraints().len()
 }
 
-/// The number of port rows.
+/// The number of port rows: two a port, and one more a port with friction.
 pub(crate) fn row_count(model: &RodModel) -> usize {
-    2 * model.ports().len()
+    2 * model.ports().len() + model.frictional_ports().count()
+}
+
+/// The first row of the ports' friction (after every port's two).
+pub(crate) fn first_axial_row(model: &RodModel) -> usize {
+    first_row(model) + 2 * model.ports().len()
 }
 
 /// Every port's site at the node positions `r` and load scale `lambda`.
 pub(crate) fn locate(model: &RodModel, r: &[Vector3<f64>], lambda: f64, sites: &mut [PortSite]) {
     for (p, site) in model.ports().iter().zip(sites.iter_mut()) {
         *site = match p.port.crossing(r) {
-            Some(c) => PortSite {
-                crossing: Some(c),
-                directions: p.port.force_directions(&(r[c.element] - r[c.element - 1])),
-                residual: p.residual(&c, lambda),
-            },
+            Some(c) => {
+                let chord = r[c.element] - r[c.element - 1];
+                let h = model.h(c.element);
+                PortSite {
+                    crossing: Some(c),
+                    directions: p.port.force_directions(&chord),
+                    residual: p.residual(&c, lambda),
+                    chord,
+                    h,
+                    arc: model.arc(c.element - 1) + c.s * h,
+                }
+            }
             None => PortSite {
                 residual: [f64::INFINITY; 2],
                 ..PortSite::default()
@@ -69,9 +126,18 @@ pub(crate) fn shares(site: &PortSite) -> [(usize, f64); 2] {
     }
 }
 
-/// A port's force on the rod from its multipliers `lambda` (`x`, `y`) [N].
-pub(crate) fn force(site: &PortSite, lambda: &Vector3<f64>) -> Vector3<f64> {
-    lambda.x * site.directions[0] + lambda.y * site.directions[1]
+/// A port's force on the rod from its multipliers `lambda` and its
+/// friction `axial` [N].
+pub(crate) fn force(
+    port: &Port,
+    site: &PortSite,
+    lambda: &Vector3<f64>,
+    axial: Axial,
+) -> Vector3<f64> {
+    if site.crossing.is_none() {
+        return Vector3::zeros();
+    }
+    port_force(port, lambda, axial, &site.chord, site.h)
 }
 
 /// The last node a port's rows depend on.
@@ -80,13 +146,21 @@ pub(crate) fn last_node(site: &PortSite) -> usize {
 }
 
 /// The ports' rows `d_i^T ((1 - s) D_(k-1) + s D_k)` as `n` vectors each
-/// into `rows` from index `from`.
+/// into `rows` from index `from`, then the friction rows (`friction.rs`
+/// gives their directions).
 pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
-    for j in 0..w.kkt.contact.ports.len() {
+    let ports = w.kkt.contact.ports.len();
+    for j in 0..ports {
         let site = w.kkt.contact.ports[j];
         for (i, direction) in site.directions.iter().enumerate() {
             super::contact::load_row(model, w, from + 2 * j + i, shares(&site), direction);
         }
+    }
+    let frictional: Vec<usize> = model.frictional_ports().collect();
+    for (a, j) in frictional.into_iter().enumerate() {
+        let site = w.kkt.contact.ports[j];
+        let direction = w.kkt.contact.friction.ports[j].direction;
+        super::contact::load_row(model, w, from + 2 * ports + a, shares(&site), &direction);
     }
 }
 
@@ -95,19 +169,21 @@ pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
 const CURVATURE_STEP: f64 = 1e-6;
 
 /// A port's curvature block (see `contact::curvature`): its force `sum
-/// lambda_i d_i` turns with the chord it crosses, and its shares move
-/// with the crossing; `M = -dF/dr` over the moving nodes of its element,
-/// by central differences, made symmetric (the Hessian of `-lambda . h`).
-/// `None` where there is no force or nothing moves.
+/// lambda_i d_i` (and its friction, `axial`) turns with the chord it
+/// crosses, and its shares move with the crossing; `M = -dF/dr` over the
+/// moving nodes of its element, by central differences, made symmetric
+/// (the Hessian of `-lambda . h` without friction). `None` where there is
+/// no force or nothing moves.
 pub(crate) fn curvature_block(
     model: &RodModel,
     index: usize,
     site: &PortSite,
     lambda: &Vector3<f64>,
+    axial: Axial,
     r: &[Vector3<f64>],
 ) -> Option<(DMatrix<f64>, Vec<usize>)> {
     let c = site.crossing?;
-    if lambda.x == 0.0 && lambda.y == 0.0 {
+    if lambda.x == 0.0 && lambda.y == 0.0 && matches!(axial, Axial::Free | Axial::Slide(_)) {
         return None;
     }
     let n = model.n();
@@ -130,8 +206,7 @@ pub(crate) fn curvature_block(
             return None;
         }
         let s = port.axis.dot(&(port.position - ra)) / along;
-        let [d1, d2] = port.force_directions(&chord);
-        let f = lambda.x * d1 + lambda.y * d2;
+        let f = port_force(port, lambda, axial, &chord, site.h);
         Some([(1.0 - s) * f, s * f])
     };
     let mut jac = DMatrix::zeros(6, 3 * moving.len());
@@ -176,8 +251,14 @@ pub struct PortReaction {
     /// The backbone point in the port [m], world frame (the port's
     /// position, to the solve's tolerance).
     pub point: Vector3<f64>,
-    /// The port's force on the rod [N], world frame: across the rod.
+    /// The port's force on the rod [N], world frame: across the rod, and
+    /// along it with friction.
     pub force: Vector3<f64>,
+    /// The part of `force` along the rod: its friction [N] (zero without).
+    pub friction: Vector3<f64>,
+    /// Whether the rod slides through the port (its friction at `mu` times
+    /// the rest of its force; false without friction).
+    pub sliding: bool,
 }
 
 /// The ports' answers at the last evaluation.
@@ -190,11 +271,20 @@ pub(crate) fn reactions(model: &RodModel, w: &Workspace) -> Vec<PortReaction> {
         .enumerate()
         .filter_map(|(j, site)| {
             let c = site.crossing?;
+            let axial = super::friction::port_axial(model, w, j);
+            let port = &model.ports()[j].port;
+            let force = force(port, site, &w.kkt.reactions[first + j], axial);
+            let t = site.chord.normalize();
             Some(PortReaction {
                 port: j,
-                arc_length: model.arc(c.element - 1) + c.s * model.h(c.element),
+                arc_length: site.arc,
                 point: c.point,
-                force: force(site, &w.kkt.reactions[first + j]),
+                force,
+                friction: match axial {
+                    Axial::Free => Vector3::zeros(),
+                    _ => t * t.dot(&force),
+                },
+                sliding: matches!(axial, Axial::Slide(_)),
             })
         })
         .collect()

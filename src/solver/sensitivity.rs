@@ -1165,9 +1165,15 @@ fn term_tangents(model: &RodModel, names: impl Iterator<Item = String>) -> Resul
 /// stick and slide under the change (and an inverse kinematics built on
 /// them which history it assumes).
 fn refuse_friction(model: &crate::model::RodModel) -> Result<()> {
-    match (0..model.obstacles().len()).find(|&o| model.friction(o) > 0.0) {
-        Some(o) => Err(Error::argument(
-            format!("obstacles[{o}].friction"),
+    let obstacle = (0..model.obstacles().len()).find(|&o| model.friction(o) > 0.0);
+    let key = match (obstacle, model.frictional_ports().next()) {
+        (Some(o), _) => Some(format!("obstacles[{o}].friction")),
+        (None, Some(j)) => Some(format!("ports[{j}].friction")),
+        (None, None) => None,
+    };
+    match key {
+        Some(key) => Err(Error::argument(
+            key,
             "sensitivities (and the inverse kinematics built on them) are not given with \
              friction: its answer depends on the loading history",
         )),

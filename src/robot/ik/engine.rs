@@ -180,9 +180,16 @@ impl InverseSolver {
         // With friction an equilibrium is the end of a loading history, and
         // which history an actuation found by search stands for is not
         // defined (its steps are sensitivities, refused there too).
-        if let Some(i) = robot.friction.iter().position(|mu| *mu > 0.0) {
+        let obstacle = robot.friction.iter().position(|mu| *mu > 0.0);
+        let port = robot.ports.iter().position(|p| p.friction > 0.0);
+        let key = match (obstacle, port) {
+            (Some(i), _) => Some(format!("obstacles[{i}].friction")),
+            (None, Some(j)) => Some(format!("ports[{j}].friction")),
+            (None, None) => None,
+        };
+        if let Some(key) = key {
             return Err(crate::error::Error::argument(
-                format!("obstacles[{i}].friction"),
+                key,
                 "the inverse kinematics is not given with friction: an equilibrium with \
                  friction depends on the loading history (solve forward instead)",
             ));

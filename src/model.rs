@@ -543,6 +543,22 @@ impl RodModel {
         (0..self.ports.len()).filter(|&j| self.ports[j].port.friction > 0.0)
     }
 
+    /// The first obstacle the unloaded rest shape passes into (a node
+    /// deeper than a nanometre a metre): the load path cannot start there.
+    pub fn obstacle_at_rest(&self) -> Option<usize> {
+        if self.obstacles.is_empty() {
+            return None;
+        }
+        let mut nodes = vec![Vector3::zeros(); self.n() + 1];
+        self.positions(&self.rest_nodes, &mut self.new_interior(), &mut nodes);
+        let depth = 1e-9 * self.length();
+        (0..self.obstacles.len()).find(|&o| {
+            let obstacle = &self.obstacles[o];
+            let gap = |p: &Vector3<f64>| obstacle.proximity(p).gap - self.contact_radius;
+            nodes.iter().any(|p| gap(p) < -depth)
+        })
+    }
+
     /// The rod's radius for contact [m].
     pub fn contact_radius(&self) -> f64 {
         self.contact_radius

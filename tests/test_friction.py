@@ -202,11 +202,14 @@ def test_a_rod_lying_on_a_frictional_floor_sticks_with_no_friction():
     np.testing.assert_allclose(sol.positions, rest.positions, atol=1e-12)
 
 
-def test_a_robot_leaning_on_a_frictional_wall_slides_less_the_more_friction():
-    # The seed's robot bent into a wall (tests/test_contact.py) slides down
-    # it under its 30 g: its friction is mu times its normal force, upward,
-    # and more friction leaves its tip higher. Its inverse kinematics is
-    # refused by name (an actuation found by search has no history).
+def test_a_robot_curled_into_a_frictional_wall_is_held_back_the_more_friction():
+    # The seed's robot bent into a wall (tests/test_contact.py): its rest
+    # shape passes through the wall, so the history is the curl from
+    # straight under its 30 g (docs/model.md, "Coulomb friction"). Curling,
+    # it pushes its tip up along the wall; friction holds it back, down, at
+    # mu times the normal force (it slid all the way), and more friction
+    # leaves the tip lower. Its inverse kinematics is refused by name (an
+    # actuation found by search has no history).
     wall = {"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0]}
     bend = np.zeros((10, 2))
     bend[:, 1] = 0.6
@@ -216,14 +219,52 @@ def test_a_robot_leaning_on_a_frictional_wall_slides_less_the_more_friction():
         robot = softspine.Robot({"obstacles": [{**wall, "friction": mu}]})
         sol = robot.forward(bend, load=0.03)
         assert sol.converged and sol.stable, sol.message
+        assert "curled to it from straight" in sol.message
         c = sol.contacts
-        assert len(c["force"]) == 1 and c["sliding"][0]
-        assert c["friction"][0][2] > 0.0
-        assert np.linalg.norm(c["friction"][0]) == pytest.approx(mu * c["force"][0], rel=1e-12)
+        assert len(c["force"]) == 1
+        assert c["friction"][0][2] < 0.0
+        # At the cone's edge: sliding, or come to rest there (within the
+        # sticking rows' cone slack, 1e-9, and the solve's tolerance).
+        assert np.linalg.norm(c["friction"][0]) == pytest.approx(mu * c["force"][0], rel=1e-8)
         heights.append(sol.tip_position[2] - plain.tip_position[2])
-    assert 0.0 < heights[0] < heights[1] < heights[2], heights
+    assert 0.0 > heights[0] > heights[1] > heights[2], heights
     with pytest.raises(ValueError, match=r"obstacles\[0\]\.friction.*history"):
         robot.inverse([0.13, 0.0, -0.95], load=0.03)
+
+
+@pytest.mark.parametrize("obstacle, mu, curvature", [
+    ({"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0]}, 0.1, 3.0),
+    ({"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0]}, 0.1, 4.0),
+    ({"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0]}, 0.5, 2.0),
+    ({"shape": "sphere", "centre": [0.25, 0, -0.6], "radius": 0.12}, 0.1, 1.0),
+])
+def test_a_robot_whose_rest_shape_passes_through_a_frictional_obstacle_is_curled_to_it(
+        obstacle, mu, curvature):
+    # The load path from a rest shape through the obstacle has no start: each
+    # of these ended not converged or at the iteration limit before the curl.
+    robot = softspine.Robot({"obstacles": [{**obstacle, "friction": mu}]})
+    sol = robot.forward(np.full((10, 2), [0.0, curvature]), load=0.03)
+    assert sol.converged and sol.stable, sol.message
+    assert "curled to it from straight" in sol.message
+    c = sol.contacts
+    assert len(c["force"]) >= 1 and (c["force"] >= 0.0).all()
+    friction = np.linalg.norm(c["friction"], axis=1)
+    assert (friction <= mu * c["force"] * (1 + 1e-9) + 1e-12).all()
+    if obstacle["shape"] == "half_space":
+        assert sol.positions[:, 0].max() <= 0.15 + 1e-9
+
+
+@pytest.mark.parametrize("curvature", [0.6, 2.0])
+def test_the_curl_with_vanishing_friction_ends_at_the_frictionless_equilibrium(curvature):
+    # The curl is a history; without friction the answer has none: with mu
+    # = 1e-9 it lands where the frictionless direct solve does.
+    wall = {"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0]}
+    bend = np.full((10, 2), [0.0, curvature])
+    plain = softspine.Robot({"obstacles": [wall]}).forward(bend, load=0.03)
+    tiny = softspine.Robot({"obstacles": [{**wall, "friction": 1e-9}]}).forward(bend, load=0.03)
+    assert plain.converged and tiny.converged
+    assert "curled" not in plain.message and "curled to it from straight" in tiny.message
+    np.testing.assert_allclose(tiny.positions, plain.positions, atol=1e-10)
 
 
 def pushed_rod(push: float) -> dict:

@@ -945,6 +945,9 @@ fn tangent_of_path(model: &RodModel, w: &mut Workspace, lambda: f64) -> bool {
     for stick in &mut w.kkt.contact.friction.sticks {
         stick.residual = [0.0; 2];
     }
+    for port in &mut w.kkt.contact.friction.ports {
+        port.residual = 0.0;
+    }
     w.kkt.contact.choose = false;
     let solved = super::newton::damped_solve(model, w, kkt_step);
     w.kkt.contact.choose = true;

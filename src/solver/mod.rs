@@ -90,7 +90,27 @@ pub struct Solver {
     /// ([`crate::blocktri::BlockLu::is_factor_of`]). Cleared by every change
     /// of the model, at every solve's start and by the general sensitivity.
     jacobian_at_solution: bool,
+    /// How the last cold solve curled the rod from straight first, where its
+    /// rest shape passes through an obstacle ([`Solver::curl_from_straight`]).
+    curled: Option<Curl>,
 }
+
+/// The rest curvature's homotopy of a cold solve whose rest shape passes
+/// through an obstacle: its steps, their Newton iterations and the obstacle.
+#[derive(Debug, Clone)]
+struct Curl {
+    obstacle: usize,
+    steps: usize,
+    iterations: usize,
+    /// Why it did not reach the scene's rest curvature.
+    failed: Option<String>,
+}
+
+/// The curl's first step, its shortest, and how many iterations a step may
+/// take and still let the next one double.
+const CURL_STEP: f64 = 0.25;
+const CURL_MIN_STEP: f64 = 1.0 / 64.0;
+const CURL_EASY_STEP: usize = 8;
 
 impl Solver {
     pub fn new(scene: &Scene, settings: Settings) -> Result<Self> {
@@ -161,7 +181,73 @@ impl Solver {
             state_tangents: Vec::new(),
             state_tangents_at: Vec::new(),
             jacobian_at_solution: false,
+            curled: None,
         })
+    }
+
+    /// Where the rest shape passes through an obstacle, the load path has no
+    /// start (the rest shape is not admissible): the rod's rest curvature is
+    /// ramped from straight instead, the loads at full scale, as a robot's
+    /// muscles curl it. The straight rod is solved cold, then each scaled
+    /// rest curvature warm from the last, with adaptive steps, up to (not
+    /// including) the scene's own: the state to start its solve from. With
+    /// friction this is the history: the loads, then the curl. `Err`: why
+    /// it could not (the straight rod fails too, or a step will not go).
+    fn curl_from_straight(&mut self, obstacle: usize) -> std::result::Result<Vec<Quat>, String> {
+        let full = self.scene.rest_curvature.clone();
+        let mut settings = self.settings.clone();
+        settings.n_elements = Some(self.model.n());
+        let base = self.scene.clone();
+        let scaled = |alpha: f64| -> Scene {
+            let mut scene = base.clone();
+            scene.rest_curvature = full.iter().map(|k| [alpha * k[0], alpha * k[1]]).collect();
+            scene
+        };
+        let mut curl = Curl {
+            obstacle,
+            steps: 0,
+            iterations: 0,
+            failed: None,
+        };
+        let solve = |alpha: f64, initial: Option<&[Quat]>, curl: &mut Curl| {
+            let mut solver = Solver::new(&scaled(alpha), settings.clone()).ok()?;
+            let sol = solver.solve_uninterrupted(initial).ok()?;
+            curl.iterations += sol.iterations;
+            curl.steps += 1;
+            (sol.converged() && sol.stable).then_some(sol.quaternions)
+        };
+        let outcome = (|| {
+            let Some(mut q) = solve(0.0, None, &mut curl) else {
+                return Err("the straight rod does not converge either".to_string());
+            };
+            let (mut alpha, mut step) = (0.0f64, CURL_STEP);
+            while alpha < 1.0 && !interrupt::requested() {
+                let before = curl.iterations;
+                let next_alpha = (alpha + step).min(1.0);
+                match solve(next_alpha, Some(&q), &mut curl) {
+                    Some(next) => {
+                        q = next;
+                        alpha = next_alpha;
+                        if curl.iterations - before <= CURL_EASY_STEP {
+                            step *= 2.0;
+                        }
+                    }
+                    None if step > CURL_MIN_STEP => step *= 0.5,
+                    None => {
+                        return Err(format!(
+                            "the curl stopped at {alpha:.3} of the rest curvature"
+                        ))
+                    }
+                }
+                if curl.iterations >= self.settings.max_iterations {
+                    return Err(format!("the curl ran out of iterations at {alpha:.3}"));
+                }
+            }
+            Ok(q)
+        })();
+        curl.failed = outcome.as_ref().err().cloned();
+        self.curled = Some(curl);
+        outcome
     }
 
     pub fn model(&self) -> &RodModel {
@@ -357,7 +443,51 @@ impl Solver {
         self.solve(None)
     }
 
+    /// [`Solver::solve_strategy`], where a cold solve's rest shape passes
+    /// through an obstacle with the rod curled to it from straight
+    /// ([`Solver::curl_from_straight`]): first with friction (the curl is
+    /// then its history, the load path from that rest shape having none),
+    /// and where the solve fails without.
     fn solve_uninterrupted(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
+        self.curled = None;
+        let curvature = self.scene.rest_curvature.iter().any(|k| *k != [0.0, 0.0]);
+        let through = match initial {
+            None if curvature && self.reach_limit.is_none() => self.model.obstacle_at_rest(),
+            _ => None,
+        };
+        let Some(obstacle) = through else {
+            return self.solve_strategy(initial);
+        };
+        let first = if self.model.has_friction() {
+            None
+        } else {
+            let sol = self.solve_strategy(None)?;
+            if sol.converged() && sol.stable {
+                return Ok(sol);
+            }
+            Some(sol)
+        };
+        match (self.curl_from_straight(obstacle), first) {
+            (Ok(q), _) => self.solve_strategy(Some(&q)),
+            (Err(_), None) => self.solve_strategy(None),
+            (Err(why), Some(mut sol)) => {
+                let o = obstacle;
+                if let Some(curl) = &self.curled {
+                    sol.iterations += curl.iterations;
+                    sol.continuation_steps += curl.steps;
+                }
+                sol.message.push_str(&format!(
+                    "; the rest shape passes through obstacles[{o}], and curling the rod to it \
+                     from straight failed: {why}"
+                ));
+                Ok(sol)
+            }
+        }
+    }
+
+    /// The solve's strategy: a coarse rod's answer, the direct attempt, the
+    /// load path, Levenberg-Marquardt (see `docs/model.md`).
+    fn solve_strategy(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
         let n = self.model.n();
         self.jacobian_at_solution = false;
         if let Some(q) = initial {
@@ -577,6 +707,23 @@ impl Solver {
         let mut message = ending.message();
         if converged && !stable && ending != Ending::DirectUnstable {
             message.push_str(" (unstable equilibrium)");
+        }
+        let (mut iterations, mut continuation_steps) = (iterations, continuation_steps);
+        if let Some(curl) = &self.curled {
+            iterations += curl.iterations;
+            continuation_steps += curl.steps;
+            let o = curl.obstacle;
+            message.push_str(&match &curl.failed {
+                None => format!(
+                    "; the rest shape passes through obstacles[{o}], so the rod was curled to it \
+                     from straight first ({} solves)",
+                    curl.steps
+                ),
+                Some(why) => format!(
+                    "; the rest shape passes through obstacles[{o}], and curling the rod to it \
+                     from straight failed: {why}"
+                ),
+            });
         }
         if let Some(note) = note {
             message = note;

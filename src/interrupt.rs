@@ -107,6 +107,22 @@ pub fn on_worker<R: Send + 'static>(
     }
 }
 
+/// Run `work`, one pass that may outlast the poll interval where `long`, on
+/// a worker thread while this thread polls its installed check
+/// ([`on_worker`]); inline otherwise, or where no check is installed. For a
+/// computation whose passes grow (accuracy on demand): the thread start
+/// (about a millisecond here) only for the passes that need it.
+pub fn on_worker_if<R: Send + 'static>(
+    long: bool,
+    work: impl FnOnce() -> Result<R> + Send + 'static,
+) -> Result<R> {
+    let installed = CHECKER.with(|c| c.try_borrow().is_ok_and(|c| c.is_some()));
+    if !long || !installed {
+        return work();
+    }
+    on_worker(requested, work)
+}
+
 /// Whether the computation should stop: polls the installed check at most
 /// every [`POLL_INTERVAL`]; false when none is installed.
 pub fn requested() -> bool {

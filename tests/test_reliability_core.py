@@ -238,13 +238,17 @@ LONG_SOLVES = {
     "fe4": 'softspine.solve(scene, n_elements=1_000_000, scheme="fe4", max_iterations=500)',
     "shooting": 'softspine.solve(scene, n_elements=2_000_000, method="shooting", '
     "max_iterations=100000)",
+    # Accuracy on demand: its passes grow; only the long ones run on a
+    # worker thread (interrupt::on_worker_if), and Ctrl-C stops those too.
+    "accuracy": 'softspine.solve(scene, scheme="fd2", '
+    'accuracy={"tol": 1e-12, "max_elements": 4_000_000})',
 }
 
 
 # Ctrl-C at these times into each solve: the Newton solve at n = 2e6 is in
 # its allocation, its continuation, its line search; the others iterate.
 INTERRUPT_DELAYS = {"newton": (0.3, 1.0, 2.0), "lm": (1.0,), "paper": (1.0,),
-                    "fe4": (0.5, 2.0), "shooting": (0.5, 3.0)}
+                    "fe4": (0.5, 2.0), "shooting": (0.5, 3.0), "accuracy": (1.0, 4.0)}
 
 
 @pytest.mark.slow

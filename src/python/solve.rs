@@ -1,7 +1,7 @@
 //! `solve`, `residual` and `jacobian`.
 
 use super::convert::*;
-use super::detach::detach_solve;
+use super::detach::{detach_interruptible, detach_solve};
 use super::scene::scene_arg;
 use super::settings::{entries, PyAccuracy, PyPaperSettings, PySettings};
 use super::solution::{quaternions_arg, PySolution};
@@ -64,13 +64,9 @@ pub(super) fn solve(
                     "initial: not used with tol (the discretisation is chosen by the solver)",
                 ));
             }
-            // It may end at any n up to the limit. A worker thread costs a
-            // thread start, which made a solve of tens of microseconds take
-            // 1.6 ms: only for passes that may outlast the poll.
-            let long = accuracy.has_long_passes(&settings);
-            detach_solve(py, long, move || {
-                solve_to_accuracy(&scene, settings, &accuracy)
-            })?
+            // It may end at any n up to the limit: the core puts the passes
+            // that may outlast the poll on a worker thread, one by one.
+            detach_interruptible(py, move || solve_to_accuracy(&scene, settings, &accuracy))?
         }
     };
     let solution = if check { solution.check()? } else { solution };

@@ -71,17 +71,6 @@ pub fn asymptotic_turn(order: i32) -> f64 {
 const FOURTH_ORDER_START: usize = 4;
 
 impl Accuracy {
-    /// Whether one pass of this solve may outlast the interrupt poll (see
-    /// [`Settings::has_long_passes`]): it may end at any n up to
-    /// `max_elements`.
-    pub fn has_long_passes(&self, settings: &Settings) -> bool {
-        Settings {
-            n_elements: Some(self.max_elements),
-            ..settings.clone()
-        }
-        .has_long_passes()
-    }
-
     /// Every key of [`Accuracy::set`].
     pub const KEYS: [&'static str; 3] = ["tol", "refine", "max_elements"];
 
@@ -222,12 +211,19 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
         ..settings
     };
     let order = settings.order();
-    let solve_at = |n: usize, initial: Option<&[Quat]>| -> Result<Solution> {
+    // Each pass on a worker thread only where it may outlast the interrupt
+    // poll (see `interrupt::on_worker_if`): most solves end at a few
+    // hundred elements, where a thread start would cost more than the solve.
+    let solve_at = |n: usize, initial: Vec<Quat>| -> Result<Solution> {
         let settings = Settings {
             n_elements: Some(n),
             ..settings.clone()
         };
-        Solver::new(scene, settings)?.solve(initial)
+        let long = settings.has_long_passes();
+        let scene = scene.clone();
+        crate::interrupt::on_worker_if(long, move || {
+            Solver::new(&scene, settings)?.solve(Some(&initial))
+        })
     };
     let requested = match (settings.n_elements, order) {
         (Some(n), _) => n,
@@ -235,19 +231,21 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
         (None, _) => settings.elements_for(scene),
     };
     let n0 = starting_elements_of_order(scene, requested, order);
-    let mut solver = Solver::new(
-        scene,
-        Settings {
-            n_elements: Some(n0),
-            ..settings.clone()
-        },
-    )?;
-    let mut base = solver.solve(None)?;
+    let first = Settings {
+        n_elements: Some(n0),
+        ..settings.clone()
+    };
+    let (long, first_scene) = (first.has_long_passes(), scene.clone());
+    let (trivial, mut base) = crate::interrupt::on_worker_if(long, move || {
+        let mut solver = Solver::new(&first_scene, first)?;
+        let base = solver.solve(None)?;
+        Ok((solver.model().is_trivial(), base))
+    })?;
     let straight = scene
         .rest_curvature
         .iter()
         .all(|k| k[0] == 0.0 && k[1] == 0.0);
-    if straight && solver.model().is_trivial() {
+    if straight && trivial {
         // The unloaded straight rod is exact at any n: nothing to refine.
         base.error_estimate = Some(0.0);
         return Ok(base);
@@ -282,7 +280,7 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
             return Ok(not_met(base, iterations, why));
         }
         crate::interrupt::check()?;
-        base = solve_at(n, Some(&refine(&base.quaternions, 2)))?;
+        base = solve_at(n, refine(&base.quaternions, 2))?;
         iterations += base.iterations;
     }
     let n_base = base.n_elements;
@@ -297,7 +295,7 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
             return Ok(not_met(base, iterations, why));
         }
         crate::interrupt::check()?;
-        let mut fine = solve_at(k * n_base, Some(&refine(&base.quaternions, k)))?;
+        let mut fine = solve_at(k * n_base, refine(&base.quaternions, k))?;
         iterations += fine.iterations;
         if !usable(&fine) {
             fine.iterations = iterations;

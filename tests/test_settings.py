@@ -69,7 +69,9 @@ def test_accuracy_object_and_keywords_agree():
     assert by_object.n_elements == by_keywords.n_elements and by_object.extrapolated
     assert np.array_equal(by_object.tip_position, by_keywords.tip_position)
     # tol overrides the object's.
-    assert softspine.solve(CANTILEVER, accuracy=Accuracy(1e-2), tol=1e-5).n_elements > 20
+    overridden = softspine.solve(CANTILEVER, accuracy=Accuracy(1e-2), tol=1e-5)
+    assert overridden.error_estimate <= 1e-5
+    assert softspine.solve(CANTILEVER, tol=1e-2).error_estimate > 1e-5
     with pytest.raises(ValueError, match="^refine: needs tol"):
         softspine.solve(CANTILEVER, refine="richardson")
     with pytest.raises(ValueError, match="^settings: expected a Settings or a dict"):

@@ -8,6 +8,7 @@ every case again and compares (see there for the tolerances).
 
     python tools/golden.py                 # record tests/golden/golden.json.gz
     python tools/golden.py --check         # compare, print the largest changes
+    python tools/golden.py --scenes K ...  # re-record these cases' answers only
 
 Record anew only when a change of behaviour is intended, and say why in the
 commit.
@@ -216,7 +217,18 @@ def main() -> None:
     parser.add_argument("--robots", type=int, nargs="+", metavar="K",
                         help="re-record only these IK targets' answers (a change that a commit "
                              "explains), keeping every other recorded answer")
+    parser.add_argument("--scenes", type=int, nargs="+", metavar="K",
+                        help="re-record only these scene cases' answers (a change that a commit "
+                             "explains), keeping every other recorded answer")
     args = parser.parse_args()
+    if args.scenes:
+        golden = json.loads(gzip.decompress(OUT.read_bytes()))
+        for k in args.scenes:
+            case = golden["scenes"][k]
+            case["answer"] = solution_record(solve_scene(case))
+            print(f"scene {k} ({case['kwargs']}): re-recorded")
+        OUT.write_bytes(gzip.compress(json.dumps(golden).encode(), mtime=0))
+        return
     if args.robots:
         golden = json.loads(gzip.decompress(OUT.read_bytes()))
         for k in args.robots:
@@ -228,12 +240,19 @@ def main() -> None:
     if args.check:
         golden = json.loads(gzip.decompress(OUT.read_bytes()))
         worst = 0.0
-        for case in golden["scenes"]:
+        other = []
+        for k, case in enumerate(golden["scenes"]):
             sol = solve_scene(case)
             old = np.array(case["answer"]["positions"])
-            if old.shape == sol.positions.shape:
+            same = (sol.n_elements, str(sol.scheme)) == (case["answer"]["n_elements"],
+                                                         case["answer"]["scheme"])
+            if same and old.shape == sol.positions.shape:
                 worst = max(worst, float(np.abs(sol.positions - old).max()))
+            else:
+                other.append(k)
         print(f"largest change of a node: {worst:.3e} m")
+        if other:
+            print(f"another n or scheme: scenes {' '.join(map(str, other))}")
         return
     data = record()
     OUT.parent.mkdir(parents=True, exist_ok=True)

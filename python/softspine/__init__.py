@@ -124,7 +124,7 @@ def solve(
         The discretisation of the backbone. ``"fd2"``: the seed's finite
         differences, second order. ``"fe4"``: quadratic elements of the rotation
         with two-point Gauss quadrature, fourth order at the nodes. Default:
-        ``"fe4"`` for accuracy on demand below 1e-5 L (1e-6 L on a scene with
+        ``"fe4"`` for accuracy on demand below 3e-5 L (1e-6 L on a scene with
         held points; there it is the faster), ``"fd2"`` otherwise. The paper's
         method and shooting have their own.
     initial : Solution or array (n+1, 4), optional

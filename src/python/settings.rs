@@ -253,7 +253,7 @@ settings_methods! {
         /// The discretisation of the backbone: ``"fd2"`` (the seed's finite
         /// differences, second order), ``"fe4"`` (quadratic elements with two-point
         /// Gauss quadrature, fourth order at the nodes) or None (default: ``"fe4"``
-        /// for accuracy on demand below 1e-5 L, 1e-6 L with held points, where it
+        /// for accuracy on demand below 3e-5 L, 1e-6 L with held points, where it
         /// is the faster, ``"fd2"`` otherwise).
         #[getter]
         fn scheme(&self) -> Option<&'static str> {

@@ -71,7 +71,8 @@ pub use scene::{
     Gravity, Guide, PointLoad, Scene, SectionProperties, Stiffness, Tendon, TipCondition,
 };
 pub use solver::{
-    default_elements, solve, solve_to_accuracy, Accuracy, Contact, Method, PortReaction,
-    Sensitivity, Settings, Solution, Solver, Status, TipSensitivity, DEFAULT_ELEMENTS,
+    default_elements, solve, solve_after, solve_to_accuracy, Accuracy, Contact, Method,
+    PortReaction, Sensitivity, Settings, Solution, Solver, Status, TipSensitivity,
+    DEFAULT_ELEMENTS,
 };
 pub use value::Value;

@@ -624,3 +624,50 @@ def test_sensitivities_and_the_inverse_kinematics_are_refused_with_a_frictional_
     robot = inserted_robot(ports=[{"position": [0, 0, -0.3], "friction": 0.3}])
     with pytest.raises(ValueError, match=r"ports\[0\]\.friction.*history"):
         robot.inverse([0.0, 0.05, -1.0])
+
+
+def test_a_rod_fed_through_a_frictional_port_by_its_base_meets_shooting_sliding_forward():
+    # The base moves 0.1 m along the rod in five steps, each warm from the
+    # last Solution: its history starts from that rod where it stood
+    # (Solver::solve_after), so the rod slides forward through the port and
+    # the port's friction pushes it back towards the base; against
+    # `through_port` with the friction that way, at the final geometry.
+    # (Cold, the rod is inserted before the loads ramp and slides back.)
+    mu, port = 0.3, (0.6, 0.1)
+    ref = through_port(1.0, 1.0, (port[0] - 0.1, port[1]), 0.5, 1.0, friction=mu, slide=-1.0)
+    tips, arcs = [], []
+    for n in (20, 40, 80):
+        previous = None
+        for d in np.linspace(0.0, 0.1, 6):
+            scene = port_scene(port, 0.5, 1.0)[0]
+            scene["base_position"] = [d, 0.0, 0.0]
+            scene["ports"][0]["friction"] = mu
+            sol = softspine.solve(scene, n_elements=n, initial=previous)
+            assert sol.converged and sol.stable, (d, sol.message)
+            previous = sol
+        assert sol.ports["sliding"].tolist() == [True]
+        friction = sol.ports["friction"][0]
+        assert friction[0] < 0.0
+        cold = softspine.solve(scene, n_elements=n)
+        assert cold.ports["friction"][0][0] > 0.0
+        tip = sol.tip_position - [0.1, 0.0, 0.0]
+        tips.append(np.hypot(tip[0] - ref["tip"][0], tip[2] - ref["tip"][1]))
+        arcs.append(abs(sol.ports["arc_length"][0] - ref["arc_length"]))
+    assert all(a / b > 3.0 for a, b in zip(arcs, arcs[1:], strict=False)), arcs
+    assert tips[-1] < 1e-4 and tips[0] / tips[-1] > 10, tips
+
+
+def test_a_robot_inserted_step_by_step_through_a_frictional_port_feels_it_against_the_insertion():
+    # The robot hangs down through a port 2 cm off its axis: inserted in
+    # steps, each from the last Solution, the port's friction pushes it up,
+    # against the insertion, at mu times its force across.
+    robot = inserted_robot(ports=[{"position": [0, 0.02, -0.3], "friction": 0.3}])
+    previous = robot.forward(insertion=0.0)
+    for d in (0.05, 0.1, 0.15, 0.2):
+        sol = robot.forward(insertion=d, initial=previous)
+        assert sol.converged and sol.ports["sliding"].tolist() == [True], sol.message
+        force, friction = sol.ports["force"][0], sol.ports["friction"][0]
+        assert friction[2] > 0.0
+        np.testing.assert_allclose(np.linalg.norm(friction),
+                                   0.3 * np.linalg.norm(force - friction), rtol=1e-9)
+        previous = sol

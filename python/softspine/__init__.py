@@ -130,7 +130,9 @@ def solve(
     initial : Solution or array (n+1, 4), optional
         Warm start, e.g. the solution of a neighbouring scene: its ``n`` is the
         solve's unless ``n_elements`` is given (then they must agree); not with
-        accuracy on demand.
+        accuracy on demand. With friction a Solution is the last step of the
+        history: the step starts from its rod where it stood (its base
+        included); an array gives the rotations alone.
     accuracy : Accuracy or dict, optional
         Accuracy on demand (``softspine.Accuracy``): from a first resolving
         ``n`` and ``2n``, the estimated error of the whole backbone (the largest

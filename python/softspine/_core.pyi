@@ -357,7 +357,9 @@ class Robot:
         ``insertion`` (m, default 0: the base moved along its tangent, within
         ``insertion_range``; through the robot's ``ports``); from
         the straight rod or warm from ``initial`` (a Solution of this robot or
-        its quaternions (n + 1, 4))."""
+        its quaternions (n + 1, 4); with friction a Solution is the last step
+        of the history, the robot starting where it stood, at its insertion
+        then)."""
     def sensitivity(
         self,
         rest_curvature: npt.ArrayLike | None = None,

@@ -7,7 +7,7 @@ use super::convert::*;
 use super::detach::detach_solve;
 use super::scene::PyScene;
 use super::settings::ik_settings_arg;
-use super::solution::{quaternions_arg, PySolution};
+use super::solution::{previous_solution, quaternions_arg, PySolution};
 use crate::robot::{trajectory, Actuation, IkOptions, IkResult, IkStart, InverseSolver, Robot};
 use crate::value::Format;
 use nalgebra::Vector3;
@@ -513,7 +513,9 @@ impl PyRobot {
     ///     (``[{s, force, moment}]``).
     /// initial
     ///     A warm start: a Solution of this robot or its quaternions
-    ///     (n + 1, 4) (default: from the straight rod).
+    ///     (n + 1, 4) (default: from the straight rod). With friction a
+    ///     Solution is the last step of the history: the robot starts where
+    ///     it stood, at its insertion then.
     /// tensions
     ///     A tendon-driven robot's tensions, N, one a tendon, each within
     ///     ``[0, max_tension]``.
@@ -544,13 +546,15 @@ impl PyRobot {
         let load = load.unwrap_or_default();
         warn_user(py, &self.inner.load_warnings(&load))?;
         let a = actuation_arg(rest_curvature, tensions, field, insertion)?;
+        let previous = given(initial).and_then(|q| previous_solution(&q));
         let initial = given(initial)
             .map(|q| quaternions_arg("initial", &q))
             .transpose()?;
         let robot = self.inner.clone();
         let long = robot.has_long_passes();
-        let sol = detach_solve(py, long, move || {
-            robot.forward(&a, &load, initial.as_deref())
+        let sol = detach_solve(py, long, move || match &previous {
+            Some(previous) => robot.forward_after(&a, &load, previous),
+            None => robot.forward(&a, &load, initial.as_deref()),
         })?;
         Ok(PySolution { inner: sol })
     }

@@ -610,6 +610,12 @@ fn contacts_of(d: &Fields) -> PyResult<Vec<crate::solver::Contact>> {
 }
 
 /// Node quaternions: a Solution's, or an array of shape (n+1, 4).
+/// The Solution an `initial` argument is, if it is one (a history's last
+/// step, `crate::Solver::solve_after`).
+pub(super) fn previous_solution(q: &Bound<'_, PyAny>) -> Option<crate::Solution> {
+    q.cast::<PySolution>().ok().map(|s| s.get().inner.clone())
+}
+
 pub(super) fn quaternions_arg(name: &str, q: &Bound<'_, PyAny>) -> PyResult<Vec<Quat>> {
     if let Ok(s) = q.cast::<PySolution>() {
         return Ok(s.get().inner.quaternions.clone());

@@ -4,7 +4,7 @@ use super::convert::*;
 use super::detach::{detach_interruptible, detach_solve};
 use super::scene::scene_arg;
 use super::settings::{entries, PyAccuracy, PyPaperSettings, PySettings};
-use super::solution::{quaternions_arg, PySolution};
+use super::solution::{previous_solution, quaternions_arg, PySolution};
 use crate::blocktri::BlockTridiagonal;
 use crate::solver::{solve_to_accuracy, Accuracy};
 use crate::{Error, Quat, RodModel, Settings, Value};
@@ -51,11 +51,15 @@ pub(super) fn solve(
     let accuracy = accuracy_arg(accuracy, tol, refine)?;
     let solution = match accuracy {
         None => {
+            // A Solution starts the next step of its history (its rod where
+            // it stood: see `Solver::solve_after`); an array, its rotations.
+            let previous = initial.and_then(previous_solution);
             let initial = initial.map(|q| quaternions_arg("initial", q)).transpose()?;
             // Building the solver allocates O(n): without the GIL too.
             let long = settings.resolved(&scene).has_long_passes();
-            detach_solve(py, long, move || {
-                crate::solve(&scene, settings, initial.as_deref())
+            detach_solve(py, long, move || match &previous {
+                Some(previous) => crate::solve_after(&scene, settings, previous),
+                None => crate::solve(&scene, settings, initial.as_deref()),
             })?
         }
         Some(accuracy) => {

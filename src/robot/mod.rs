@@ -312,6 +312,22 @@ impl Robot {
         crate::solve(&self.scene(actuation, load)?, settings, initial)
     }
 
+    /// [`Robot::forward`] as the next equilibrium of a history from
+    /// `previous` (see [`crate::Solver::solve_after`]): with friction, the
+    /// step starts from the robot where it stood, at its insertion then.
+    pub fn forward_after(
+        &self,
+        actuation: &Actuation,
+        load: &Load,
+        previous: &crate::Solution,
+    ) -> Result<crate::Solution> {
+        let settings = crate::Settings {
+            n_elements: Some(self.n_elements),
+            ..crate::Settings::default()
+        };
+        crate::solver::solve_after(&self.scene(actuation, load)?, settings, previous)
+    }
+
     /// Refuse tensions (`name` "tensions") or a field (`name` "field")
     /// given to a robot that has no tendons or no magnets: it would move
     /// nothing.

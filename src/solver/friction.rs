@@ -238,6 +238,13 @@ fn along_surface(v: &Vector3<f64>, normal: &Vector3<f64>) -> Vector3<f64> {
 /// holds them. A contact keeps sticking or sliding as it was, the Newton
 /// step's first guess, and the forces at `w.saved` are unchanged.
 pub(crate) fn anchor_at_saved(model: &RodModel, w: &mut Workspace) {
+    anchor_at_saved_moved(model, w, Vector3::zeros());
+}
+
+/// [`anchor_at_saved`] for a rod that stood translated by `moved` from
+/// where its rotations put it now (a warm start whose base was elsewhere:
+/// `Solver::solve_after`): its material points stood there.
+pub(crate) fn anchor_at_saved_moved(model: &RodModel, w: &mut Workspace, moved: Vector3<f64>) {
     if !model.has_friction() {
         return;
     }
@@ -245,6 +252,7 @@ pub(crate) fn anchor_at_saved(model: &RodModel, w: &mut Workspace) {
     let first = first(model, w);
     let f = &mut w.kkt.contact.friction;
     model.positions(&w.saved, &mut w.interior, &mut f.start);
+    f.start.iter_mut().for_each(|p| *p += moved);
     let kept: Vec<(usize, Anchor)> = held
         .iter()
         .filter_map(|&i| {

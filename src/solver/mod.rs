@@ -93,6 +93,10 @@ pub struct Solver {
     /// How the last cold solve curled the rod from straight first, where its
     /// rest shape passes through an obstacle ([`Solver::curl_from_straight`]).
     curled: Option<Curl>,
+    /// Where the next warm start's rod stood: its base position, where it
+    /// differs from the scene's ([`Solver::solve_after`]). Friction's
+    /// history starts there.
+    history_base: Option<Vector3<f64>>,
 }
 
 /// The rest curvature's homotopy of a cold solve whose rest shape passes
@@ -182,7 +186,22 @@ impl Solver {
             state_tangents_at: Vec::new(),
             jacobian_at_solution: false,
             curled: None,
+            history_base: None,
         })
+    }
+
+    /// The next equilibrium of a history from `previous` as it stood: warm
+    /// from its rotations, and with friction the step starts from its rod
+    /// where it was, its base included (a robot fed through a frictional
+    /// port: the insertion since `previous` slides the rod through the port
+    /// against its friction, where a warm start from the rotations alone
+    /// would start the step with the rod already moved). Without friction,
+    /// [`Solver::solve`] from its rotations.
+    pub fn solve_after(&mut self, previous: &Solution) -> Result<Solution> {
+        self.history_base = previous.positions.first().copied();
+        let solution = self.solve(Some(&previous.quaternions));
+        self.history_base = None;
+        solution
     }
 
     /// Where the rest shape passes through an obstacle, the load path has no
@@ -570,9 +589,14 @@ impl Solver {
         }
         w.kkt.clear_multipliers();
         if model.has_friction() {
-            // A warm start's history starts at its shape: its contacts stick there.
+            // A warm start's history starts at its shape: its contacts stick
+            // there, where it stood (`solve_after`).
             w.saved.copy_from_slice(&w.q);
-            friction::anchor_at_saved(model, w);
+            let moved = match (initial, self.history_base) {
+                (Some(_), Some(base)) => base - model.base_position(),
+                _ => Vector3::zeros(),
+            };
+            friction::anchor_at_saved_moved(model, w, moved);
         }
         let direct = if follow_path {
             LocalOutcome {
@@ -827,7 +851,23 @@ const DIRECT_ITERATIONS: usize = 60;
 
 /// Solve a scene once (see [`Solver`] to reuse the workspace).
 /// `solve_time` counts the set-up of the discretisation.
-pub fn solve(scene: &Scene, mut settings: Settings, initial: Option<&[Quat]>) -> Result<Solution> {
+pub fn solve(scene: &Scene, settings: Settings, initial: Option<&[Quat]>) -> Result<Solution> {
+    solve_from(scene, settings, initial, None)
+}
+
+/// [`solve`] as the next equilibrium of a history from `previous` (see
+/// [`Solver::solve_after`]: with friction, the step starts from its rod
+/// where it stood, its base included).
+pub fn solve_after(scene: &Scene, settings: Settings, previous: &Solution) -> Result<Solution> {
+    solve_from(scene, settings, Some(&previous.quaternions), Some(previous))
+}
+
+fn solve_from(
+    scene: &Scene,
+    mut settings: Settings,
+    initial: Option<&[Quat]>,
+    previous: Option<&Solution>,
+) -> Result<Solution> {
     let started = Instant::now();
     // A warm start brings its own n where none is asked for (a solution of
     // accuracy on demand, at the n it chose, warm-starts the next solve).
@@ -849,7 +889,10 @@ pub fn solve(scene: &Scene, mut settings: Settings, initial: Option<&[Quat]>) ->
         }
         (e, _) => e,
     })?;
-    let mut solution = solver.solve(initial)?;
+    let mut solution = match previous {
+        Some(previous) => solver.solve_after(previous)?,
+        None => solver.solve(initial)?,
+    };
     solution.solve_time = started.elapsed().as_secs_f64();
     Ok(solution)
 }

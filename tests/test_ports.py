@@ -671,3 +671,25 @@ def test_a_robot_inserted_step_by_step_through_a_frictional_port_feels_it_agains
         np.testing.assert_allclose(np.linalg.norm(friction),
                                    0.3 * np.linalg.norm(force - friction), rtol=1e-9)
         previous = sol
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.3])
+def test_a_frictional_port_with_a_held_tip_is_solved(mu):
+    # A held tip's load path solves the released rod first in the whole
+    # scene's workspace: the friction row's place was counted from the held
+    # points' residuals there, past the end of the step's matrix (a panic,
+    # "Matrix index out of bounds", before the fix).
+    scene = port_scene((0.5, 0.1), 1.0)[0]
+    scene["ports"][0]["friction"] = mu
+    scene["tip"] = {"type": "pinned", "position": [0.95, 0.0, 0.2]}
+    arcs = []
+    for n in (20, 40, 80):
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        np.testing.assert_allclose(sol.tip_position, [0.95, 0.0, 0.2], atol=1e-12)
+        force, friction = sol.ports["force"][0], sol.ports["friction"][0]
+        assert sol.ports["sliding"].tolist() == [mu > 0.0]
+        np.testing.assert_allclose(np.linalg.norm(friction),
+                                   mu * np.linalg.norm(force - friction), rtol=1e-9, atol=1e-15)
+        arcs.append(sol.ports["arc_length"][0])
+    assert abs(arcs[2] - arcs[1]) < abs(arcs[1] - arcs[0]) / 3.0, arcs

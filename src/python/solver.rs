@@ -4,7 +4,7 @@
 use super::convert::*;
 use super::detach::detach_solve;
 use super::scene::{scene_arg, PyScene};
-use super::solution::{quaternions_arg, PySolution};
+use super::solution::{previous_solution, quaternions_arg, PySolution};
 use super::solve::settings_with;
 use crate::{Quat, Solver};
 use nalgebra::Vector3;
@@ -139,7 +139,10 @@ impl PySolver {
         field: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PySolution> {
         let start = match (given(initial), warm) {
-            (Some(x), _) => Start::Given(quaternions_arg("initial", &x)?),
+            (Some(x), _) => match previous_solution(&x) {
+                Some(previous) => Start::After(Box::new(previous)),
+                None => Start::Given(quaternions_arg("initial", &x)?),
+            },
             (None, true) => Start::Last,
             (None, false) => Start::Straight,
         };
@@ -175,12 +178,13 @@ impl PySolver {
                 return Err(e);
             }
             held.changed_by = None;
-            let initial = match &start {
-                Start::Last => held.last.as_deref(),
-                Start::Straight => None,
-                Start::Given(q) => Some(q.as_slice()),
+            let sol = match &start {
+                Start::Last => held.solver.solve(held.last.as_deref())?,
+                Start::Straight => held.solver.solve(None)?,
+                Start::Given(q) => held.solver.solve(Some(q.as_slice()))?,
+                // The next step of its history (`Solver::solve_after`).
+                Start::After(previous) => held.solver.solve_after(previous)?,
             };
-            let sol = held.solver.solve(initial)?;
             if sol.converged() && sol.stable {
                 match held.last.as_mut() {
                     // In place: a control loop allocates nothing here.
@@ -350,4 +354,6 @@ enum Start {
     Last,
     Straight,
     Given(Vec<Quat>),
+    /// A Solution: the last step of the history.
+    After(Box<crate::Solution>),
 }

@@ -56,6 +56,10 @@ pub(crate) struct KktWorkspace {
     /// point, then one an active contact; `row_count` of them in use.
     pub rows: Vec<Vec<Vector3<f64>>>,
     pub row_count: usize,
+    /// The held points' rows among them, `3 m` of the model that loaded
+    /// them: a load path's first leg solves the released model (no held
+    /// point) in the whole scene's workspace, whose `h` has `m` entries.
+    pub held_rows: usize,
     /// How many leading entries of each row may be nonzero: a position
     /// depends on the rotations up to its node only.
     pub row_len: Vec<usize>,
@@ -131,6 +135,7 @@ impl KktWorkspace {
             compliance: None,
             rows: vec![vec![Vector3::zeros(); n]; 3 * m],
             row_count: 3 * m,
+            held_rows: 3 * m,
             row_len: Vec::new(),
             force_extra: Vec::new(),
             contact: ContactWork::new(model),
@@ -308,6 +313,7 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     let ports = port::row_count(model);
     let sticks = w.kkt.contact.friction.row_count();
     w.kkt.row_count = 3 * held + ports + sticks + w.kkt.contact.active.len();
+    w.kkt.held_rows = 3 * held;
     let n = model.n();
     w.kkt.row_len.clear();
     for c in model.constraints() {
@@ -384,7 +390,7 @@ fn dot(x: &[Vector3<f64>], y: &[Vector3<f64>]) -> f64 {
 /// Row `r`'s residual: a held point's position error, a port's, a
 /// sticking contact's, then an active contact's gap.
 fn row_residual(w: &Workspace, r: usize) -> f64 {
-    let held = 3 * w.kkt.h.len();
+    let held = w.kkt.held_rows;
     let ports = held + 2 * w.kkt.contact.ports.len();
     let frictional = &w.kkt.contact.friction.frictional_ports;
     let axial = ports + frictional.len();
@@ -503,7 +509,7 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     // The sticking contacts' and ports' rows give with their forces, a
     // sliding port's keeps its multiplier at zero (see `friction.rs`).
     let friction = &w.kkt.contact.friction;
-    let first_axial = 3 * w.kkt.h.len() + 2 * w.kkt.contact.ports.len();
+    let first_axial = w.kkt.held_rows + 2 * w.kkt.contact.ports.len();
     for (a, &j) in friction.frictional_ports.iter().enumerate() {
         w.kkt.schur[(first_axial + a, first_axial + a)] += friction.ports[j].diagonal;
     }
@@ -1386,7 +1392,7 @@ fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
     let contact = &w.kkt.contact;
     let held_rows = w.kkt.row_count - contact.gaps.len();
     // A sliding port's friction row holds nothing (its direction zero).
-    let first_axial = 3 * w.kkt.h.len() + 2 * contact.ports.len();
+    let first_axial = w.kkt.held_rows + 2 * contact.ports.len();
     let friction = &contact.friction;
     let idle = |r: usize| {
         r.checked_sub(first_axial)

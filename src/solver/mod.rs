@@ -208,8 +208,8 @@ impl Solver {
     /// start (the rest shape is not admissible): the rod's rest curvature is
     /// ramped from straight instead, the loads at full scale, as a robot's
     /// muscles curl it. The straight rod is solved cold, then each scaled
-    /// rest curvature warm from the last, with adaptive steps, up to (not
-    /// including) the scene's own: the state to start its solve from. With
+    /// rest curvature warm from the last, with adaptive steps, up to the
+    /// scene's own: the state its solve starts from (and certifies). With
     /// friction this is the history: the loads, then the curl. `Err`: why
     /// it could not (the straight rod fails too, or a step will not go).
     fn curl_from_straight(&mut self, obstacle: usize) -> std::result::Result<Vec<Quat>, String> {
@@ -228,22 +228,28 @@ impl Solver {
             iterations: 0,
             failed: None,
         };
+        // `Err` where a curled scene cannot be solved at all (its reason),
+        // `None` where its solve does not end converged and stable.
         let solve = |alpha: f64, initial: Option<&[Quat]>, curl: &mut Curl| {
-            let mut solver = Solver::new(&scaled(alpha), settings.clone()).ok()?;
-            let sol = solver.solve_uninterrupted(initial).ok()?;
+            let mut solver = Solver::new(&scaled(alpha), settings.clone()).map_err(|e| {
+                format!("the rod curled to {alpha:.3} of its rest curvature is refused: {e}")
+            })?;
+            let sol = solver
+                .solve_uninterrupted(initial)
+                .map_err(|e| e.to_string())?;
             curl.iterations += sol.iterations;
             curl.steps += 1;
-            (sol.converged() && sol.stable).then_some(sol.quaternions)
+            Ok::<_, String>((sol.converged() && sol.stable).then_some(sol.quaternions))
         };
         let outcome = (|| {
-            let Some(mut q) = solve(0.0, None, &mut curl) else {
+            let Some(mut q) = solve(0.0, None, &mut curl)? else {
                 return Err("the straight rod does not converge either".to_string());
             };
             let (mut alpha, mut step) = (0.0f64, CURL_STEP);
             while alpha < 1.0 && !interrupt::requested() {
                 let before = curl.iterations;
                 let next_alpha = (alpha + step).min(1.0);
-                match solve(next_alpha, Some(&q), &mut curl) {
+                match solve(next_alpha, Some(&q), &mut curl)? {
                     Some(next) => {
                         q = next;
                         alpha = next_alpha;
@@ -487,7 +493,12 @@ impl Solver {
             Some(sol)
         };
         match (self.curl_from_straight(obstacle), first) {
-            (Ok(q), _) => self.solve_strategy(Some(&q)),
+            (Ok(q), first) => {
+                let mut sol = self.solve_strategy(Some(&q))?;
+                // The failed cold attempt's iterations count too.
+                sol.iterations += first.map_or(0, |f| f.iterations);
+                Ok(sol)
+            }
             (Err(_), None) => self.solve_strategy(None),
             (Err(why), Some(mut sol)) => {
                 let o = obstacle;

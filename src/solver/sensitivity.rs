@@ -100,6 +100,7 @@ impl Solver {
     /// loading's derivatives, by the implicit function theorem on the
     /// factored Jacobian (free tip).
     fn tip_sensitivity_with(&mut self, tangents: &[Loading]) -> Result<TipSensitivity> {
+        refuse_friction(&self.model)?;
         let columns = tangents.len();
         let n = self.model.n();
         if self.model.is_constrained() && !self.model.has_contact() {

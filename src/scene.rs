@@ -1741,17 +1741,7 @@ pub(crate) fn obstacle_friction(v: &Value) -> Result<Vec<f64>> {
         .collect()
 }
 
-/// A friction coefficient must be finite and non-negative.
-pub(crate) fn check_friction(mu: f64, key: &str) -> Result<f64> {
-    if mu.is_finite() && mu >= 0.0 {
-        Ok(mu)
-    } else {
-        Err(Error::scene(
-            key,
-            format!("a friction coefficient must be finite and >= 0, got {mu}"),
-        ))
-    }
-}
+pub(crate) use crate::contact::check_friction;
 
 /// Obstacles as a value-tree list, each with its `friction` where not zero.
 pub(crate) fn obstacles_value(obstacles: &[Obstacle], friction: &[f64]) -> Value {

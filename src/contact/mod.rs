@@ -19,3 +19,16 @@ pub(crate) use obstacle::files_beside;
 pub use obstacle::{Obstacle, Proximity};
 pub use port::{Crossing, Port};
 pub use triangle_mesh::{MeshError, TriangleMesh};
+
+/// A friction coefficient (an obstacle's, a port's) must be finite and
+/// non-negative.
+pub(crate) fn check_friction(mu: f64, key: &str) -> crate::error::Result<f64> {
+    if mu.is_finite() && mu >= 0.0 {
+        Ok(mu)
+    } else {
+        Err(crate::error::Error::scene(
+            key,
+            format!("a friction coefficient must be finite and >= 0, got {mu}"),
+        ))
+    }
+}

@@ -137,7 +137,7 @@ impl Port {
             None => 0.0,
             Some(v) => {
                 let key = t.key("friction");
-                crate::scene::check_friction(crate::read::finite(v, &key)?, &key)?
+                super::check_friction(crate::read::finite(v, &key)?, &key)?
             }
         };
         Ok(Port::new(position, axis).with_friction(friction))

@@ -502,6 +502,15 @@ fn port_arrays<'py>(
     ]
 }
 
+/// A column absent from an earlier version's dict (empty): `k` of `value`.
+fn or_filled<T: Clone>(column: Vec<T>, k: usize, value: T) -> Vec<T> {
+    if column.is_empty() {
+        vec![value; k]
+    } else {
+        column
+    }
+}
+
 /// The ports of a solution's dict (absent from earlier versions': none).
 fn ports_of(d: &Fields) -> PyResult<Vec<crate::solver::PortReaction>> {
     let index = d.floats_or_empty("port_port")?;
@@ -510,14 +519,8 @@ fn ports_of(d: &Fields) -> PyResult<Vec<crate::solver::PortReaction>> {
     let force = d.rows_or_empty::<3>("port_force")?;
     let k = index.len();
     // Frictionless where absent (earlier versions').
-    let friction = match d.rows_or_empty::<3>("port_friction")? {
-        x if x.is_empty() => vec![[0.0; 3]; k],
-        x => x,
-    };
-    let sliding = match d.bools_or_empty("port_sliding")? {
-        x if x.is_empty() => vec![false; k],
-        x => x,
-    };
+    let friction = or_filled(d.rows_or_empty::<3>("port_friction")?, k, [0.0; 3]);
+    let sliding = or_filled(d.bools_or_empty("port_sliding")?, k, false);
     if [
         arc_length.len(),
         point.len(),
@@ -563,14 +566,8 @@ fn contacts_of(d: &Fields) -> PyResult<Vec<crate::solver::Contact>> {
     let force = d.floats_or_empty("contact_force")?;
     let k = obstacle.len();
     // Frictionless and sticking where absent (earlier versions').
-    let friction = match d.rows_or_empty::<3>("contact_friction")? {
-        x if x.is_empty() => vec![[0.0; 3]; k],
-        x => x,
-    };
-    let sliding = match d.bools_or_empty("contact_sliding")? {
-        x if x.is_empty() => vec![false; k],
-        x => x,
-    };
+    let friction = or_filled(d.rows_or_empty::<3>("contact_friction")?, k, [0.0; 3]);
+    let sliding = or_filled(d.bools_or_empty("contact_sliding")?, k, false);
     if [
         arc_length.len(),
         point.len(),

@@ -572,8 +572,9 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
                 residual: [0.0; 2],
             }),
     );
-    let frictional: Vec<usize> = model.frictional_ports().collect();
-    for j in frictional {
+    // By index: the list is the workspace's own (no allocation a step).
+    for a in 0..w.kkt.contact.friction.frictional_ports.len() {
+        let j = w.kkt.contact.friction.frictional_ports[a];
         update_port(model, w, j, relaxed);
     }
 }
@@ -588,8 +589,8 @@ pub(crate) fn settle(model: &RodModel, w: &mut Workspace) -> bool {
         return false;
     }
     let mut changed = false;
-    let frictional: Vec<usize> = model.frictional_ports().collect();
-    for j in frictional {
+    for a in 0..w.kkt.contact.friction.frictional_ports.len() {
+        let j = w.kkt.contact.friction.frictional_ports[a];
         changed |= settle_port(model, w, j);
     }
     let first = first(model, w);

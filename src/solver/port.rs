@@ -156,8 +156,8 @@ pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
             super::contact::load_row(model, w, from + 2 * j + i, shares(&site), direction);
         }
     }
-    let frictional: Vec<usize> = model.frictional_ports().collect();
-    for (a, j) in frictional.into_iter().enumerate() {
+    for a in 0..w.kkt.contact.friction.frictional_ports.len() {
+        let j = w.kkt.contact.friction.frictional_ports[a];
         let site = w.kkt.contact.ports[j];
         let direction = w.kkt.contact.friction.ports[j].direction;
         super::contact::load_row(model, w, from + 2 * ports + a, shares(&site), &direction);

@@ -672,14 +672,15 @@ fn take_multiplier_step(model: &RodModel, w: &mut Workspace) {
     }
     let ports = model.ports().len();
     let first_port = port::first_row(model);
-    for (j, d) in w.kkt.reaction_step[held..held + ports]
+    let port_multiplier = port::offset(model, w.kkt.reaction_step.len());
+    for (j, d) in w.kkt.reaction_step[port_multiplier..port_multiplier + ports]
         .iter_mut()
         .enumerate()
     {
         *d = Vector3::new(rhs[first_port + 2 * j], rhs[first_port + 2 * j + 1], 0.0);
     }
     for (a, j) in model.frictional_ports().enumerate() {
-        w.kkt.reaction_step[held + j].z = rhs[port::first_axial_row(model) + a];
+        w.kkt.reaction_step[port_multiplier + j].z = rhs[port::first_axial_row(model) + a];
     }
     if model.has_obstacles() {
         let first = contact::offset(model, w);

@@ -346,7 +346,7 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
     c.force_nodes
         .extend(model.constraints().iter().map(|constraint| constraint.node));
     c.force_vectors.extend(&w.kkt.reactions[..held]);
-    let first_port = port::offset(model);
+    let first_port = port::offset(model, w.kkt.reactions.len());
     for (j, site) in c.ports.iter().enumerate() {
         let axial = friction::port_axial_of(model, &c.friction, &w.kkt.reactions, j);
         let lambda = &w.kkt.reactions[first_port + j];
@@ -616,7 +616,7 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
         }
         push_curvature(model, w, block, moving, with_columns, &mut used);
     }
-    let first = port::offset(model);
+    let first = port::offset(model, w.kkt.reactions.len());
     for j in 0..w.kkt.contact.ports.len() {
         let (site, lambda) = (&w.kkt.contact.ports[j], &w.kkt.reactions[first + j]);
         let axial = friction::port_axial(model, w, j);

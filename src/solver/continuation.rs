@@ -99,10 +99,10 @@ pub(crate) fn load_path(
 fn start_from_rest(model: &RodModel, w: &mut Workspace) {
     w.saved.copy_from_slice(&model.rest_shape());
     w.kkt.clear_saved();
-    // No contact is held at the rest shape (an attempt before may have left some).
-    w.kkt.contact.active.clear();
-    w.kkt.contact.held.clear();
-    w.kkt.contact.friction.clear();
+    // Nothing acts at the rest shape: no reaction, no contact held (an
+    // attempt before may have left some; a sticking port's anchor is offset
+    // by its multiplier's spring).
+    w.kkt.clear_multipliers();
     super::friction::anchor_at_saved(model, w);
 }
 
@@ -362,4 +362,41 @@ fn max_node_distance(a: &[Quat], b: &[Quat]) -> f64 {
             turn.min(2.0 * std::f64::consts::PI - turn)
         })
         .fold(0.0, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::Port;
+    use crate::quat::Quat;
+    use crate::scene::Scene;
+    use nalgebra::Vector3;
+
+    /// A path from the rest shape starts with nothing acting on the rod,
+    /// whatever an attempt before left in the workspace: a sticking port's
+    /// anchor is offset by its multiplier's spring, so that a multiplier
+    /// left over (of a relaxed level, whose compliance is the whole rod's)
+    /// anchored it metres away (the one-leg path after a failed two-leg
+    /// one started from such an anchor).
+    #[test]
+    fn a_path_from_rest_starts_with_no_multiplier_left_over() {
+        let mut scene = Scene::new(1.0, 1.0, 1.0, 1.0);
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        scene.base_quaternion = Quat::new(half, 0.0, half, 0.0);
+        scene.ports = vec![Port::new(Vector3::new(0.5, 0.0, 0.0), Vector3::x()).with_friction(5.0)];
+        let model = RodModel::new(&scene, 20);
+        let mut w = Workspace::new(&model).unwrap();
+        let rest = model.rest_shape();
+        w.q.copy_from_slice(&rest);
+        evaluate(&model, &mut w, 0.0);
+        w.kkt.contact.friction.compliance = super::super::friction::relaxed_compliance(&model);
+        w.kkt
+            .reactions
+            .iter_mut()
+            .for_each(|r| *r = Vector3::new(1.0, -2.0, -40.0));
+        start_from_rest(&model, &mut w);
+        assert!(w.kkt.reactions.iter().all(|r| *r == Vector3::zeros()));
+        let anchor = w.kkt.contact.friction.ports[0].anchor.unwrap();
+        assert!((anchor - 0.5).abs() < 1e-12, "anchor {anchor}");
+    }
 }

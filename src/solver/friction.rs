@@ -285,7 +285,7 @@ pub(crate) fn anchor_at_saved_moved(model: &RodModel, w: &mut Workspace, moved: 
     f.sticks.retain(|s| anchors[s.slot].is_some());
     // A port's material where it stands, a sticking one's where its row's
     // spring rests (it keeps its friction, as a contact).
-    let first_port = port::offset(model);
+    let first_port = port::offset(model, w.kkt.reactions.len());
     for j in model.frictional_ports() {
         let slip = &mut f.ports[j];
         let spring = match slip.sliding {
@@ -318,7 +318,7 @@ pub(crate) fn port_axial_of(
     }
     match f.ports[j].sliding {
         Some(sign) => Axial::Slide(mu * sign),
-        None => Axial::Stick(reactions[port::offset(model) + j].z),
+        None => Axial::Stick(reactions[port::offset(model, reactions.len()) + j].z),
     }
 }
 
@@ -352,7 +352,7 @@ fn update_port(model: &RodModel, w: &mut Workspace, j: usize, relaxed: bool) {
         return;
     }
     let mu = model.ports()[j].port.friction;
-    let index = port::offset(model) + j;
+    let index = port::offset(model, w.kkt.reactions.len()) + j;
     let f = &mut w.kkt.contact.friction;
     let Some(anchor) = f.ports[j].anchor else {
         f.ports[j].anchor = port_arc(model, j, &f.start);
@@ -395,7 +395,7 @@ fn settle_port(model: &RodModel, w: &mut Workspace, j: usize) -> bool {
         return false;
     };
     let mu = model.ports()[j].port.friction;
-    let index = port::offset(model) + j;
+    let index = port::offset(model, w.kkt.reactions.len()) + j;
     let axial = port_axial_of(model, f, &w.kkt.reactions, j);
     let reaction = w.kkt.reactions[index];
     let (normal, along) = port_parts(model, j, &site, &reaction, axial);
@@ -695,7 +695,7 @@ pub(crate) fn slide_forces(
                 force: model.friction(contact::slot(model, i).0) * d,
             })
         });
-    let first_port = port::offset(model);
+    let first_port = port::offset(model, w.kkt.reactions.len());
     let ports = model.frictional_ports().flat_map(move |j| {
         let site = &c.ports[j];
         let lambda = &w.kkt.reactions[first_port + j];
@@ -819,7 +819,7 @@ pub(crate) const ACCEPTED_CREEP: f64 = 3e-9;
 pub(crate) fn creep(model: &RodModel, w: &Workspace) -> f64 {
     let first = first(model, w);
     let f = &w.kkt.contact.friction;
-    let first_port = port::offset(model);
+    let first_port = port::offset(model, w.kkt.reactions.len());
     let ports = model
         .frictional_ports()
         .filter(|&j| f.ports[j].sliding.is_none())
@@ -846,7 +846,7 @@ pub(crate) fn gather_sticks(model: &RodModel, w: &mut Workspace) {
     let c = &mut w.kkt.contact;
     // A sticking port's row holds the arc length in it; a sliding one's
     // (or one not anchored) keeps its multiplier at zero.
-    let first_port = port::offset(model);
+    let first_port = port::offset(model, w.kkt.reactions.len());
     for j in model.frictional_ports() {
         let site = &c.ports[j];
         let state = &mut c.friction.ports[j];

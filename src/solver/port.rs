@@ -73,9 +73,12 @@ pub(crate) fn port_force(
     }
 }
 
-/// The index of the first port's multiplier in `reactions`.
-pub(crate) fn offset(model: &RodModel) -> usize {
-    model.constraints().len()
+/// The index of the first port's multiplier in `reactions` of length
+/// `multipliers`: before the contact slots', counted from the end, so that
+/// it stays in place whichever leg of a load path (released or holding,
+/// with fewer or more held points' reactions first) is solved.
+pub(crate) fn offset(model: &RodModel, multipliers: usize) -> usize {
+    multipliers - model.ports().len() - super::contact::slot_count(model)
 }
 
 /// The first KKT row of the ports (after the held points').
@@ -263,7 +266,7 @@ pub struct PortReaction {
 
 /// The ports' answers at the last evaluation.
 pub(crate) fn reactions(model: &RodModel, w: &Workspace) -> Vec<PortReaction> {
-    let first = offset(model);
+    let first = offset(model, w.kkt.reactions.len());
     w.kkt
         .contact
         .ports

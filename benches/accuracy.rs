@@ -7,10 +7,12 @@
 //! method and n, the largest node distance from a reference (shooting at
 //! n = 5120, fourth order: about 1e-13 L off) over L; with the medians, that
 //! gives the time to reach 1e-4, 1e-6 and 1e-8 L (the README's table).
+//! Beside them, the default path (`default_tol`): accuracy on demand with
+//! the default settings at tol = 1e-3 ... 1e-8, its choice printed.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::Vector3;
-use softspine::{Method, Robot, Scene, Scheme, Settings, Solver};
+use softspine::{solve_to_accuracy, Accuracy, Method, Robot, Scene, Scheme, Settings, Solver};
 use std::hint::black_box;
 
 const SIZES: [usize; 6] = [10, 20, 40, 80, 160, 320];
@@ -90,6 +92,34 @@ fn accuracy(c: &mut Criterion) {
                     b.iter(|| black_box(solver.solve(None).unwrap()))
                 });
             }
+        }
+        // The call a user makes: accuracy on demand with the default
+        // settings (method "auto"), time to each tolerance.
+        for exponent in [3, 4, 5, 6, 8] {
+            let accuracy = Accuracy::new(10f64.powi(-exponent));
+            let sol = solve_to_accuracy(&scene, Settings::default(), &accuracy).unwrap();
+            assert!(
+                sol.converged(),
+                "{name} default tol 1e-{exponent}: {}",
+                sol.message
+            );
+            eprintln!(
+                "default {name} tol=1e-{exponent}: {:?} n={}, estimate {:.2e}",
+                sol.scheme,
+                sol.n_elements,
+                sol.error_estimate.unwrap_or(f64::NAN) / scene.length
+            );
+            group.bench_with_input(
+                BenchmarkId::new("default_tol", format!("1e-{exponent}")),
+                &exponent,
+                |b, _| {
+                    b.iter(|| {
+                        black_box(
+                            solve_to_accuracy(&scene, Settings::default(), &accuracy).unwrap(),
+                        )
+                    })
+                },
+            );
         }
         group.finish();
     }

@@ -175,3 +175,42 @@ fn ik_settings_read_by_name() {
     let (name, _) = refusal(IkSettings::from_value(&json(r#"{"load": 1}"#)).unwrap_err());
     assert_eq!(name, "load");
 }
+
+/// The core chooses the method (issue 30): Newton at a given n; shooting
+/// for accuracy on demand where it models the scene, its tip free and no
+/// scheme set; an explicit method is kept.
+#[test]
+fn the_default_method_is_the_cores_choice() {
+    use softspine::Method;
+    let free = Scene::from_json_str(
+        r#"{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1}, "tip_force": [3, 0, 0]}"#,
+    )
+    .unwrap();
+    let pinned = Scene::from_json_str(
+        r#"{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+            "tip": {"type": "pinned", "position": [0.5, 0, 0.8]}}"#,
+    )
+    .unwrap();
+    let tendon = Scene::from_json_str(
+        r#"{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+            "tendons": [{"tension": 1, "offset": [0.01, 0]}]}"#,
+    )
+    .unwrap();
+    let auto = Settings::default();
+    assert_eq!(auto.method, Method::Auto);
+    assert_eq!(auto.method_for(&free, None), Method::Newton);
+    assert_eq!(auto.method_for(&free, Some(1e-4)), Method::Shooting);
+    assert_eq!(auto.method_for(&pinned, Some(1e-4)), Method::Newton);
+    assert_eq!(auto.method_for(&tendon, Some(1e-4)), Method::Newton);
+    let fe4 = Settings {
+        scheme: Some(softspine::Scheme::Fe4),
+        ..Settings::default()
+    };
+    assert_eq!(fe4.method_for(&free, Some(1e-4)), Method::Newton);
+    let newton = Settings {
+        method: Method::Newton,
+        ..Settings::default()
+    };
+    assert_eq!(newton.method_for(&free, Some(1e-4)), Method::Newton);
+    assert_eq!(auto.resolved(&free).method, Method::Newton);
+}

@@ -60,7 +60,7 @@ def test_a_robot_of_three_sections_uses_the_default_n():
 
 
 def test_accuracy_on_demand_starts_from_the_default_n():
-    sol = softspine.solve(curved_scene(3), tol=1e-4, check=True)
+    sol = softspine.solve(curved_scene(3), tol=1e-4, method="newton", check=True)
     # Doubling from 21 (the rest shape is resolved at 21 already).
     assert sol.n_elements % 21 == 0 and ((sol.n_elements // 21) & (sol.n_elements // 21 - 1)) == 0
     assert sol.n_elements > 21 and sol.error_estimate <= 1e-4

@@ -137,8 +137,9 @@ def run(out: Path, quick: bool = False) -> list[dict]:
                     lambda tol=tol, refine=refine, s=scene: solve(s, tol=tol, refine=refine),
                     1 if quick else 5,
                 )
-                # The scheme is the default's choice for the tolerance.
-                label = "newton, tol" + (" + Richardson" if refine else "")
+                # The method and scheme are the default's choice (method
+                # "auto") for the tolerance: the setting names them.
+                label = "default, tol" + (" + Richardson" if refine else "")
                 add(label, f"tol={tol:g} ({sol.scheme}, n={sol.n_elements})", t, sol.tip_position,
                     sol.positions, sol.converged)
     write_table(rows, out / "report.md")

@@ -110,9 +110,15 @@ def solve(
         four, five, ten or twenty sections, 21 for three). With accuracy on
         demand, the first ``n`` tried (the same default, raised to an ``n`` that
         resolves the rest shape).
-    method : {"newton", "lm", "paper", "paper-literal", "shooting"}, optional
-        ``"newton"``: damped Newton with the O(n) block-tridiagonal solve and load
-        continuation when a direct solve fails (default). ``"lm"``:
+    method : {"auto", "newton", "lm", "paper", "paper-literal", "shooting"}, optional
+        ``"auto"`` (default): the core chooses, ``"shooting"`` for accuracy on
+        demand where shooting models the scene (a free tip; no guides,
+        tendons, magnets, sections of their own, contact, moments; no
+        ``scheme`` given) and converges directly to a stable equilibrium,
+        the fastest way to a tolerance, else ``"newton"``; the Solution's
+        ``scheme`` says which (``"rk4"``: shooting). ``"newton"``: damped Newton with the
+        O(n) block-tridiagonal solve and load continuation when a direct solve
+        fails. ``"lm"``:
         Levenberg-Marquardt on the same residual (dense, for comparison).
         ``"paper"``: the seed paper's method, particle swarm then LM over the raw
         quaternions and nodal forces, with the unit-norm rows; ``"paper-literal"``:

@@ -35,7 +35,7 @@ __all__ = [
 ]
 
 #: ``solve(method=...)``.
-Method = Literal["newton", "lm", "paper", "paper-literal", "shooting"]
+Method = Literal["auto", "newton", "lm", "paper", "paper-literal", "shooting"]
 #: ``solve(scheme=...)`` (``softspine.Scheme`` has the same values).
 SchemeName = Literal["fd2", "fe4"]
 #: ``Robot.inverse(strategy=...)``.

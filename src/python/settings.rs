@@ -240,8 +240,10 @@ settings_methods! {
             fields_dict(slf.as_any(), &Settings::KEYS)
         }
 
-        /// ``"newton"`` (default), ``"lm"``, ``"paper"``, ``"paper-literal"`` or
-        /// ``"shooting"`` (RK4 on the rod equations, Newton on the base wrench).
+        /// ``"auto"`` (default: the core chooses, shooting for accuracy on demand
+        /// where it models the scene and converges directly, else ``"newton"``),
+        /// ``"newton"``, ``"lm"``, ``"paper"``, ``"paper-literal"`` or ``"shooting"``
+        /// (RK4 on the rod equations, Newton on the base wrench).
         #[getter]
         fn method(&self) -> &'static str {
             self.inner.method.name()

@@ -8,7 +8,7 @@
 //! the backbone is below the tolerance. Richardson extrapolation `r_kn +
 //! (r_kn - r_n) / (k^p - 1)` of the tip removes its leading error term.
 
-use super::{check_tolerance, Settings, Solution, Solver, Status, MAX_ELEMENTS};
+use super::{check_tolerance, Method, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
 use crate::model::{element_turn, slerp};
 use crate::quat::Quat;
@@ -169,6 +169,11 @@ pub fn starting_elements(scene: &Scene, requested: usize) -> usize {
 
 /// [`starting_elements`] for a scheme of order `order` (see [`asymptotic_turn`]).
 pub fn starting_elements_of_order(scene: &Scene, requested: usize, order: i32) -> usize {
+    starting_elements_within(scene, requested, asymptotic_turn(order))
+}
+
+/// [`starting_elements`] with elements turning by at most `turn` [rad] at rest.
+fn starting_elements_within(scene: &Scene, requested: usize, turn: f64) -> usize {
     // A count no located input allows is refused by the solve's own check.
     let m = scene
         .node_multiple(MAX_ELEMENTS)
@@ -179,9 +184,7 @@ pub fn starting_elements_of_order(scene: &Scene, requested: usize, order: i32) -
         .map(|k| k[0].hypot(k[1]))
         .fold(0.0, f64::max)
         * scene.length;
-    let resolving = (rest_turn / asymptotic_turn(order))
-        .ceil()
-        .min(MAX_ELEMENTS as f64) as usize;
+    let resolving = (rest_turn / turn).ceil().min(MAX_ELEMENTS as f64) as usize;
     requested.max(resolving).max(1).div_ceil(m) * m
 }
 
@@ -201,9 +204,70 @@ pub fn solve_to_accuracy(
 /// Margin of the predicted n: it aims at the tolerance over this factor.
 const PREDICTION_MARGIN: f64 = 1.5;
 
-/// The refinement of [`solve_to_accuracy`].
+/// The refinement of [`solve_to_accuracy`], by the method chosen for it
+/// ([`Settings::method_for`]). Where the core chose shooting, its first
+/// solve decides: one that shooting's Newton did not solve directly from
+/// its rigid estimate (a large load: its load path then costs several times
+/// Newton's on the potential, 1 283 iterations against 76 on a cantilever
+/// under (0.5, -30) EI / L^2) or whose answer is unstable (a column past
+/// buckling: the potential's load path finds the buckled equilibrium) hands
+/// the refinement to the discrete potential; the iterations count both.
 fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> Result<Solution> {
     accuracy.validate()?;
+    let method = settings.method_for(scene, Some(accuracy.tol));
+    let chosen = settings.method == Method::Auto && method == Method::Shooting;
+    let shooting_fits = |first: &Solution| {
+        !chosen || (first.converged() && first.stable && first.continuation_steps == 0)
+    };
+    let first_try = Settings {
+        method,
+        // Chosen shooting is kept only where its Newton converges directly:
+        // a budget for that alone (it takes 4 to 6 iterations on the race's
+        // scenes, a warm finer solve fewer).
+        max_iterations: if chosen {
+            settings.max_iterations.min(CHOSEN_SHOOTING_ITERATIONS)
+        } else {
+            settings.max_iterations
+        },
+        ..settings.clone()
+    };
+    let probe = match refine_with(scene, first_try, accuracy, &shooting_fits)? {
+        Refined::Done(solution) if !chosen || (solution.converged() && solution.stable) => {
+            return Ok(solution)
+        }
+        // (A finer shot that failed hands over too.)
+        Refined::Done(tried) | Refined::HandedOver(tried) => tried,
+    };
+    let settings = Settings {
+        method: Method::Newton,
+        ..settings
+    };
+    match refine_with(scene, settings, accuracy, &|_| true)? {
+        Refined::Done(mut solution) | Refined::HandedOver(mut solution) => {
+            solution.iterations += probe.iterations;
+            Ok(solution)
+        }
+    }
+}
+
+/// The iteration budget of each solve of shooting that the core chose.
+const CHOSEN_SHOOTING_ITERATIONS: usize = 30;
+
+/// How [`refine_with`] ended: with the answer, or at its first solve, which
+/// the caller's test refused (`keep_going`).
+enum Refined {
+    Done(Solution),
+    HandedOver(Solution),
+}
+
+/// [`refine_until_met`] by the method of `settings`, while `keep_going`
+/// accepts its first solve.
+fn refine_with(
+    scene: &Scene,
+    settings: Settings,
+    accuracy: &Accuracy,
+    keep_going: &dyn Fn(&Solution) -> bool,
+) -> Result<Refined> {
     let length = scene.length;
     let target = accuracy.tol * length;
     let settings = Settings {
@@ -230,7 +294,8 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
         (None, 4..) => FOURTH_ORDER_START,
         (None, _) => settings.elements_for(scene),
     };
-    let n0 = starting_elements_of_order(scene, requested, order);
+    let turn = asymptotic_turn(order);
+    let n0 = starting_elements_within(scene, requested, turn);
     let first = Settings {
         n_elements: Some(n0),
         ..settings.clone()
@@ -241,6 +306,9 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
         let base = solver.solve(None)?;
         Ok((solver.model().is_trivial(), base))
     })?;
+    if !keep_going(&base) {
+        return Ok(Refined::HandedOver(base));
+    }
     let straight = scene
         .rest_curvature
         .iter()
@@ -248,7 +316,7 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
     if straight && trivial {
         // The unloaded straight rod is exact at any n: nothing to refine.
         base.error_estimate = Some(0.0);
-        return Ok(base);
+        return Ok(Refined::Done(base));
     }
     let mut iterations = base.iterations;
     // An underresolved equilibrium is no answer yet, but a finer n may resolve it.
@@ -266,9 +334,9 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
     loop {
         if !usable(&base) {
             base.iterations = iterations;
-            return Ok(base);
+            return Ok(Refined::Done(base));
         }
-        if base.converged() && max_turn(scene, &base) <= asymptotic_turn(order) {
+        if base.converged() && max_turn(scene, &base) <= turn {
             break;
         }
         let n = 2 * base.n_elements;
@@ -277,7 +345,7 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
                 "tolerance not met: no error estimate, the first resolving n = {} leaves no finer n within max_elements {}",
                 base.n_elements, accuracy.max_elements
             );
-            return Ok(not_met(base, iterations, why));
+            return Ok(Refined::Done(not_met(base, iterations, why)));
         }
         crate::interrupt::check()?;
         base = solve_at(n, refine(&base.quaternions, 2))?;
@@ -292,14 +360,14 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
                 k * n_base,
                 accuracy.max_elements
             );
-            return Ok(not_met(base, iterations, why));
+            return Ok(Refined::Done(not_met(base, iterations, why)));
         }
         crate::interrupt::check()?;
         let mut fine = solve_at(k * n_base, refine(&base.quaternions, k))?;
         iterations += fine.iterations;
         if !usable(&fine) {
             fine.iterations = iterations;
-            return Ok(fine);
+            return Ok(Refined::Done(fine));
         }
         // The whole backbone: a held tip never moves, so the tip alone would
         // estimate the error of a pinned rod as zero.
@@ -312,7 +380,7 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
         }
         if estimate <= target {
             fine.iterations = iterations;
-            return Ok(fine);
+            return Ok(Refined::Done(fine));
         }
         // The n that meets the tolerance with a margin, if the error falls
         // as n^-p: a multiple of the base, finer than this one.
@@ -331,7 +399,7 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
                 accuracy.max_elements,
                 target
             );
-            return Ok(not_met(fine, iterations, why));
+            return Ok(Refined::Done(not_met(fine, iterations, why)));
         }
         k = next;
     }

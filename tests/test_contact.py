@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 import pytest
-from contact_reference import between_walls, lifted_rod, rod_in_bend
+from contact_reference import between_walls, clamped_pinned, lifted_rod, rod_in_bend
 
 import softspine
 
@@ -669,3 +669,53 @@ def test_a_mesh_is_plotted_from_its_file(tmp_path):
     ax = figure.Figure().add_subplot(projection="3d")
     plot_obstacles([{"shape": "mesh", "file": str(tmp_path / "box.stl")}], ax)
     assert len(ax.collections) == 1
+
+
+@pytest.mark.parametrize("span", [0.99, 0.9, 0.7])
+def test_a_column_pushed_along_its_line_buckles_as_the_clamped_pinned_elastica(span):
+    # A straight rod whose pinned tip is pushed towards its base along its
+    # own line must buckle, and no step from the straight rod finds how (the
+    # tip's motion along the line is second order in the bending): the held
+    # leg starts from a small bump, in the softer plane (kx < ky: towards
+    # +y). Not converged before (the iteration limit). The pin's force and
+    # the shape against shooting with (m0, n) as unknowns, at second order.
+    ref = clamped_pinned(1.0, 1.0, span)
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 100.0, "kz": 1.0},
+             "base_quaternion": ALONG_X, "tip": {"type": "pinned", "position": [span, 0.0, 0.0]}}
+    force_errors, shape_errors = [], []
+    for n in (20, 40, 80):
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        s = np.linspace(0.0, 1.0, n + 1)
+        force_errors.append(np.abs(sol.tip_reaction_force[:2] - ref["force"]).max())
+        shape_errors.append(np.abs(sol.positions[:, 1] - ref["y"](s)).max())
+        assert np.abs(sol.positions[:, 2]).max() < 1e-12
+    assert force_errors[-1] < 1e-3 * np.linalg.norm(ref["force"]) and shape_errors[-1] < 1e-4
+    for errors in (force_errors, shape_errors):
+        assert errors[0] / errors[1] > 3.5 and errors[1] / errors[2] > 3.5, errors
+
+
+@pytest.mark.parametrize("span", [0.99, 0.9])
+def test_a_heavy_rod_pushed_along_a_floor_snakes_along_it(span):
+    # A heavy isotropic rod lying on a frictionless floor, its tip pinned on
+    # the floor nearer the base: it buckles sideways along the floor (no
+    # work against its weight; an arch standing up would fall over). Not
+    # converged before: the released leg's residual counted the held tip's
+    # miss left in the workspace by the direct attempt, the pinned tip's
+    # contact row repeated its held row (a singular system), and nothing
+    # bent the straight rod.
+    floor = {"shape": "half_space", "point": [0, 0, 0], "normal": [0, 0, 1]}
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+             "base_quaternion": ALONG_X, "obstacles": [floor],
+             "gravity": {"linear_density": 1.0, "vector": [0, 0, -9.81]},
+             "tip": {"type": "pinned", "position": [span, 0.0, 0.0]}}
+    for n in (20, 40):
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        np.testing.assert_allclose(sol.tip_position, [span, 0.0, 0.0], atol=1e-12)
+        assert np.abs(sol.positions[:, 2]).max() < 1e-9
+        assert np.abs(sol.positions[:, 1]).max() > 0.01
+        # The floor and the pin carry the weight but the base's half element
+        # (the clamp's).
+        total = sol.contacts["force"].sum() + sol.tip_reaction_force[2]
+        assert total == pytest.approx(9.81 * (1.0 - 0.5 / n), rel=1e-9)

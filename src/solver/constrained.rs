@@ -249,7 +249,20 @@ pub(crate) fn evaluate(
     let gaps = contact.gaps.iter().zip(&contact.held);
     let contact_rows: f64 = gaps.map(|(x, held)| contact_error(*x, *held).powi(2)).sum();
     let port_rows: f64 = port_residuals(w).map(|x| x * x).sum();
-    merit(model, &w.g, &w.kkt.h, contact_rows + port_rows)
+    merit(
+        model,
+        &w.g,
+        held_residuals(model, w),
+        contact_rows + port_rows,
+    )
+}
+
+/// The held points' residuals of `model` (the workspace's are sized for the
+/// scene: on a load path's released leg the entries past the model's are
+/// another evaluation's, which once made that leg's residual never fall
+/// below a held tip's miss when it touched an obstacle).
+fn held_residuals<'a>(model: &RodModel, w: &'a Workspace) -> &'a [Vector3<f64>] {
+    &w.kkt.h[..model.constraints().len()]
 }
 
 /// The ports' rows' residuals (their friction's too) and the sticking
@@ -283,7 +296,7 @@ fn merit(model: &RodModel, g: &[Vector3<f64>], h: &[Vector3<f64>], contact_rows:
 /// Dimensionless residual: torque rows and weighted constraint rows together.
 pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
     let mut h = 0.0f64;
-    for x in &w.kkt.h {
+    for x in held_residuals(model, w) {
         let r = x.amax() * position_weight(model);
         if !r.is_finite() {
             return f64::INFINITY;

@@ -239,7 +239,11 @@ pub(crate) fn crossing(
             }
         }
         let place = slot(model, i).1;
-        if !site.gap.is_finite() || (matches!(place, Place::Element(_)) && !site.inside) {
+        let ineligible = match place {
+            Place::Node(k) => is_held_node(model, k),
+            Place::Element(_) => !site.inside,
+        };
+        if !site.gap.is_finite() || ineligible {
             continue;
         }
         let shift = match place {
@@ -253,6 +257,14 @@ pub(crate) fn crossing(
         }
     }
     out
+}
+
+/// Whether node `k` is held (a pinned or clamped tip, a guide): it touches
+/// nothing, its reaction carries whatever an obstacle would push it with
+/// (a contact row there would repeat the held point's: on a tip pinned on
+/// a floor's surface the two were parallel and the KKT system singular).
+fn is_held_node(model: &RodModel, k: usize) -> bool {
+    model.constraints().iter().any(|c| c.node == k)
 }
 
 /// Make `slots` candidates (free: the next step's QP decides).
@@ -429,7 +441,7 @@ pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64
         let was_held = held_before.binary_search(&i).is_ok();
         let site = &c.sites[i];
         let eligible = match slot(model, i).1 {
-            Place::Node(_) => site.gap.is_finite(),
+            Place::Node(k) => site.gap.is_finite() && !is_held_node(model, k),
             Place::Element(_) => site.inside,
         };
         if eligible && (was_held || site.gap < margin) {

@@ -48,19 +48,24 @@ pub(crate) fn load_path(
             return (first, steps);
         }
         if first.converged && !interrupt::requested() {
-            // Second leg: the held points from where the loaded rod puts them.
+            // Second leg: the held points from where the loaded rod puts them
+            // (bent a little first where they would buckle it).
+            bend_a_straight_stretch(model, w);
             let holding = model.holding_from(&w.q, &mut w.interior);
             w.saved.copy_from_slice(&w.q);
             w.kkt.clear_saved();
             super::friction::anchor_at_saved(&holding, w);
-            let (second, second_steps) = continuation(
-                local,
-                &holding,
-                w,
-                tol,
-                budget - iterations.min(budget),
-                min_step,
-            );
+            // With obstacles, half of what is left stays for the one-leg
+            // path below: the held leg drags the loaded rod's contacts
+            // along (a clamped tip lifted off a wall it lay on), where loads
+            // and held points together from rest find them as they come.
+            let left = budget - iterations.min(budget);
+            let share = if model.has_obstacles() {
+                left / 2
+            } else {
+                left
+            };
+            let (second, second_steps) = continuation(local, &holding, w, tol, share, min_step);
             iterations += second.iterations;
             steps += second_steps;
             if second.converged {
@@ -95,6 +100,88 @@ pub(crate) fn load_path(
         steps + more,
     )
 }
+
+/// A held point (not a clamped tip) whose stretch from the base is straight
+/// and which is pushed along that stretch's line towards the base: the stretch must
+/// buckle, and no Newton step from the straight rod finds how (the point's
+/// motion along the line is of second order in the bending: its row's
+/// derivative along the line is zero, and the straight rod under any
+/// compression is an equilibrium). Bend the rod's rotations in `w.q` into
+/// a small bump first, which keeps the point near the line: in the plane of
+/// the line and the target's offset from it, or, on the line, sideways to
+/// the loads across it (no work against them: a heavy rod pushed along a
+/// floor snakes along it, an arch standing up from it would fall over), else
+/// in the base's plane of the softer bending. The held leg then starts on
+/// the buckled branch.
+fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
+    let mut r = vec![Vector3::zeros(); model.n() + 1];
+    model.positions(&w.q, &mut w.interior, &mut r);
+    let length = model.length();
+    // A clamped tip's path tries both ways at its bifurcation already
+    // (`mirror` below, the tangent's buckling mode).
+    let clamped = model.clamped_tip().map(|_| model.n());
+    let pinned = model
+        .constraints()
+        .iter()
+        .filter(|c| Some(c.node) != clamped);
+    let Some((k, line, offset)) = pinned.into_iter().find_map(|c| {
+        let chord = r[c.node] - r[0];
+        let line = chord.try_normalize(0.0)?;
+        let straight = r[..=c.node].iter().all(|p| {
+            let v = p - r[0];
+            (v - line * line.dot(&v)).norm() <= STRAIGHT * length
+        });
+        let along = line.dot(&(c.target - r[0]));
+        let offset = c.target - r[0] - along * line;
+        let shortening = chord.norm() - along;
+        (straight && shortening > 0.0 && offset.norm() <= shortening)
+            .then_some((c.node, line, offset))
+    }) else {
+        return;
+    };
+    let across = |v: Vector3<f64>| {
+        let v = v - line * line.dot(&v);
+        v.try_normalize(STRAIGHT * v.norm().max(f64::MIN_POSITIVE))
+    };
+    let loads = model
+        .rod()
+        .loading
+        .node_force
+        .first()
+        .copied()
+        .unwrap_or_default();
+    // Bending towards d2 turns about d1 (stiffness kx), and the other way.
+    let stiffness = model.stiffness();
+    let (softer, stiffer) = if stiffness.x <= stiffness.y {
+        (Vector3::y(), Vector3::x())
+    } else {
+        (Vector3::x(), Vector3::y())
+    };
+    let towards = (offset.norm() > STRAIGHT * length)
+        .then(|| offset.normalize())
+        .or_else(|| across(line.cross(&loads)))
+        .or_else(|| across(model.base().rotate(softer)))
+        .or_else(|| across(model.base().rotate(stiffer)));
+    let Some(towards) = towards else {
+        return;
+    };
+    // Turned by BUCKLE_TILT at the base, down to -BUCKLE_TILT at the held
+    // node: a bump of height about BUCKLE_TILT s_k / 4, the node kept near
+    // the line (and beyond it, the rod turned as the node).
+    let axis = line.cross(&towards);
+    let s_k = model.arc(k);
+    for (j, q) in w.q.iter_mut().enumerate().skip(1) {
+        let s = model.arc(j).min(s_k);
+        let tilt = BUCKLE_TILT * (1.0 - 2.0 * s / s_k);
+        *q = (Quat::from_rotation_vector(tilt * axis) * *q).normalized();
+    }
+}
+
+/// A stretch whose nodes lie within this (of the length) of a line is straight.
+const STRAIGHT: f64 = 1e-9;
+
+/// The tilt of the bump that starts a straight stretch buckling [rad].
+const BUCKLE_TILT: f64 = 0.01;
 
 fn start_from_rest(model: &RodModel, w: &mut Workspace) {
     w.saved.copy_from_slice(&model.rest_shape());

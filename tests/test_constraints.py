@@ -162,7 +162,9 @@ def test_buckling_needed_to_reach_a_target_on_the_axis():
     small offset picks the direction; exactly on the axis (where it was reported
     as not converged: no step from the straight rod finds a buckled one) the
     held leg starts from a small bump in the base's softer plane (isotropic:
-    towards its second director, +y here), never a straight rod."""
+    towards its second director, +y here), never a straight rod. (Its plane is
+    neutral: any turn about the axis is an equilibrium as well, so `stable`,
+    which needs a positive definite reduced Hessian, is left to round-off.)"""
     base = {"length": 1.0, "stiffness": {"kx": 1, "ky": 1, "kz": 1}}
     sol = softspine.solve({**base, "tip": {"type": "pinned", "position": [0.01, 0, 0.9]}})
     assert sol.converged and sol.stable
@@ -170,7 +172,7 @@ def test_buckling_needed_to_reach_a_target_on_the_axis():
     # Compressive reaction, beyond the Euler load of a clamped-pinned column.
     assert sol.tip_reaction_force[2] < -20.19
     on_axis = softspine.solve({**base, "tip": {"type": "pinned", "position": [0, 0, 0.9]}})
-    assert on_axis.converged and on_axis.stable, on_axis.message
+    assert on_axis.converged, on_axis.message
     assert np.allclose(on_axis.tip_position, [0, 0, 0.9], atol=1e-10)
     assert np.abs(on_axis.positions[:, 0]).max() < 1e-12 and on_axis.positions[:, 1].min() > -1e-12
     assert on_axis.positions[:, 1].max() > 0.1

@@ -1173,6 +1173,24 @@ impl Scene {
             }
             previous = g.s;
         }
+        // A held point inside an obstacle: no contact acts at a held node
+        // (its reaction carries what the obstacle would), so the rod would
+        // be held through it.
+        let radius = self.contact_radius();
+        for (key, _, position) in self.held_points() {
+            for (o, obstacle) in self.obstacles.iter().enumerate() {
+                let depth = radius - obstacle.proximity(&position).gap;
+                if depth > HELD_INSIDE * self.length {
+                    return Err(Error::scene(
+                        key,
+                        format!(
+                            "lies inside obstacles[{o}] by {depth:.3e} m (the rod's surface \
+                             there): the rod would be held through the obstacle"
+                        ),
+                    ));
+                }
+            }
+        }
         let spans = self.held_spans(n)?;
         let limit = spans.into_iter().find_map(|span| {
             let HeldSpan {
@@ -1315,6 +1333,10 @@ pub enum ReachLimit {
 /// (1e-10 L) is as large as the gap itself: the straight rod would pass as
 /// "converged" with a reaction of 0.
 pub const FULL_REACH_BAND: f64 = 1e-8;
+
+/// How deep (of the length) a held point may lie inside an obstacle's
+/// offset surface: round-off of a point given on it.
+const HELD_INSIDE: f64 = 1e-9;
 
 pub(crate) fn read_stiffness(v: &Value) -> Result<Stiffness> {
     let t = Table::new(v, "stiffness")?;

@@ -719,3 +719,22 @@ def test_a_heavy_rod_pushed_along_a_floor_snakes_along_it(span):
         # (the clamp's).
         total = sol.contacts["force"].sum() + sol.tip_reaction_force[2]
         assert total == pytest.approx(9.81 * (1.0 - 0.5 / n), rel=1e-9)
+
+
+def test_a_held_point_inside_an_obstacle_is_refused_by_name():
+    # No contact acts at a held node (its reaction carries the obstacle's
+    # push): a pinned tip or guide inside an obstacle would hold the rod
+    # through it, and converged silently once held nodes left the contacts.
+    floor = {"shape": "half_space", "point": [0, 0, 0], "normal": [0, 0, 1]}
+    scene = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+             "base_quaternion": ALONG_X, "obstacles": [floor],
+             "tip": {"type": "pinned", "position": [0.9, 0.0, -0.01]}}
+    with pytest.raises(ValueError, match=r"^tip\.position: lies inside obstacles\[0\]"):
+        softspine.solve(scene, n_elements=20)
+    guided = {**scene, "tip": {"type": "free"},
+              "guides": [{"s": 0.5, "position": [0.45, 0.0, -0.001]}]}
+    with pytest.raises(ValueError, match=r"^guides\[0\]\.position: lies inside obstacles\[0\]"):
+        softspine.solve(guided, n_elements=20)
+    # On the surface is fine.
+    scene["tip"]["position"] = [0.9, 0.0, 0.0]
+    assert softspine.solve(scene, n_elements=20).converged

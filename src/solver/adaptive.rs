@@ -232,7 +232,11 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
         ..settings.clone()
     };
     let probe = match refine_with(scene, first_try, accuracy, &shooting_fits)? {
-        Refined::Done(solution) if !chosen || (solution.converged() && solution.stable) => {
+        Refined::Done(solution)
+            if !chosen
+                || ((solution.converged() || solution.status == Status::ToleranceNotMet)
+                    && solution.stable) =>
+        {
             return Ok(solution)
         }
         // (A finer shot that failed hands over too.)
@@ -245,6 +249,7 @@ fn refine_until_met(scene: &Scene, settings: Settings, accuracy: &Accuracy) -> R
     match refine_with(scene, settings, accuracy, &|_| true)? {
         Refined::Done(mut solution) | Refined::HandedOver(mut solution) => {
             solution.iterations += probe.iterations;
+            solution.continuation_steps += probe.continuation_steps;
             Ok(solution)
         }
     }

@@ -157,7 +157,7 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
     } else {
         (Vector3::x(), Vector3::y())
     };
-    let towards = (offset.norm() > STRAIGHT * length)
+    let towards = (offset.norm() > OFFSET * length)
         .then(|| offset.normalize())
         .or_else(|| across(line.cross(&loads)))
         .or_else(|| across(model.base().rotate(softer)))
@@ -176,6 +176,11 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
         *q = (Quat::from_rotation_vector(tilt * axis) * *q).normalized();
     }
 }
+
+/// A target this far (of the length) off the line picks the bump's
+/// direction; nearer, round-off (a rod lying on a floor to the contacts'
+/// tolerance) would.
+const OFFSET: f64 = 1e-6;
 
 /// A stretch whose nodes lie within this (of the length) of a line is straight.
 const STRAIGHT: f64 = 1e-9;

@@ -120,11 +120,11 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
     // A clamped tip's path tries both ways at its bifurcation already
     // (`mirror` below, the tangent's buckling mode).
     let clamped = model.clamped_tip().map(|_| model.n());
-    let pinned = model
+    let mut pinned = model
         .constraints()
         .iter()
         .filter(|c| Some(c.node) != clamped);
-    let Some((k, line, offset)) = pinned.into_iter().find_map(|c| {
+    let Some((k, line, offset)) = pinned.find_map(|c| {
         let chord = r[c.node] - r[0];
         let line = chord.try_normalize(0.0)?;
         let straight = r[..=c.node].iter().all(|p| {
@@ -139,10 +139,10 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
     }) else {
         return;
     };
-    let across = |v: Vector3<f64>| {
-        let v = v - line * line.dot(&v);
-        v.try_normalize(STRAIGHT * v.norm().max(f64::MIN_POSITIVE))
-    };
+    // The unit part of `v` across the line; none where it is round-off of
+    // `scale` (a load along the line: its cross product with it).
+    let across =
+        |v: Vector3<f64>, scale: f64| (v - line * line.dot(&v)).try_normalize(STRAIGHT * scale);
     let loads = model
         .rod()
         .loading
@@ -159,9 +159,9 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
     };
     let towards = (offset.norm() > OFFSET * length)
         .then(|| offset.normalize())
-        .or_else(|| across(line.cross(&loads)))
-        .or_else(|| across(model.base().rotate(softer)))
-        .or_else(|| across(model.base().rotate(stiffer)));
+        .or_else(|| across(line.cross(&loads), loads.norm()))
+        .or_else(|| across(model.base().rotate(softer), 1.0))
+        .or_else(|| across(model.base().rotate(stiffer), 1.0));
     let Some(towards) = towards else {
         return;
     };

@@ -311,3 +311,40 @@ def test_a_rod_pushed_along_a_floor_slides_partly_backwards_as_the_reference(pus
     # elements is some 0.01 %).
     assert errors[2] < 2e-3
     assert errors[0] / errors[1] > 1.8 and errors[1] / errors[2] > 3.0, errors
+
+
+@pytest.mark.parametrize(("mu", "load"), [(0.3, 2.0), (1.0, 1.0), (0.05, 0.5), (0.3, 0.1), (0.3, 0.01)])
+def test_a_rod_sliding_over_a_frictional_edge_at_a_node_meets_shooting(mu, load):
+    # A cantilever pushed onto a knife edge that stands under a node (0.6 of
+    # its length, a node at every n here), with friction: as it bends it
+    # slides back over the edge, which pushes it towards its tip by mu times
+    # the normal force. Against shooting (a one-sided port with that
+    # friction, `through_port`). Before the sliding direction followed the
+    # slip within a solve, the direction turned at each solve's end chased
+    # the sideways slip its own turn made, and these ran to the iteration
+    # limit (7 of 30 such scenes).
+    from contact_reference import through_port
+    from test_contact import knife_edge_scene
+    ref = through_port(1.0, 1.0, (0.6, 0.0), load, friction=mu, slide=1.0)
+    tips, forces = [], []
+    for n in (20, 40, 80):
+        scene = knife_edge_scene(load)
+        scene["obstacles"][0]["friction"] = mu
+        sol = softspine.solve(scene, n_elements=n)
+        assert sol.converged and sol.stable, sol.message
+        c = sol.contacts
+        assert len(c["force"]) == 1 and c["sliding"][0]
+        force = c["force"][0] * c["normal"][0] + c["friction"][0]
+        # Coulomb's law at the edge, towards the tip, in the rod's plane.
+        np.testing.assert_allclose(np.linalg.norm(c["friction"][0]), mu * c["force"][0],
+                                   rtol=1e-9)
+        assert c["friction"][0][0] > 0.0 and abs(force[1]) < 1e-9 * abs(force[2])
+        forces.append(np.linalg.norm(force[[0, 2]] - ref["force"]) / np.linalg.norm(ref["force"]))
+        tips.append(np.hypot(sol.tip_position[0] - ref["tip"][0],
+                             sol.tip_position[2] - ref["tip"][1]))
+        assert abs(c["arc_length"][0] - ref["arc_length"]) < 0.1 / n**2
+    # The tip at second order, the force (a kink beside the node) at first
+    # (measured 3.1 to 4.0 and 1.9 to 2.4 a halving).
+    assert all(a / b > 2.8 for a, b in zip(tips, tips[1:], strict=False)), tips
+    assert all(a / b > 1.8 for a, b in zip(forces, forces[1:], strict=False)), forces
+    assert tips[-1] < 5e-5 and forces[-1] < 5e-3, (tips, forces)

@@ -167,6 +167,20 @@ pub(crate) fn slot(model: &RodModel, i: usize) -> (usize, Place) {
     }
 }
 
+/// The slots of the elements either side of node slot `i` (same obstacle;
+/// none past the tip). An element's point at that node is the node's contact.
+pub(crate) fn elements_beside(model: &RodModel, i: usize) -> impl Iterator<Item = usize> {
+    let n = model.n();
+    let (o, place) = slot(model, i);
+    let k = match place {
+        Place::Node(k) => k,
+        Place::Element(_) => 0,
+    };
+    (k.max(1)..=(k + 1).min(n))
+        .filter(move |_| k > 0)
+        .map(move |e| 2 * n * o + n + e - 1)
+}
+
 /// The index of the first slot's multiplier in `reactions` (after the held
 /// points', whichever leg of a load path is solved).
 pub(crate) fn offset(model: &RodModel, w: &Workspace) -> usize {
@@ -626,6 +640,9 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
         if block.amax() == 0.0 {
             continue;
         }
+        push_curvature(model, w, block, moving, with_columns, &mut used);
+    }
+    for (block, moving) in friction::slip_blocks(model, w) {
         push_curvature(model, w, block, moving, with_columns, &mut used);
     }
     let first = port::offset(model, w.kkt.reactions.len());

@@ -27,7 +27,9 @@
 //! left the cone slides, along it ([`update`]); when the solve converges a
 //! sliding contact that did not move against its friction (which would have
 //! to push it back) sticks, and one whose direction is off its move turns
-//! ([`settle`]). The solve has converged only when none changed. A sliding
+//! ([`settle`]); once it has moved, its direction follows its move within
+//! the solve ([`effective_direction`], [`slip_blocks`]). The solve has
+//! converged only when none changed. A sliding
 //! contact's force moves with its normal force: its multiplier's column in
 //! the step carries `mu d` ([`slide_forces`]), which makes the KKT system
 //! unsymmetric and keeps Newton quadratic while contacts slide.
@@ -229,6 +231,119 @@ fn slide_direction(d: &Vector3<f64>, normal: &Vector3<f64>) -> Option<Vector3<f6
 /// `v` along the surface of unit `normal`.
 fn along_surface(v: &Vector3<f64>, normal: &Vector3<f64>) -> Vector3<f64> {
     v - normal * normal.dot(v)
+}
+
+/// Sliding slot `i`'s friction direction at the node positions `r`, and
+/// the size of its slip when the direction follows it: against the material
+/// point's move along the obstacle since its anchor, once that move is above
+/// [`SLIP_FLOOR`] and against the direction it slides in (else that
+/// direction; a move that turned back is [`settle`]'s to stick). Following
+/// the slip within a Newton solve, with its derivative in the Jacobian
+/// ([`slip_blocks`]), keeps a sideways slip from growing: turned only at
+/// each solve's end, the direction chased the slip its own sideways part
+/// made where the rod is softer across than along (a rod sliding over an
+/// edge: the turns grew, and no solve converged). `None` while it sticks,
+/// or where its direction is along the normal.
+fn effective_direction(
+    model: &RodModel,
+    f: &FrictionWork,
+    i: usize,
+    site: &Site,
+    r: &[Vector3<f64>],
+) -> Option<(Vector3<f64>, Option<f64>)> {
+    let d = slide_direction(&f.sliding[i]?, &site.normal)?;
+    if let Some(anchor) = &f.anchors[i] {
+        let moved = along_surface(
+            &(material_point(model, i, anchor, r) - anchor.point),
+            &site.normal,
+        );
+        let size = moved.norm();
+        if size > SLIP_FLOOR * model.length() && moved.dot(&d) < 0.0 {
+            return Some((-moved / size, Some(size)));
+        }
+    }
+    Some((d, None))
+}
+
+/// The slip (of the length) above which a sliding contact's direction
+/// follows it: far above the positions' round-off, below which the
+/// direction's derivative, `mu lambda / |slip|`, would swamp the rod's
+/// stiffness.
+const SLIP_FLOOR: f64 = 1e-10;
+
+/// The Jacobian blocks of the sliding contacts whose direction follows
+/// their slip (see [`effective_direction`]): the force `mu lambda d` with
+/// `d = -m / |m|`, `m` the material point's move along the obstacle, changes
+/// with that point by `-(mu lambda / |m|) (P - d d^T)` (`P` the projection on
+/// the surface; the obstacle's turn left out, as the contacts' normals),
+/// a spring across the slip. Each block is on the moving nodes it acts at
+/// (force at the contact's shares, slip at the material point's; made
+/// symmetric) and is `M = -dF/dr`.
+pub(crate) fn slip_blocks(
+    model: &RodModel,
+    w: &Workspace,
+) -> Vec<(nalgebra::DMatrix<f64>, Vec<usize>)> {
+    if !model.has_friction() {
+        return Vec::new();
+    }
+    let n = model.n();
+    let clamped = model.clamped_tip().is_some();
+    let first = first(model, w);
+    let c = &w.kkt.contact;
+    let r = &w.kkt.positions;
+    let mut blocks = Vec::new();
+    for (&i, &held) in c.active.iter().zip(&c.held) {
+        let (Some(anchor), true) = (&c.friction.anchors[i], held) else {
+            continue;
+        };
+        let site = &c.sites[i];
+        let Some((d, Some(size))) = effective_direction(model, &c.friction, i, site, r) else {
+            continue;
+        };
+        let lambda = w.kkt.reactions[first + i].x.max(0.0);
+        let mu = model.friction(contact::slot(model, i).0);
+        if lambda == 0.0 {
+            continue;
+        }
+        let nu = &site.normal;
+        let across = (nalgebra::Matrix3::identity() - nu * nu.transpose() - d * d.transpose())
+            * (mu * lambda / size);
+        // Each moving node's share of the force and of the material point.
+        let mut moving: Vec<(usize, f64, f64)> = Vec::new();
+        let mut add = |node: usize, force: f64, slip: f64| {
+            if node == 0 || (clamped && node == n) {
+                return;
+            }
+            match moving.iter_mut().find(|(k, _, _)| *k == node) {
+                Some(entry) => {
+                    entry.1 += force;
+                    entry.2 += slip;
+                }
+                None => moving.push((node, force, slip)),
+            }
+        };
+        for (node, weight) in contact::shares(model, i, site) {
+            add(node, weight, 0.0);
+        }
+        for (node, weight) in shares(model, i, anchor) {
+            add(node, 0.0, weight);
+        }
+        if moving.is_empty() {
+            continue;
+        }
+        let m = moving.len();
+        let mut block = nalgebra::DMatrix::zeros(3 * m, 3 * m);
+        for (a, &(_, force_a, slip_a)) in moving.iter().enumerate() {
+            for (b, &(_, force_b, slip_b)) in moving.iter().enumerate() {
+                let weight = 0.5 * (force_a * slip_b + slip_a * force_b);
+                block
+                    .view_mut((3 * a, 3 * b), (3, 3))
+                    .copy_from(&(across * weight));
+            }
+        }
+        blocks.push((block, moving.into_iter().map(|(k, _, _)| k).collect()));
+    }
+    blocks
 }
 
 /// Start a step of the history at the rod of rotations `w.saved` (its
@@ -484,7 +599,11 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
     // from the step's start (left free, the step would slide it along the
     // obstacle before its friction acts). Not an element's point: touching
     // at a node, it would hold the node twice.
+    // Nor a node whose contact an element beside it holds at its end (an
+    // edge on the node that the rod slides over): two rows for one point
+    // alternated, the node held then let go, and no step converged.
     let touching = TOUCHING * model.length();
+    let held_before = contact::held_slots(w);
     let c = &mut w.kkt.contact;
     for (&i, held) in c.active.iter().zip(c.held.iter_mut()) {
         let reaction = &mut w.kkt.reactions[first + i];
@@ -496,6 +615,7 @@ pub(crate) fn update(model: &RodModel, w: &mut Workspace) {
             && mu > 0.0
             && c.sites[i].gap.abs() <= touching
             && matches!(contact::slot(model, i).1, Place::Node(_))
+            && !contact::elements_beside(model, i).any(|j| held_before.binary_search(&j).is_ok())
         {
             *held = true;
         }
@@ -624,6 +744,11 @@ pub(crate) fn settle(model: &RodModel, w: &mut Workspace) -> bool {
         );
         let d = along_surface(&d, normal).normalize();
         let size = moved.norm();
+        if size > SLIP_FLOOR * model.length() && moved.dot(&d) < 0.0 {
+            // Its force followed the slip already (`effective_direction`).
+            *sliding = Some(-moved / size);
+            continue;
+        }
         if moved.dot(&d) >= -MOVE_SLACK * model.length() {
             let mu = model.friction(contact::slot(model, i).0);
             let reaction = &mut w.kkt.reactions[first + i];
@@ -685,10 +810,10 @@ pub(crate) fn slide_forces(
         .zip(&c.held)
         .enumerate()
         .filter_map(|(a, (&i, &held))| {
-            let d = c.friction.sliding[i]?;
             c.friction.anchors[i]?;
             let site = &c.sites[i];
-            let d = slide_direction(&d, &site.normal).filter(|_| held)?;
+            let (d, _) = effective_direction(model, &c.friction, i, site, &w.kkt.positions)
+                .filter(|_| held)?;
             Some(SlideForce {
                 row: first_candidate + a,
                 shares: contact::shares(model, i, site),
@@ -888,6 +1013,7 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
         return;
     }
     let first = first(model, w);
+    let r = &w.kkt.positions;
     let c = &mut w.kkt.contact;
     for &i in &c.active {
         let reaction = w.kkt.reactions[first + i];
@@ -902,8 +1028,8 @@ pub(crate) fn gather_forces(model: &RodModel, w: &mut Workspace) {
             None => shares(model, i, anchor),
         };
         let force = match c.friction.sliding[i] {
-            Some(d) => match slide_direction(&d, &site.normal) {
-                Some(d) => model.friction(contact::slot(model, i).0) * reaction.x.max(0.0) * d,
+            Some(_) => match effective_direction(model, &c.friction, i, site, r) {
+                Some((d, _)) => model.friction(contact::slot(model, i).0) * reaction.x.max(0.0) * d,
                 None => continue,
             },
             None => {
@@ -953,9 +1079,12 @@ pub(crate) fn force(model: &RodModel, w: &Workspace, i: usize) -> (Vector3<f64>,
     let reaction = w.kkt.reactions[first(model, w) + i];
     let site = &w.kkt.contact.sites[i];
     match w.kkt.contact.friction.sliding[i] {
-        Some(d) => {
+        Some(_) => {
             let mu = model.friction(contact::slot(model, i).0);
-            let d = slide_direction(&d, &site.normal).unwrap_or_default();
+            let f = &w.kkt.contact.friction;
+            let d = effective_direction(model, f, i, site, &w.kkt.positions)
+                .map(|(d, _)| d)
+                .unwrap_or_default();
             (mu * reaction.x.max(0.0) * d, true)
         }
         None => {

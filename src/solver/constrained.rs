@@ -1053,7 +1053,16 @@ fn relaxed_friction(
 ) -> (bool, usize) {
     let exact = friction::compliance(model);
     w.kkt.contact.friction.relax = true;
-    let mut compliance = friction::relaxed_compliance(model).max(exact);
+    let top = friction::relaxed_compliance(model).max(exact);
+    // A level above the last relaxed solve's end, from the top where that
+    // fails (see `FrictionWork::last_level`).
+    let last_level = w.kkt.contact.friction.last_level;
+    let mut compliance = if last_level > 0.0 {
+        (last_level / friction::RELAXED_FACTOR).min(top)
+    } else {
+        top
+    };
+    let mut resumed = (compliance < top).then(|| Snapshot::take(w));
     let mut factor = friction::RELAXED_FACTOR;
     // The last level that converged, its compliance and creep.
     let mut last: Option<(Snapshot, f64, f64)> = None;
@@ -1070,12 +1079,18 @@ fn relaxed_friction(
             // Back to the last level: its answer where its sticking
             // contacts creep little enough, else a shorter way down.
             let Some((kept, at, creep)) = &last else {
+                if let Some(start) = resumed.take() {
+                    start.restore(w);
+                    compliance = top;
+                    continue;
+                }
                 return (false, iterations);
             };
             let (at, creep) = (*at, *creep);
             kept.restore(w);
             if creep <= friction::ACCEPTED_CREEP * model.length() {
                 evaluate(model, w, lambda, true);
+                w.kkt.contact.friction.last_level = at;
                 return (true, iterations);
             }
             factor = factor.sqrt();
@@ -1087,6 +1102,7 @@ fn relaxed_friction(
         }
         let creep = friction::creep(model, w);
         if compliance <= exact || creep <= friction::STICK_CREEP * model.length() {
+            w.kkt.contact.friction.last_level = compliance.max(exact);
             return (true, iterations);
         }
         last = Some((Snapshot::take(w), compliance, creep));
@@ -1440,10 +1456,28 @@ fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
         }
         s
     });
-    w.lu = lu;
-    let (Some(negative), Some(s)) = (negative, s) else {
-        return false;
+    let stable = match (negative, s) {
+        (Some(negative), Some(s)) => {
+            schur_verdict(model, w, (&lu, curvature.as_ref()), negative, s, &kept)
+        }
+        _ => false,
     };
+    w.lu = lu;
+    stable
+}
+
+/// Whether the Hessian with `negative` negative eigenvalues is positive on
+/// the rows `kept` (the reduced Hessian's test by inertia), `s` their Schur
+/// complement `R A^{-1} R^T` and `A^{-1}` from `lu` and `curvature`.
+fn schur_verdict(
+    model: &RodModel,
+    w: &Workspace,
+    (lu, curvature): (&BlockLu, Option<&CurvatureInverse>),
+    negative: usize,
+    s: DMatrix<f64>,
+    kept: &[usize],
+) -> bool {
+    let rows = kept.len();
     let s = match &w.kkt.compliance {
         Some(e) => {
             let mut s = s;
@@ -1459,13 +1493,76 @@ fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
     }
     let s = 0.5 * (&s + s.transpose());
     let eig = SymmetricEigen::new(s);
-    let tiny = 1e-12 * eig.eigenvalues.amax().max(f64::MIN_POSITIVE);
-    if eig.eigenvalues.iter().any(|v| v.abs() <= tiny) {
-        return false;
+    // An eigenvalue near zero is either rows that repeat others (`R^T v =
+    // 0`: no direction at all, left out of the count), a neutral direction
+    // (not stable), or a small one of its sign. Sticking contacts repeat:
+    // where every node of a stretch sticks, each chord's length is held
+    // twice over (a rod pushed along a frictional floor read as unstable,
+    // and its path crawled); a long stuck stretch also has directions of
+    // small `R^T v`, whose eigenvalues are small but far above round-off
+    // (the repeated ones' are ~1e-19 of the largest).
+    let largest = eig.eigenvalues.amax().max(f64::MIN_POSITIVE);
+    let scale = kept
+        .iter()
+        .map(|&r| w.kkt.rows[r].iter().map(|v| v.norm_squared()).sum::<f64>())
+        .fold(0.0, f64::max)
+        .sqrt();
+    let (mut positive, mut repeated) = (0, 0);
+    for (e, &value) in eig.eigenvalues.iter().enumerate() {
+        if value.abs() <= SMALL_EIGENVALUE * largest {
+            let v = eig.eigenvectors.column(e);
+            let mut combination = vec![Vector3::zeros(); model.n()];
+            for (c, &r) in kept.iter().enumerate() {
+                let len = w.kkt.row_len[r];
+                for (x, row) in combination.iter_mut().zip(&w.kkt.rows[r][..len]) {
+                    *x += v[c] * row;
+                }
+            }
+            let size = combination
+                .iter()
+                .map(|x| x.norm_squared())
+                .sum::<f64>()
+                .sqrt();
+            if size <= REPEATED_ROWS * scale {
+                repeated += 1;
+                continue;
+            }
+            // `v^T S v` again as `x^T A^{-1} x` (`x = R^T v`), whose error
+            // is round-off of `|x|^2 |A^{-1}|`, not of the largest.
+            let mut solved = combination.clone();
+            lu.solve_in_place(&mut solved);
+            if let Some(c) = curvature {
+                c.correct(&mut solved);
+            }
+            let mut value = dot(&combination, &solved);
+            if let Some(e) = &w.kkt.compliance {
+                let held = e.nrows();
+                let part = v.rows(0, held);
+                value += part.dot(&(e * part));
+            }
+            let inverse = largest / (scale * scale);
+            if value.abs() <= NEUTRAL_EIGENVALUE * size * size * inverse {
+                return false;
+            }
+            positive += usize::from(value > 0.0);
+            continue;
+        }
+        positive += usize::from(value > 0.0);
     }
-    let positive = eig.eigenvalues.iter().filter(|v| **v > 0.0).count();
-    negative + positive == rows
+    negative + positive + repeated == rows
 }
+
+/// An eigenvalue of the rows' Schur complement this small (of the largest)
+/// is looked at: repeated rows, neutral, or small.
+const SMALL_EIGENVALUE: f64 = 1e-12;
+
+/// How small `R^T v` is, of the largest row, where rows repeat others.
+const REPEATED_ROWS: f64 = 1e-6;
+
+/// A direction that is no repeat is neutral where `x^T A^{-1} x` is this
+/// small of `|x|^2` times an estimate of `|A^{-1}|` (the largest eigenvalue
+/// over the largest row's square): round-off's, with a margin.
+const NEUTRAL_EIGENVALUE: f64 = 1e-12;
 
 #[cfg(test)]
 mod tests {

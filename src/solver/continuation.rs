@@ -36,8 +36,15 @@ pub(crate) fn load_path(
         let released = model.released();
         let mut free_local = local.for_model(&released);
         start_from_rest(&released, w);
-        let (first, first_steps) =
-            continuation(free_local.as_mut(), &released, w, tol, budget, min_step);
+        let (first, first_steps) = continuation(
+            free_local.as_mut(),
+            &released,
+            w,
+            tol,
+            budget,
+            min_step,
+            false,
+        );
         iterations += first.iterations;
         steps += first_steps;
         if first.converged && model.constraints().is_empty() && model.clamped_tip().is_none() {
@@ -50,7 +57,7 @@ pub(crate) fn load_path(
         if first.converged && !interrupt::requested() {
             // Second leg: the held points from where the loaded rod puts them
             // (bent a little first where they would buckle it).
-            bend_a_straight_stretch(model, w);
+            let bent = bend_a_straight_stretch(model, w);
             let holding = model.holding_from(&w.q, &mut w.interior);
             w.saved.copy_from_slice(&w.q);
             w.kkt.clear_saved();
@@ -65,7 +72,8 @@ pub(crate) fn load_path(
             } else {
                 left
             };
-            let (second, second_steps) = continuation(local, &holding, w, tol, share, min_step);
+            let (second, second_steps) =
+                continuation(local, &holding, w, tol, share, min_step, bent);
             iterations += second.iterations;
             steps += second_steps;
             if second.converged {
@@ -90,6 +98,7 @@ pub(crate) fn load_path(
         tol,
         budget - iterations.min(budget),
         min_step,
+        false,
     );
     iterations += out.iterations;
     (
@@ -112,8 +121,8 @@ pub(crate) fn load_path(
 /// the loads across it (no work against them: a heavy rod pushed along a
 /// floor snakes along it, an arch standing up from it would fall over), else
 /// in the base's plane of the softer bending. The held leg then starts on
-/// the buckled branch.
-fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
+/// the buckled branch. Returns whether it bent the rod.
+fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) -> bool {
     let mut r = vec![Vector3::zeros(); model.n() + 1];
     model.positions(&w.q, &mut w.interior, &mut r);
     let length = model.length();
@@ -137,7 +146,7 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
         (straight && shortening > 0.0 && offset.norm() <= shortening)
             .then_some((c.node, line, offset))
     }) else {
-        return;
+        return false;
     };
     // The unit part of `v` across the line; none where it is round-off of
     // `scale` (a load along the line: its cross product with it).
@@ -163,7 +172,7 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
         .or_else(|| across(model.base().rotate(softer), 1.0))
         .or_else(|| across(model.base().rotate(stiffer), 1.0));
     let Some(towards) = towards else {
-        return;
+        return false;
     };
     // Turned by BUCKLE_TILT at the base, down to -BUCKLE_TILT at the held
     // node: a bump of height about BUCKLE_TILT s_k / 4, the node kept near
@@ -175,6 +184,7 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) {
         let tilt = BUCKLE_TILT * (1.0 - 2.0 * s / s_k);
         *q = (Quat::from_rotation_vector(tilt * axis) * *q).normalized();
     }
+    true
 }
 
 /// A target this far (of the length) off the line picks the bump's
@@ -195,6 +205,7 @@ fn start_from_rest(model: &RodModel, w: &mut Workspace) {
     // attempt before may have left some; a sticking port's anchor is offset
     // by its multiplier's spring).
     w.kkt.clear_multipliers();
+    w.kkt.contact.friction.last_level = 0.0;
     super::friction::anchor_at_saved(model, w);
 }
 
@@ -210,7 +221,9 @@ const STEP_ITERATIONS: usize = 25;
 /// Follow `lambda` from 0 to 1 with a tangent predictor and an adaptive step,
 /// within `budget` iterations, from the equilibrium at `lambda = 0` in
 /// `w.saved` (reactions in `w.kkt.reactions_saved`). Returns the outcome at
-/// `lambda = 1` and the steps taken.
+/// `lambda = 1` and the steps taken. A `bumped` start (see
+/// [`bend_a_straight_stretch`]) is no equilibrium: the first step's
+/// corrector may move far from it.
 fn continuation(
     local: &mut dyn LocalSolver,
     model: &RodModel,
@@ -218,6 +231,7 @@ fn continuation(
     tol: f64,
     budget: usize,
     min_step: f64,
+    bumped: bool,
 ) -> (LocalOutcome, usize) {
     let n = model.n();
     let (mut lambda, mut dlambda) = (0.0f64, 0.25f64);
@@ -343,7 +357,7 @@ fn continuation(
         // another equilibrium, stable or not: retry the step shorter too.
         let jumped = out.converged
             && dlambda > STABILITY_STEP
-            && (max_node_distance(&prediction, &w.q) > MAX_CORRECTION
+            && (left_the_path(&prediction, w, bumped && steps == 0)
                 || (path_stable && !is_stable(model, w)));
         if out.converged && !jumped {
             steps += 1;
@@ -445,6 +459,16 @@ fn better_branch(
 const MAX_CORRECTION: f64 = 0.2;
 
 /// Largest angle between corresponding nodes of two chains [rad].
+/// Whether the corrector's answer `w.q` has left the path: far from the
+/// `prediction`, unless it started from a bump (no equilibrium: a rod on a
+/// frictional floor snakes in a shape of its own, far from any small bump
+/// whatever the step; retried shorter, its steps failed). A column may
+/// then buckle against the bump: either way is an equilibrium of the same
+/// energy.
+fn left_the_path(prediction: &[Quat], w: &Workspace, from_a_bump: bool) -> bool {
+    !from_a_bump && max_node_distance(prediction, &w.q) > MAX_CORRECTION
+}
+
 fn max_node_distance(a: &[Quat], b: &[Quat]) -> f64 {
     a.iter()
         .zip(b)

@@ -121,6 +121,11 @@ pub(crate) struct FrictionWork {
     /// Whether a step of this solve has needed the relaxed levels: the
     /// next ones start there.
     pub relax: bool,
+    /// The compliance of the relaxed level at which the last relaxed solve
+    /// ended (0 before one): the next starts a level above it, not at the
+    /// top (a rod sliding along a floor took ten levels a step to slide
+    /// again from sticking).
+    pub last_level: f64,
     /// Every port's friction state, and at the last equilibrium.
     pub ports: Vec<PortSlip>,
     pub saved_ports: Vec<PortSlip>,
@@ -145,6 +150,7 @@ impl FrictionWork {
             saved_sticks: Vec::new(),
             compliance: compliance(model),
             relax: false,
+            last_level: 0.0,
             ports: vec![PortSlip::default(); model.ports().len()],
             saved_ports: vec![PortSlip::default(); model.ports().len()],
             frictional_ports: model.frictional_ports().collect(),

@@ -436,9 +436,21 @@ impl Scene {
         self.rest_curvature.len().max(self.sections.len()).max(1)
     }
 
-    /// What of the scene only the discrete potential models (shooting and
-    /// the paper's system do not), if anything: everything of it, named.
+    /// What of the scene only the discrete potential models (the paper's
+    /// system does not), if anything: everything of it, named.
     pub fn only_the_potential_models(&self) -> Option<String> {
+        self.not_modelled(false)
+    }
+
+    /// What of the scene shooting does not model, if anything, named
+    /// (moments and a tip force off the tip it does).
+    pub fn beyond_shooting(&self) -> Option<String> {
+        self.not_modelled(true)
+    }
+
+    /// What of the scene the paper's system (`shooting` false) or shooting
+    /// does not model.
+    fn not_modelled(&self, shooting: bool) -> Option<String> {
         let magnetic = !self.magnetization.is_empty() || self.tip_magnet != Vector3::zeros();
         let present = [
             (
@@ -450,17 +462,18 @@ impl Scene {
                 "sections with their own length, stiffness or density",
             ),
             (
-                self.tip_force_offset != Vector3::zeros(),
+                !shooting && self.tip_force_offset != Vector3::zeros(),
                 "a tip force off the tip (tip_force_offset)",
             ),
             (!self.obstacles.is_empty(), "contact with obstacles"),
             (!self.ports.is_empty(), "sliding ports"),
             (
-                self.has_distributed_moment()
-                    || self
-                        .point_loads
-                        .iter()
-                        .any(|p| p.moment != Vector3::zeros()),
+                !shooting
+                    && (self.has_distributed_moment()
+                        || self
+                            .point_loads
+                            .iter()
+                            .any(|p| p.moment != Vector3::zeros())),
                 "point or distributed moments",
             ),
         ]

@@ -313,7 +313,8 @@ def test_a_rod_pushed_along_a_floor_slides_partly_backwards_as_the_reference(pus
     assert errors[0] / errors[1] > 1.8 and errors[1] / errors[2] > 3.0, errors
 
 
-@pytest.mark.parametrize(("mu", "load"), [(0.3, 2.0), (1.0, 1.0), (0.05, 0.5), (0.3, 0.1), (0.3, 0.01)])
+@pytest.mark.parametrize(("mu", "load"),
+                         [(0.3, 2.0), (1.0, 1.0), (0.05, 0.5), (0.3, 0.1), (0.3, 0.01)])
 def test_a_rod_sliding_over_a_frictional_edge_at_a_node_meets_shooting(mu, load):
     # A cantilever pushed onto a knife edge that stands under a node (0.6 of
     # its length, a node at every n here), with friction: as it bends it

@@ -70,7 +70,7 @@ def test_bad_tools_and_methods_that_cannot_carry_them_are_refused():
     with pytest.raises(ValueError, match="tool_mass"):
         softspine.Robot({"tool_mass": -0.1})
     with pytest.raises(ValueError, match="tip_force_offset"):
-        softspine.solve(SCENE, method="shooting")
+        softspine.solve(SCENE, method="paper")
     with pytest.raises(ValueError, match="tip_force_offset"):
         softspine.solve({**SCENE, "tip_force_offset": [0, 0]})
 

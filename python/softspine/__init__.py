@@ -113,8 +113,8 @@ def solve(
     method : {"auto", "newton", "lm", "paper", "paper-literal", "shooting"}, optional
         ``"auto"`` (default): the core chooses, ``"shooting"`` for accuracy on
         demand where shooting models the scene (a free tip; no guides,
-        tendons, magnets, sections of their own, contact, moments; no
-        ``scheme`` given) and converges directly to a stable equilibrium,
+        tendons, magnets, sections of their own, contact; no ``scheme``
+        given) and converges directly to a stable equilibrium,
         the fastest way to a tolerance, else ``"newton"``; the Solution's
         ``scheme`` says which (``"rk4"``: shooting). ``"newton"``: damped Newton with the
         O(n) block-tridiagonal solve and load continuation when a direct solve

@@ -7,8 +7,13 @@
 //!
 //! ```text
 //! r' = R e3        q' = q (0, u) / 2      u = u0 + K^-1 R^T m
-//! n' = -f          m' = n x r'            (world frame; n, m: what the distal part exerts)
+//! n' = -f          m' = n x r' - l        (world frame; n, m: what the distal part exerts)
 //! ```
+//!
+//! Dead loads: `f` and `l` per length, point forces and moments at nodes
+//! (each jumps `n` or `m` as the integration passes it), and at the tip its
+//! force, its moment and, for a tip force off the tip at `c` in the tip's
+//! frame, `(R c) x F`.
 //!
 //! For dead loads the internal force is explicit, `n(s) = n(0) - f s - (point
 //! loads passed)`, so only `r`, `q` and `m` are integrated. A free tip's base
@@ -52,9 +57,16 @@ struct Rod<'a> {
     /// Point load at each node (index = node), world frame [N]; the tip's
     /// counts in the tip condition.
     point: Vec<Vector3<f64>>,
+    /// Point moment at each node (index = node), world frame [N m]; the
+    /// tip's counts in the tip condition.
+    point_moment: Vec<Vector3<f64>>,
+    /// Distributed moment [N m / m], world frame.
+    distributed_moment: Vector3<f64>,
     /// The free rod's base force (the sum of every load) [N].
     free_base_force: Vector3<f64>,
     tip_force: Vector3<f64>,
+    /// Where the tip force acts, from the tip in its material frame [m].
+    tip_force_offset: Vector3<f64>,
     tip_moment: Vector3<f64>,
 }
 
@@ -93,9 +105,11 @@ struct TipState {
 impl<'a> Rod<'a> {
     fn new(model: &'a RodModel, scene: &Scene, lambda: f64) -> Self {
         let mut point = vec![Vector3::zeros(); model.n() + 1];
+        let mut point_moment = vec![Vector3::zeros(); model.n() + 1];
         for p in &scene.point_loads {
             let node = ((p.s / model.ds()).round() as usize).min(model.n());
             point[node] += lambda * p.force;
+            point_moment[node] += lambda * p.moment;
         }
         let distributed = lambda * scene.distributed_force();
         Rod {
@@ -106,9 +120,21 @@ impl<'a> Rod<'a> {
                 + distributed * model.length()
                 + point.iter().sum::<Vector3<f64>>(),
             point,
+            point_moment,
+            distributed_moment: lambda * scene.distributed_moment,
             tip_force: lambda * scene.tip_force,
+            tip_force_offset: scene.tip_force_offset,
             tip_moment: lambda * scene.tip_moment,
         }
+    }
+
+    /// The moment the loads apply at the tip of orientation `q` [N m,
+    /// world]: the tip's own and a point load's there, and the tip force's
+    /// about the tip where it acts off it.
+    fn end_moment(&self, q: Quat) -> Vector3<f64> {
+        self.tip_moment
+            + self.point_moment[self.model.n()]
+            + q.rotate(self.tip_force_offset).cross(&self.tip_force)
     }
 
     /// `(q', r', m')` at a state, with the internal force `force` and rest curvature `u0`.
@@ -123,7 +149,7 @@ impl<'a> Rod<'a> {
         let u = u0 + self.inverse_stiffness.component_mul(&q.inverse_rotate(m));
         let dq = q * Quat::pure(0.5 * u);
         let t = q.tangent();
-        (dq, t, force.cross(&t))
+        (dq, t, force.cross(&t) - self.distributed_moment)
     }
 
     /// Integrate from the base with base moment `m0` and force `n0`; with
@@ -173,6 +199,7 @@ impl<'a> Rod<'a> {
             if i + 1 < model.n() {
                 // Past a node, its point load no longer acts on the distal part.
                 force -= self.point[i + 1];
+                m -= self.point_moment[i + 1];
             }
             if let Some(qs) = quats.as_mut() {
                 qs[i + 1] = q;
@@ -195,7 +222,8 @@ impl<'a> Rod<'a> {
         let n = self.model.n();
         (
             tip.force - (self.point[n] + self.tip_force),
-            tip.quaternion.inverse_rotate(tip.moment - self.tip_moment),
+            tip.quaternion
+                .inverse_rotate(tip.moment - self.end_moment(tip.quaternion)),
         )
     }
 
@@ -214,7 +242,7 @@ impl<'a> Rod<'a> {
             None => {
                 let moment = tip
                     .quaternion
-                    .inverse_rotate(tip.moment - self.tip_moment)
+                    .inverse_rotate(tip.moment - self.end_moment(tip.quaternion))
                     .component_div(&model.residual_scale());
                 out.fixed_rows_mut::<3>(0).copy_from(&moment);
             }
@@ -378,7 +406,7 @@ impl Shot {
         ShotTip {
             reaction_force: Some(force),
             reaction_torque_body: Some(torque),
-            reaction_moment: Some(tip.moment - full.tip_moment),
+            reaction_moment: Some(tip.moment - full.end_moment(tip.quaternion)),
         }
     }
 }
@@ -674,13 +702,13 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
     let mut r = vec![Vector3::zeros(); model.n() + 1];
     model.positions(&rest, &mut model.new_interior(), &mut r);
     let base = r[0];
-    let mut moment = rod.tip_moment;
+    let mut moment = rod.end_moment(rest[model.n()]) - rod.point_moment[model.n()];
     for i in 0..model.n() {
         let mid = 0.5 * (r[i] + r[i + 1]) - base;
-        moment += mid.cross(&(rod.distributed * model.ds()));
+        moment += mid.cross(&(rod.distributed * model.ds())) + rod.distributed_moment * model.ds();
     }
-    for (node, p) in rod.point.iter().enumerate() {
-        moment += (r[node] - base).cross(p);
+    for (node, (p, m)) in rod.point.iter().zip(&rod.point_moment).enumerate() {
+        moment += (r[node] - base).cross(p) + m;
     }
     moment + (r[model.n()] - base).cross(&rod.tip_force)
 }

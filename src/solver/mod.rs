@@ -127,7 +127,12 @@ impl Solver {
         // What only the discrete potential models (shooting and the paper's
         // system do not).
         if !settings.method.on_the_potential() {
-            if let Some(what) = scene.only_the_potential_models() {
+            let beyond = if settings.method.engine() == Engine::Shooting {
+                scene.beyond_shooting()
+            } else {
+                scene.only_the_potential_models()
+            };
+            if let Some(what) = beyond {
                 return Err(Error::argument(
                     "method",
                     format!(

@@ -358,9 +358,9 @@ impl Settings {
 }
 
 /// Whether shooting models everything in `scene`: no guides, nothing only
-/// the discrete potential models ([`Scene::only_the_potential_models`]).
+/// the discrete potential models ([`Scene::beyond_shooting`]).
 pub fn shooting_models(scene: &Scene) -> bool {
-    scene.guides.is_empty() && scene.only_the_potential_models().is_none()
+    scene.guides.is_empty() && scene.beyond_shooting().is_none()
 }
 
 /// Largest iteration budget a setting accepts.

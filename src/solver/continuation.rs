@@ -56,26 +56,42 @@ pub(crate) fn load_path(
         }
         if first.converged && !interrupt::requested() {
             // Second leg: the held points from where the loaded rod puts them
-            // (bent a little first where they would buckle it).
-            let bent = bend_a_straight_stretch(model, w);
-            let holding = model.holding_from(&w.q, &mut w.interior);
-            w.saved.copy_from_slice(&w.q);
-            w.kkt.clear_saved();
-            super::friction::anchor_at_saved(&holding, w);
-            // With obstacles, half of what is left stays for the one-leg
-            // path below: the held leg drags the loaded rod's contacts
-            // along (a clamped tip lifted off a wall it lay on), where loads
-            // and held points together from rest find them as they come.
-            let left = budget - iterations.min(budget);
-            let share = if model.has_obstacles() {
-                left / 2
-            } else {
-                left
+            // (bent a little first where they would buckle it); where that
+            // fails on a planar stretch, again bent out of its plane.
+            let loaded = Snapshot::take(w);
+            let mut second = LocalOutcome {
+                converged: false,
+                iterations: 0,
             };
-            let (second, second_steps) =
-                continuation(local, &holding, w, tol, share, min_step, bent);
-            iterations += second.iterations;
-            steps += second_steps;
+            for out_of_plane in [false, true] {
+                loaded.restore(w);
+                let bent = bend_a_straight_stretch(model, w, out_of_plane);
+                if out_of_plane && (!bent || interrupt::requested()) {
+                    break;
+                }
+                let holding = model.holding_from(&w.q, &mut w.interior);
+                w.saved.copy_from_slice(&w.q);
+                w.kkt.clear_saved();
+                super::friction::anchor_at_saved(&holding, w);
+                // With obstacles, half of what is left stays for the one-leg
+                // path below: the held leg drags the loaded rod's contacts
+                // along (a clamped tip lifted off a wall it lay on), where
+                // loads and held points together from rest find them as they
+                // come.
+                let left = budget - iterations.min(budget);
+                let share = if model.has_obstacles() {
+                    left / 2
+                } else {
+                    left
+                };
+                let (out, more) = continuation(local, &holding, w, tol, share, min_step, bent);
+                iterations += out.iterations;
+                steps += more;
+                second = out;
+                if second.converged {
+                    break;
+                }
+            }
             if second.converged {
                 // At lambda = 1 the holding model is the scene itself.
                 evaluate(model, w, 1.0);
@@ -122,10 +138,23 @@ pub(crate) fn load_path(
 /// floor snakes along it, an arch standing up from it would fall over), else
 /// in the base's plane of the softer bending. The held leg then starts on
 /// the buckled branch. Returns whether it bent the rod.
-fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) -> bool {
+///
+/// `out_of_plane`: a retry where the held leg failed, for a stretch that is
+/// not straight but lies in a plane with its target and its loads (a heavy
+/// rod sagging from a base just above a floor, pushed along it): no step
+/// leaves that plane, and in it the rod can only arch up off the floor.
+/// The bump is then out of the plane.
+fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace, out_of_plane: bool) -> bool {
     let mut r = vec![Vector3::zeros(); model.n() + 1];
     model.positions(&w.q, &mut w.interior, &mut r);
     let length = model.length();
+    let loads = model
+        .rod()
+        .loading
+        .node_force
+        .first()
+        .copied()
+        .unwrap_or_default();
     // A clamped tip's path tries both ways at its bifurcation already
     // (`mirror` below, the tangent's buckling mode).
     let clamped = model.clamped_tip().map(|_| model.n());
@@ -136,15 +165,32 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) -> bool {
     let Some((k, line, offset)) = pinned.find_map(|c| {
         let chord = r[c.node] - r[0];
         let line = chord.try_normalize(0.0)?;
-        let straight = r[..=c.node].iter().all(|p| {
+        let across_line = |p: &Vector3<f64>| {
             let v = p - r[0];
-            (v - line * line.dot(&v)).norm() <= STRAIGHT * length
-        });
+            v - line * line.dot(&v)
+        };
+        let straight = r[..=c.node]
+            .iter()
+            .all(|p| across_line(p).norm() <= STRAIGHT * length);
         let along = line.dot(&(c.target - r[0]));
         let offset = c.target - r[0] - along * line;
         let shortening = chord.norm() - along;
-        (straight && shortening > 0.0 && offset.norm() <= shortening)
-            .then_some((c.node, line, offset))
+        if !out_of_plane {
+            return (straight && shortening > 0.0 && offset.norm() <= shortening)
+                .then_some((c.node, line, offset));
+        }
+        // The plane of the line and the node farthest from it.
+        let farthest = r[..=c.node]
+            .iter()
+            .map(across_line)
+            .max_by(|a, b| a.norm().total_cmp(&b.norm()))?;
+        let normal = line.cross(&farthest).try_normalize(STRAIGHT * length)?;
+        let planar = r[..=c.node]
+            .iter()
+            .all(|p| normal.dot(&(p - r[0])).abs() <= STRAIGHT * length);
+        let in_plane = normal.dot(&(c.target - r[0])).abs() <= STRAIGHT * length
+            && normal.dot(&loads).abs() <= STRAIGHT * loads.norm();
+        (!straight && planar && in_plane && shortening > 0.0).then_some((c.node, line, normal))
     }) else {
         return false;
     };
@@ -152,13 +198,6 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) -> bool {
     // `scale` (a load along the line: its cross product with it).
     let across =
         |v: Vector3<f64>, scale: f64| (v - line * line.dot(&v)).try_normalize(STRAIGHT * scale);
-    let loads = model
-        .rod()
-        .loading
-        .node_force
-        .first()
-        .copied()
-        .unwrap_or_default();
     // Bending towards d2 turns about d1 (stiffness kx), and the other way.
     let stiffness = model.stiffness();
     let (softer, stiffer) = if stiffness.x <= stiffness.y {
@@ -166,7 +205,8 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace) -> bool {
     } else {
         (Vector3::x(), Vector3::y())
     };
-    let towards = (offset.norm() > OFFSET * length)
+    // Out of the plane, `offset` is the plane's normal.
+    let towards = (out_of_plane || offset.norm() > OFFSET * length)
         .then(|| offset.normalize())
         .or_else(|| across(line.cross(&loads), loads.norm()))
         .or_else(|| across(model.base().rotate(softer), 1.0))

@@ -726,6 +726,30 @@ def test_a_heavy_rod_pushed_along_a_floor_snakes_along_it(span):
         assert total == pytest.approx(9.81 * (1.0 - 0.5 / n), rel=1e-9)
 
 
+def test_a_rod_sagging_onto_a_floor_and_pushed_along_it_snakes_out_of_its_plane():
+    # The base 1 mm above the floor: the loaded rod sags onto it, so its
+    # stretch is no straight line but lies in a plane with the pin's target
+    # and its weight. No step leaves that plane, and in it the rod can only
+    # arch up off the floor: not converged before (iteration limit). The held
+    # leg is tried again from a bump out of the plane, and the rod snakes
+    # along the floor as one lying on it does (the same push of the pin, the
+    # ends lifted off near the base and the pin).
+    lying = {"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0},
+             "base_quaternion": ALONG_X,
+             "gravity": {"linear_density": 1.0, "vector": [0, 0, -9.81]},
+             "tip": {"type": "pinned", "position": [0.95, 0.0, 0.0]}}
+    for n in (20, 40):
+        on = softspine.solve({**lying, "obstacles": [
+            {"shape": "half_space", "point": [0, 0, 0], "normal": [0, 0, 1]}]}, n_elements=n)
+        above = softspine.solve({**lying, "obstacles": [
+            {"shape": "half_space", "point": [0, 0, -0.001], "normal": [0, 0, 1]}]}, n_elements=n)
+        assert on.converged and above.converged and above.stable, above.message
+        assert above.positions[:, 2].min() > -0.001 - 1e-9
+        assert np.abs(above.positions[:, 1]).max() > 0.1
+        push, push_above = (abs(s.tip_reaction_force[0]) for s in (on, above))
+        assert abs(push_above / push - 1.0) < 1e-3, (push, push_above)
+
+
 def test_a_held_point_inside_an_obstacle_is_refused_by_name():
     # No contact acts at a held node (its reaction carries the obstacle's
     # push): a pinned tip or guide inside an obstacle would hold the rod

@@ -172,12 +172,12 @@ pub(crate) fn slot(model: &RodModel, i: usize) -> (usize, Place) {
 pub(crate) fn elements_beside(model: &RodModel, i: usize) -> impl Iterator<Item = usize> {
     let n = model.n();
     let (o, place) = slot(model, i);
-    let k = match place {
-        Place::Node(k) => k,
-        Place::Element(_) => 0,
+    let node = match place {
+        Place::Node(k) => Some(k),
+        Place::Element(_) => None,
     };
-    (k.max(1)..=(k + 1).min(n))
-        .filter(move |_| k > 0)
+    node.into_iter()
+        .flat_map(move |k| k..=(k + 1).min(n))
         .map(move |e| 2 * n * o + n + e - 1)
 }
 

@@ -19,6 +19,7 @@
 //! for a free tip without guides.
 
 use super::contact::{self, ContactWork};
+use super::dense;
 use super::friction;
 use super::mixed::{self, Mixed, MixedWork};
 use super::port;
@@ -532,7 +533,7 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     }
     let candidates = w.kkt.contact.gaps.len();
     if candidates == 0 {
-        if !solve_small_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
+        if !dense::pseudo_inverse_solve_in_place(&mut w.kkt.schur, &mut w.kkt.rhs) {
             return false;
         }
     } else {
@@ -652,9 +653,9 @@ impl Subproblem for Schur<'_> {
                 .sum::<f64>()
         });
         let solved = if self.symmetric {
-            solve_positive_in_place(&mut sub, &mut rhs)
+            dense::solve_symmetric_in_place(&mut sub, &mut rhs)
         } else {
-            solve_general_in_place(&mut sub, &mut rhs)
+            dense::solve_general_in_place(&mut sub, &mut rhs)
         };
         if !solved {
             return false;
@@ -866,54 +867,6 @@ fn primal_active_set(
         }
     }
     None
-}
-
-/// Solve `a x = b` for a positive definite `a` by Cholesky, or by the
-/// pseudo-inverse where it is not (a redundant row).
-fn solve_positive_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
-    if let Some(chol) = a.clone().cholesky() {
-        let x = chol.solve(b);
-        if x.iter().all(|v| v.is_finite()) {
-            b.copy_from(&x);
-            return true;
-        }
-    }
-    solve_small_in_place(a, b)
-}
-
-/// Solve `a x = b` for a general (unsymmetric) `a` by LU, or by the
-/// pseudo-inverse where it is singular.
-fn solve_general_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
-    if let Some(x) = a.clone().lu().solve(b) {
-        if x.iter().all(|v| v.is_finite()) {
-            b.copy_from(&x);
-            return true;
-        }
-    }
-    solve_small_in_place(a, b)
-}
-
-/// Minimum-norm solution of the small Schur system by SVD. `S` is singular where
-/// a held point cannot move to first order: at the straight rod, along its axis
-/// (the rod is inextensible). The pseudo-inverse leaves that reaction component
-/// alone for this step; the loads bend the rod and the next step sees it.
-fn solve_small_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
-    if a.nrows() == 0 {
-        // No row held (obstacles, none touched): the free step.
-        return true;
-    }
-    let svd = a.clone().svd(true, true);
-    let cutoff = 1e-11 * svd.singular_values.max();
-    if cutoff.is_nan() || cutoff <= 0.0 {
-        return false;
-    }
-    match svd.solve(b, cutoff) {
-        Ok(x) if x.iter().all(|v| v.is_finite()) => {
-            b.copy_from(&x);
-            true
-        }
-        _ => false,
-    }
 }
 
 /// The path's tangent at the equilibrium in `w.q` (reactions in

@@ -22,6 +22,7 @@ mod adaptive;
 mod constrained;
 mod contact;
 mod continuation;
+mod dense;
 mod friction;
 mod lm;
 mod mixed;

@@ -1022,7 +1022,14 @@ fn relaxed_friction(
     let mut iterations = 0;
     loop {
         w.kkt.contact.friction.compliance = compliance.max(exact);
-        let budget = max_iter.min(friction::LEVEL_ITERATIONS);
+        // The top level starts from the step's predictor, as an unrelaxed
+        // solve would (from a bump, far from it): the step's budget. Each
+        // level below starts from the one above, a few iterations away.
+        let budget = if last.is_none() && compliance >= top {
+            max_iter
+        } else {
+            max_iter.min(friction::LEVEL_ITERATIONS)
+        };
         let (converged, spent) = newton_at(model, w, lambda, (budget, tol));
         iterations += spent;
         if interrupt::requested() || iterations > max_iter * friction::RELAXED_LEVELS {

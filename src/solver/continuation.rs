@@ -57,16 +57,27 @@ pub(crate) fn load_path(
         if first.converged && !interrupt::requested() {
             // Second leg: the held points from where the loaded rod puts them
             // (bent a little first where they would buckle it); where that
-            // fails on a planar stretch, again bent out of its plane.
+            // fails on a planar stretch, again bent out of its plane. A
+            // planar stretch that rests on an obstacle is bent out of its
+            // plane first: in it the rod could only arch up off what it
+            // lies on, against its loads (an arch that would fall over),
+            // and that path fails from the flat rod at its first step.
             let loaded = Snapshot::take(w);
+            let resting = !super::contact::held_slots(w).is_empty();
+            // (The test bends `w.q`; each attempt starts from `loaded`.)
+            let order = if resting && bend_a_straight_stretch(model, w, true) {
+                [true, false]
+            } else {
+                [false, true]
+            };
             let mut second = LocalOutcome {
                 converged: false,
                 iterations: 0,
             };
-            for out_of_plane in [false, true] {
+            for (attempt, out_of_plane) in order.into_iter().enumerate() {
                 loaded.restore(w);
                 let bent = bend_a_straight_stretch(model, w, out_of_plane);
-                if out_of_plane && (!bent || interrupt::requested()) {
+                if (out_of_plane && !bent) || (attempt > 0 && interrupt::requested()) {
                     break;
                 }
                 let holding = model.holding_from(&w.q, &mut w.interior);
@@ -255,6 +266,10 @@ const STABILITY_STEP: f64 = 1e-3;
 /// Largest rotation of a node by the predictor [rad].
 const MAX_PREDICTION: f64 = 0.5;
 
+/// A step that converged within this many iterations (beyond the fewest
+/// a frictional step takes) doubles the next.
+const EASY_STEP: usize = 6;
+
 /// Iteration limit of one continuation step.
 const STEP_ITERATIONS: usize = 25;
 
@@ -280,6 +295,10 @@ fn continuation(
     // The unloaded rest shape is stable; the path is followed on the stable
     // branch as long as there is one.
     let mut path_stable = true;
+    // With friction a step costs the relaxed levels' iterations whatever
+    // its length: a step is easy when it takes few more than the fewest of
+    // any step so far (else the path crawls at a step of 1e-3).
+    let mut fewest = if model.has_friction() { usize::MAX } else { 0 };
     while lambda < 1.0 && !interrupt::requested() {
         let target = (lambda + dlambda).min(1.0);
         // Tangent predictor: dq/dlambda = -J^{-1} dg/dlambda at the last
@@ -407,7 +426,8 @@ fn continuation(
             w.saved.copy_from_slice(&w.q);
             w.kkt.save();
             super::friction::anchor_at_saved(model, w);
-            if out.iterations <= 6 {
+            fewest = fewest.min(out.iterations);
+            if out.iterations <= EASY_STEP + fewest {
                 dlambda = (dlambda * 2.0).min(1.0);
             }
         } else {

@@ -177,3 +177,17 @@ def test_the_default_n_puts_located_inputs_on_nodes():
     scene = {"length": 1.0, "stiffness": ROUND, "rest_curvature": [[1.0, 0.0]] * 3,
              "point_loads": [{"s": 0.3, "force": [0.5, 0.0, 0.0]}]}
     assert softspine.solve(scene, check=True).n_elements == 30
+
+
+@pytest.mark.parametrize("alpha", [3.0, 10.0])
+@pytest.mark.parametrize("tol", [1e-4, 1e-8])
+def test_a_finer_shot_from_the_coarser_ones_wrench_is_the_cold_shot(alpha, tol):
+    # Each finer pass of accuracy on demand starts from the coarser pass's
+    # base wrench and steps with its Jacobian (chord steps): it must end on
+    # the equilibrium a cold shooting solve at that n finds, to its
+    # tolerance (their cost: `python tools/race.py`).
+    sol = softspine.solve(cantilever(alpha), tol=tol)
+    assert sol.scheme == "rk4" and sol.converged
+    cold = softspine.solve(cantilever(alpha), method="shooting", n_elements=sol.n_elements)
+    assert cold.converged and sol.n_elements > 4
+    np.testing.assert_allclose(sol.positions, cold.positions, rtol=0, atol=1e-10)

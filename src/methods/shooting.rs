@@ -93,6 +93,23 @@ pub struct Limits {
     pub min_continuation_step: f64,
 }
 
+/// A solved shot's base wrench and the Jacobian of its tip mismatch: the
+/// start of a finer solve of the same scene (accuracy on demand). There the
+/// mismatch is of the coarse solve's error, and the coarse Jacobian differs
+/// from the fine one by as little, so chord steps with it (one integration
+/// each) converge where Newton would draw a new Jacobian (one integration
+/// an unknown) at every iteration.
+#[derive(Debug, Clone, Copy)]
+pub struct WarmShot {
+    x: Vector6,
+    jacobian: Matrix6,
+    held: bool,
+}
+
+/// A chord step must shrink the mismatch at least this much; else the
+/// Jacobian is drawn again.
+const CHORD_CONTRACTION: f64 = 0.1;
+
 /// The end state of one integration.
 #[derive(Debug, Clone, Copy)]
 struct TipState {
@@ -301,14 +318,43 @@ impl Newton<'_, '_> {
     /// Iterate from `x` until the largest scaled mismatch is below `tol`;
     /// returns whether it converged and the iterations spent.
     fn run(&self, x: &mut Vector6, budget: usize, tol: f64) -> (bool, usize) {
+        let (converged, spent, _) = self.run_from(x, budget, tol, None);
+        (converged, spent)
+    }
+
+    /// [`Newton::run`], with chord steps on `chord` (a Jacobian of the same
+    /// equations, e.g. a coarser solve's) while each shrinks the mismatch by
+    /// [`CHORD_CONTRACTION`]; also returns the last Jacobian used.
+    fn run_from(
+        &self,
+        x: &mut Vector6,
+        budget: usize,
+        tol: f64,
+        chord: Option<Matrix6>,
+    ) -> (bool, usize, Option<Matrix6>) {
         let k = self.unknowns();
         let mut res = self.residual(x);
+        let mut chord = chord;
+        let mut last = chord;
         for iteration in 0..budget {
             if !res.iter().all(|v| v.is_finite()) || interrupt::requested() {
-                return (false, iteration);
+                return (false, iteration, last);
             }
             if res.amax() <= tol {
-                return (true, iteration);
+                return (true, iteration, last);
+            }
+            if let Some(jac) = chord.take() {
+                if let Some(dx) = jac.lu().solve(&(-res)) {
+                    let trial = *x + dx;
+                    let r = self.residual(&trial);
+                    if r.iter().all(|v| v.is_finite()) && r.norm() <= CHORD_CONTRACTION * res.norm()
+                    {
+                        *x = trial;
+                        res = r;
+                        chord = Some(jac);
+                        continue;
+                    }
+                }
             }
             // Forward differences, one integration a column.
             let mut jac = Matrix6::identity();
@@ -319,11 +365,12 @@ impl Newton<'_, '_> {
                 let column = (self.residual(&probe) - res) / step;
                 jac.set_column(c, &column);
             }
+            last = Some(jac);
             let Some(lu) = Some(jac.lu()).filter(|lu| lu.is_invertible()) else {
-                return (false, iteration + 1);
+                return (false, iteration + 1, last);
             };
             let Some(dx) = lu.solve(&(-res)) else {
-                return (false, iteration + 1);
+                return (false, iteration + 1, last);
             };
             // Backtrack on the squared mismatch (Armijo, halving).
             let merit = res.norm_squared();
@@ -345,10 +392,10 @@ impl Newton<'_, '_> {
                     *x = trial;
                     res = r;
                 }
-                None => return (false, iteration + 1),
+                None => return (false, iteration + 1, last),
             }
         }
-        (res.amax() <= tol, budget)
+        (res.amax() <= tol, budget, last)
     }
 }
 
@@ -364,6 +411,8 @@ pub struct Shot {
     pub residual: f64,
     /// Why it did not converge, when a continuation stopped.
     pub note: Option<String>,
+    /// The start of a finer solve: where the direct attempt converged.
+    pub warm: Option<WarmShot>,
 }
 
 /// The tip of an integrated shot: a held tip's reactions.
@@ -488,7 +537,7 @@ pub fn shoot(
     model: &RodModel,
     scene: &Scene,
     limits: Limits,
-    initial: Option<&[Quat]>,
+    (initial, warm): (Option<&[Quat]>, Option<&WarmShot>),
     stable: &mut dyn FnMut(&Candidate) -> bool,
 ) -> Shot {
     let tol = limits.tol;
@@ -518,7 +567,17 @@ pub fn shoot(
         held,
         scale,
     };
-    let (mut converged, mut iterations) = direct.run(&mut x, budget.min(DIRECT_ITERATIONS), tol);
+    let warm = warm.filter(|w| w.held == held);
+    if let Some(w) = warm {
+        x = w.x;
+    }
+    let (mut converged, mut iterations, jacobian) = direct.run_from(
+        &mut x,
+        budget.min(DIRECT_ITERATIONS),
+        tol,
+        warm.map(|w| w.jacobian),
+    );
+    let direct_x = x;
     let mut steps = 0;
     // Shooting converges to whatever equilibrium is nearest its start: a
     // direct answer on an unstable branch (found on 8 of 426 random free
@@ -628,6 +687,9 @@ pub fn shoot(
         // finds, and when shooting cannot follow it, it says so.
     }
     let residual = direct.residual(&x).amax();
+    let warm = jacobian
+        .filter(|_| converged && steps == 0 && x == direct_x)
+        .map(|jacobian| WarmShot { x, jacobian, held });
     Shot {
         x,
         converged,
@@ -635,6 +697,7 @@ pub fn shoot(
         steps,
         residual,
         note,
+        warm,
     }
 }
 
@@ -685,10 +748,16 @@ fn free_rod_is_stable(
     })
 }
 
-/// The base moment to start from: from a warm start's first element, else
-/// the loads' moment about the base on the rest shape (exact for a rigid rod).
+/// The base moment to start from: the loads' moment about the base on the
+/// warm start's shape for a free tip (the base moment of a free rod is that
+/// statically: exact to the shape's error, a coarser solve's refined shape
+/// gives Newton a start within O(h^2) of its answer where its first
+/// element's bending was O(h) off), on the rest shape without one (exact
+/// for a rigid rod); a held tip's unknown reaction leaves a warm start's
+/// first element's bending.
 fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector3<f64> {
-    if let Some(q) = initial {
+    let held = !model.constraints().is_empty();
+    if let (Some(q), true) = (initial, held) {
         let (a, b) = (model.base(), q[1].normalized());
         let b = if a.dot(b) < 0.0 { -b } else { b };
         let u = (2.0 / model.ds()) * (a.conj() * b).v;
@@ -698,7 +767,10 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
                 .component_mul(&(u - model.rod().loading.rest_curvature[0])),
         );
     }
-    let rest = model.rest_shape();
+    let rest = match initial {
+        Some(q) => q.iter().map(|q| q.normalized()).collect(),
+        None => model.rest_shape(),
+    };
     let mut r = vec![Vector3::zeros(); model.n() + 1];
     model.positions(&rest, &mut model.new_interior(), &mut r);
     let base = r[0];

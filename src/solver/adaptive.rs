@@ -10,6 +10,7 @@
 
 use super::{check_tolerance, Method, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
+use crate::methods::shooting::WarmShot;
 use crate::model::{element_turn, slerp};
 use crate::quat::Quat;
 use crate::read::{as_argument, count, finite, Table};
@@ -283,7 +284,9 @@ fn refine_with(
     // Each pass on a worker thread only where it may outlast the interrupt
     // poll (see `interrupt::on_worker_if`): most solves end at a few
     // hundred elements, where a thread start would cost more than the solve.
-    let solve_at = |n: usize, initial: Vec<Quat>| -> Result<Solution> {
+    // A pass starts from the last one's shape refined and, by shooting, from
+    // its base wrench and Jacobian (`WarmShot`: a few chord steps).
+    let solve_at = |n: usize, initial: Vec<Quat>, warm: Option<WarmShot>| -> Result<Pass> {
         let settings = Settings {
             n_elements: Some(n),
             ..settings.clone()
@@ -291,7 +294,10 @@ fn refine_with(
         let long = settings.has_long_passes();
         let scene = scene.clone();
         crate::interrupt::on_worker_if(long, move || {
-            Solver::new(&scene, settings)?.solve(Some(&initial))
+            let mut solver = Solver::new(&scene, settings)?;
+            solver.warm_shot = warm;
+            let solution = solver.solve(Some(&initial))?;
+            Ok((solution, solver.last_shot))
         })
     };
     let requested = match (settings.n_elements, order) {
@@ -306,10 +312,10 @@ fn refine_with(
         ..settings.clone()
     };
     let (long, first_scene) = (first.has_long_passes(), scene.clone());
-    let (trivial, mut base) = crate::interrupt::on_worker_if(long, move || {
+    let (trivial, (mut base, mut base_shot)) = crate::interrupt::on_worker_if(long, move || {
         let mut solver = Solver::new(&first_scene, first)?;
         let base = solver.solve(None)?;
-        Ok((solver.model().is_trivial(), base))
+        Ok((solver.model().is_trivial(), (base, solver.last_shot)))
     })?;
     if !keep_going(&base) {
         return Ok(Refined::HandedOver(base));
@@ -353,7 +359,7 @@ fn refine_with(
             return Ok(Refined::Done(not_met(base, iterations, why)));
         }
         crate::interrupt::check()?;
-        base = solve_at(n, refine(&base.quaternions, 2))?;
+        (base, base_shot) = solve_at(n, refine(&base.quaternions, 2), base_shot)?;
         iterations += base.iterations;
     }
     let n_base = base.n_elements;
@@ -368,7 +374,7 @@ fn refine_with(
             return Ok(Refined::Done(not_met(base, iterations, why)));
         }
         crate::interrupt::check()?;
-        let mut fine = solve_at(k * n_base, refine(&base.quaternions, k))?;
+        let (mut fine, _) = solve_at(k * n_base, refine(&base.quaternions, k), base_shot)?;
         iterations += fine.iterations;
         if !usable(&fine) {
             fine.iterations = iterations;
@@ -409,6 +415,9 @@ fn refine_with(
         k = next;
     }
 }
+
+/// A pass's solution and, by shooting, where a finer pass starts.
+type Pass = (Solution, Option<WarmShot>);
 
 /// Largest distance between the nodes of `coarse` and the same nodes of the
 /// `k` times finer `fine` [m].

@@ -98,6 +98,11 @@ pub struct Solver {
     /// differs from the scene's ([`Solver::solve_after`]). Friction's
     /// history starts there.
     history_base: Option<Vector3<f64>>,
+    /// Shooting: where the next solve starts (a coarser solve's base wrench
+    /// and Jacobian, set by accuracy on demand), and where the last one
+    /// ended, for a finer one.
+    pub(crate) warm_shot: Option<crate::methods::shooting::WarmShot>,
+    pub(crate) last_shot: Option<crate::methods::shooting::WarmShot>,
 }
 
 /// The rest curvature's homotopy of a cold solve whose rest shape passes
@@ -193,6 +198,8 @@ impl Solver {
             jacobian_at_solution: false,
             curled: None,
             history_base: None,
+            warm_shot: None,
+            last_shot: None,
         })
     }
 

@@ -124,7 +124,9 @@ impl Solver {
             evaluate(model, w, candidate.load_scale);
             is_stable(model, w)
         };
-        let shot = shooting::shoot(model, &self.scene, limits, initial, &mut stable);
+        let warm = self.warm_shot.as_ref();
+        let shot = shooting::shoot(model, &self.scene, limits, (initial, warm), &mut stable);
+        self.last_shot = shot.warm;
         self.finish_shooting(shot)
     }
 

@@ -190,8 +190,10 @@ impl<'a> Rod<'a> {
         }
         for i in 0..model.n() {
             // A huge n takes long here: an interrupt leaves the shot
-            // unfinished, and the Newton loops stop on the same flag.
-            if i % POLL_STRIDE == 0 && interrupt::requested() {
+            // unfinished, and the Newton loops stop on the same flag. (Not
+            // at the first step: a short shot leaves the poll to the
+            // Newton loop, which polls every iteration.)
+            if (i + 1) % POLL_STRIDE == 0 && interrupt::requested() {
                 break;
             }
             let u0 = model.rod().loading.rest_curvature[i];
@@ -413,6 +415,9 @@ pub struct Shot {
     pub note: Option<String>,
     /// The start of a finer solve: where the direct attempt converged.
     pub warm: Option<WarmShot>,
+    /// Whether the answer is stable, where it was judged already (the
+    /// direct attempt's answer).
+    pub stable: Option<bool>,
 }
 
 /// The tip of an integrated shot: a held tip's reactions.
@@ -585,7 +590,8 @@ pub fn shoot(
     // stable branch, as in the finite-element driver.
     // The shape a candidate is judged at, drawn once for the whole solve.
     let mut shape = vec![Quat::IDENTITY; model.n() + 1];
-    let direct_unstable = converged && !shot_is_stable(&full, &x, held, &mut shape, stable);
+    let direct_stable = converged.then(|| shot_is_stable(&full, &x, held, &mut shape, stable));
+    let direct_unstable = direct_stable == Some(false);
     let mut note = None;
     if !converged || direct_unstable {
         // Leg 1: the loads from zero on the free rod (exact rest shape at 0).
@@ -687,8 +693,9 @@ pub fn shoot(
         // finds, and when shooting cannot follow it, it says so.
     }
     let residual = direct.residual(&x).amax();
+    let direct = converged && steps == 0 && x == direct_x;
     let warm = jacobian
-        .filter(|_| converged && steps == 0 && x == direct_x)
+        .filter(|_| direct)
         .map(|jacobian| WarmShot { x, jacobian, held });
     Shot {
         x,
@@ -698,6 +705,7 @@ pub fn shoot(
         residual,
         note,
         warm,
+        stable: direct_stable.filter(|_| direct),
     }
 }
 

@@ -155,9 +155,13 @@ impl Solver {
         let tol = model.effective_tol(self.settings.residual_tol);
         let (status, note) = judge(model, &w.q, &positions, shot.residual, solved, tol);
         // Stability from the finite-difference scheme's Hessian at the shot
-        // shape (a second-order neighbour of its equilibrium).
-        evaluate(model, w, 1.0);
-        let stable = status == Status::Converged && is_stable(model, w);
+        // shape (a second-order neighbour of its equilibrium), as shooting
+        // judged its direct answer already.
+        let stable = status == Status::Converged
+            && shot.stable.unwrap_or_else(|| {
+                evaluate(model, w, 1.0);
+                is_stable(model, w)
+            });
         let message = note.unwrap_or_else(|| match status {
             Status::Converged => format!(
                 "converged by shooting (RK4, {} steps{})",

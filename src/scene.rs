@@ -453,10 +453,8 @@ impl Scene {
     fn not_modelled(&self, shooting: bool) -> Option<String> {
         let magnetic = !self.magnetization.is_empty() || self.tip_magnet != Vector3::zeros();
         let present = [
-            (
-                !self.tendons.is_empty() || magnetic,
-                "tendons or magnetic actuation",
-            ),
+            (!self.tendons.is_empty(), "tendons"),
+            (!shooting && magnetic, "magnetic actuation"),
             (
                 !self.sections.is_empty(),
                 "sections with their own length, stiffness or density",

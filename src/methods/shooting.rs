@@ -13,7 +13,10 @@
 //! Dead loads: `f` and `l` per length, point forces and moments at nodes
 //! (each jumps `n` or `m` as the integration passes it), and at the tip its
 //! force, its moment and, for a tip force off the tip at `c` in the tip's
-//! frame, `(R c) x F`.
+//! frame, `(R c) x F`. A magnetised rod in a uniform field `B` carries the
+//! moment `(R mu) x B` per length of its magnetisation `mu` (material
+//! frame, constant along a section), a tip magnet `(R mu_tip) x B` at the
+//! tip: moments that turn with the rod, evaluated at each stage.
 //!
 //! For dead loads the internal force is explicit, `n(s) = n(0) - f s - (point
 //! loads passed)`, so only `r`, `q` and `m` are integrated. A free tip's base
@@ -35,6 +38,7 @@ use crate::interrupt::POLL_STRIDE;
 use crate::model::{element_turn, slerp, RodModel};
 use crate::quat::Quat;
 use crate::scene::Scene;
+use crate::terms::section_of;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 type Vector6 = SVector<f64, 6>;
@@ -68,6 +72,12 @@ struct Rod<'a> {
     /// Where the tip force acts, from the tip in its material frame [m].
     tip_force_offset: Vector3<f64>,
     tip_moment: Vector3<f64>,
+    /// The uniform magnetic field [T, world], the magnetisation of each
+    /// element [A m^2 / m, material frame] and the tip magnet [A m^2,
+    /// material frame].
+    field: Vector3<f64>,
+    magnetization: Vec<Vector3<f64>>,
+    tip_magnet: Vector3<f64>,
 }
 
 /// A shape shooting asks its caller to judge: is it a stable equilibrium of
@@ -129,6 +139,16 @@ impl<'a> Rod<'a> {
             point_moment[node] += lambda * p.moment;
         }
         let distributed = lambda * scene.distributed_force();
+        let (n, sections) = (model.n(), scene.magnetization.len());
+        let magnetization = (0..n)
+            .map(|i| {
+                scene
+                    .magnetization
+                    .get(section_of(i, sections.max(1), n))
+                    .copied()
+                    .unwrap_or_default()
+            })
+            .collect();
         Rod {
             model,
             inverse_stiffness: model.stiffness().map(|k| 1.0 / k),
@@ -142,7 +162,16 @@ impl<'a> Rod<'a> {
             tip_force: lambda * scene.tip_force,
             tip_force_offset: scene.tip_force_offset,
             tip_moment: lambda * scene.tip_moment,
+            field: lambda * scene.magnetic_field,
+            magnetization,
+            tip_magnet: scene.tip_magnet,
         }
+    }
+
+    /// The magnetic moment on element `i` of orientation `q`, per length
+    /// [N m / m, world].
+    fn magnetic_moment(&self, i: usize, q: Quat) -> Vector3<f64> {
+        q.rotate(self.magnetization[i]).cross(&self.field)
     }
 
     /// The moment the loads apply at the tip of orientation `q` [N m,
@@ -152,12 +181,15 @@ impl<'a> Rod<'a> {
         self.tip_moment
             + self.point_moment[self.model.n()]
             + q.rotate(self.tip_force_offset).cross(&self.tip_force)
+            + q.rotate(self.tip_magnet).cross(&self.field)
     }
 
-    /// `(q', r', m')` at a state, with the internal force `force` and rest curvature `u0`.
+    /// `(q', r', m')` at a state of element `i`, with the internal force
+    /// `force` and rest curvature `u0`.
     #[inline]
     fn derivative(
         &self,
+        i: usize,
         q: Quat,
         m: Vector3<f64>,
         force: Vector3<f64>,
@@ -166,7 +198,11 @@ impl<'a> Rod<'a> {
         let u = u0 + self.inverse_stiffness.component_mul(&q.inverse_rotate(m));
         let dq = q * Quat::pure(0.5 * u);
         let t = q.tangent();
-        (dq, t, force.cross(&t) - self.distributed_moment)
+        let mut l = self.distributed_moment;
+        if self.field != Vector3::zeros() {
+            l += self.magnetic_moment(i, q);
+        }
+        (dq, t, force.cross(&t) - l)
     }
 
     /// Integrate from the base with base moment `m0` and force `n0`; with
@@ -199,12 +235,12 @@ impl<'a> Rod<'a> {
             let u0 = model.rod().loading.rest_curvature[i];
             let f_mid = force - 0.5 * h * self.distributed;
             let f_end = force - h * self.distributed;
-            let (dq1, dr1, dm1) = self.derivative(q, m, force, u0);
+            let (dq1, dr1, dm1) = self.derivative(i, q, m, force, u0);
             let (dq2, dr2, dm2) =
-                self.derivative(add(q, dq1, 0.5 * h), m + 0.5 * h * dm1, f_mid, u0);
+                self.derivative(i, add(q, dq1, 0.5 * h), m + 0.5 * h * dm1, f_mid, u0);
             let (dq3, dr3, dm3) =
-                self.derivative(add(q, dq2, 0.5 * h), m + 0.5 * h * dm2, f_mid, u0);
-            let (dq4, dr4, dm4) = self.derivative(add(q, dq3, h), m + h * dm3, f_end, u0);
+                self.derivative(i, add(q, dq2, 0.5 * h), m + 0.5 * h * dm2, f_mid, u0);
+            let (dq4, dr4, dm4) = self.derivative(i, add(q, dq3, h), m + h * dm3, f_end, u0);
             let sixth = h / 6.0;
             let dq = Quat {
                 w: dq1.w + 2.0 * (dq2.w + dq3.w) + dq4.w,
@@ -786,6 +822,10 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
     for i in 0..model.n() {
         let mid = 0.5 * (r[i] + r[i + 1]) - base;
         moment += mid.cross(&(rod.distributed * model.ds())) + rod.distributed_moment * model.ds();
+        if rod.field != Vector3::zeros() {
+            let turn = slerp(rest[i], rest[i + 1], 0.5);
+            moment += rod.magnetic_moment(i, turn) * model.ds();
+        }
     }
     for (node, (p, m)) in rod.point.iter().zip(&rod.point_moment).enumerate() {
         moment += (r[node] - base).cross(p) + m;

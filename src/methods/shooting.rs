@@ -823,7 +823,12 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
         let mid = 0.5 * (r[i] + r[i + 1]) - base;
         moment += mid.cross(&(rod.distributed * model.ds())) + rod.distributed_moment * model.ds();
         if rod.field != Vector3::zeros() {
-            let turn = slerp(rest[i], rest[i + 1], 0.5);
+            let next = if rest[i].dot(rest[i + 1]) < 0.0 {
+                -rest[i + 1]
+            } else {
+                rest[i + 1]
+            };
+            let turn = slerp(rest[i], next, 0.5);
             moment += rod.magnetic_moment(i, turn) * model.ds();
         }
     }

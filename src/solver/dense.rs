@@ -16,17 +16,35 @@ use nalgebra::{DMatrix, DVector};
 /// Singular values (or pivots) below this fraction of the largest are zero.
 const RANK_CUTOFF: f64 = 1e-11;
 
+/// The largest difference of `a_ij` and `a_ji` (of the largest entry) of a
+/// symmetric `a`: the round-off of the Schur complement's two triangles.
+const SYMMETRY_CUTOFF: f64 = 1e-10;
+
 /// What may remain of a symmetric `S` past its rank, relative to its largest
 /// diagonal entry, for it to be semidefinite of that rank (round-off of the
 /// repeated rows' Schur complement); more, and the SVD decides.
 const TRAILING_CUTOFF: f64 = 1e-9;
 
 /// Solve `a x = b` for a symmetric `a`, `x` into `b`: by Cholesky where
-/// `a` is positive definite; where it is singular and semidefinite, `a^+ b`
-/// by pivoted Cholesky; else (indefinite: a held rod under compression, whose
-/// free stiffness has negative directions) as a general `a`.
+/// `a` is positive definite; where it is singular and semidefinite, `a^+ b` by
+/// pivoted Cholesky; else (indefinite: a held rod under compression, whose
+/// free stiffness has negative directions) as a general `a`. An `a` that is
+/// not symmetric after all (a dead moment's unsymmetric stiffness: the
+/// factorisations read one triangle) is solved as a general one.
 pub(crate) fn solve_symmetric_in_place(a: &mut DMatrix<f64>, b: &mut DVector<f64>) -> bool {
+    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    let symmetric = (0..a.nrows())
+        .all(|i| (0..i).all(|j| (a[(i, j)] - a[(j, i)]).abs() <= SYMMETRY_CUTOFF * scale));
+    if !symmetric {
+        return solve_general_in_place(a, b);
+    }
     if let Some(chol) = a.clone().cholesky() {
+        // A pivot of round-off (two rows that repeat to round-off, a contact
+        // on a node and on the element beside it) passes here with huge
+        // multipliers of opposite signs; the contacts' QP then bounds the
+        // negative one and drops its row. The pseudo-inverse would split
+        // the force between the two (a knife edge under a node reported as
+        // two contacts at one point).
         let x = chol.solve(b);
         if x.iter().all(|v| v.is_finite()) {
             b.copy_from(&x);
@@ -241,6 +259,15 @@ mod tests {
         assert!((&fast - &expected).norm() < 1e-10 * expected.norm());
         let partial = a.clone().lu().solve(&b);
         assert!(partial.is_none_or(|x| (x - &expected).norm() > expected.norm()));
+    }
+
+    #[test]
+    fn an_unsymmetric_matrix_marked_symmetric_is_solved_as_it_is() {
+        let a = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.0, 0.5, 3.0, 0.2, 0.0, 0.7, 2.0]);
+        let x = DVector::from_row_slice(&[1.0, -2.0, 3.0]);
+        let mut b = &a * &x;
+        assert!(solve_symmetric_in_place(&mut a.clone(), &mut b));
+        assert!((&b - &x).norm() < 1e-12 * x.norm());
     }
 
     #[test]

@@ -186,6 +186,25 @@ MOMENT_SCENES = {
 }
 
 
+def shooting_errors_against_fe4(
+    scene: dict, lowest_order: float
+) -> tuple[softspine.Solution, list[float]]:
+    """fe4 at n = 640 and shooting's largest node error against it at n =
+    10, 20, 40 (each converged and stable), whose observed orders lie
+    between `lowest_order` and 4.4."""
+    fine = softspine.solve(scene, n_elements=640, scheme="fe4")
+    assert fine.converged
+    errors = []
+    for n in (10, 20, 40):
+        sol = softspine.solve(scene, n_elements=n, method="shooting")
+        assert sol.converged and sol.stable, sol.message
+        s = np.linspace(0.0, 1.0, n + 1)
+        errors.append(np.abs(sol.positions - fine.positions_at(s)).max())
+    orders = observed_orders(errors)
+    assert np.all((orders > lowest_order) & (orders < 4.4)), (orders, errors)
+    return fine, errors
+
+
 MAGNET_SCENES = {
     "magnetised rod": {**MOMENT_BASE, "magnetization": [[0.0, 0.0, 0.2]],
                        "magnetic_field": [0.0, 5.0, 10.0]},
@@ -204,15 +223,7 @@ def test_shooting_models_magnets_at_fourth_order(name):
     # (-B . R mu): order 4 (measured ratios 13.7 to 16.5 a halving); the
     # default's accuracy on demand shoots them.
     scene = MAGNET_SCENES[name]
-    fine = softspine.solve(scene, n_elements=640, scheme="fe4")
-    assert fine.converged
-    errors = []
-    for n in (10, 20, 40):
-        sol = softspine.solve(scene, n_elements=n, method="shooting")
-        assert sol.converged and sol.stable, sol.message
-        errors.append(np.abs(sol.positions - fine.positions_at(np.linspace(0.0, 1.0, n + 1))).max())
-    orders = observed_orders(errors)
-    assert np.all((orders > 3.6) & (orders < 4.4)), (orders, errors)
+    fine, errors = shooting_errors_against_fe4(scene, 3.6)
     assert errors[-1] < 3e-8, errors  # measured 7.1e-9 to 1.5e-8 at n = 40
     # The field moves the tip out of the plane gravity alone bends it in.
     assert abs(fine.tip_position[1]) > 0.05
@@ -228,16 +239,7 @@ def test_shooting_models_moments_and_a_tip_force_off_the_tip_at_fourth_order(nam
     # discrete potential's fe4 at n = 640 (moments as virtual work, another
     # discretisation): order 4 (measured ratios 15.7 to 20.2 a halving).
     scene = MOMENT_SCENES[name]
-    fine = softspine.solve(scene, n_elements=640, scheme="fe4")
-    assert fine.converged
-    errors = []
-    for n in (10, 20, 40):
-        sol = softspine.solve(scene, n_elements=n, method="shooting")
-        assert sol.converged and sol.stable, sol.message
-        s = np.linspace(0.0, 1.0, n + 1)
-        errors.append(np.abs(sol.positions - fine.positions_at(s)).max())
-    orders = observed_orders(errors)
-    assert np.all((orders > 3.7) & (orders < 4.4)), (orders, errors)
+    _, errors = shooting_errors_against_fe4(scene, 3.7)
     assert errors[-1] < 3e-7, errors  # measured 2.0e-8 to 1.7e-7 at n = 40
     # Accuracy on demand now shoots these where the tip is free.
     chosen = softspine.solve(scene, tol=1e-6)

@@ -434,3 +434,20 @@ def test_a_rod_sagging_onto_a_frictional_floor_is_pushed_along_it_within_the_def
         assert abs(push / lying.tip_reaction_force[0] - 1.0) < 0.01
         pushes.append(push)
     assert abs(pushes[2] - pushes[1]) < 0.6 * abs(pushes[1] - pushes[0]), pushes
+
+
+def test_a_solver_solving_cold_again_repeats_its_frictional_solve():
+    # Friction's relaxed levels (whether a step needed them, and where the
+    # last relaxed solve ended) belong to one solve: they were kept on the
+    # Solver, so a second cold solve of the same scene skipped the direct
+    # attempt at the rows' own compliance and took another path (56 then 89
+    # iterations on this knife edge; 70 then 65 on the floor).
+    from test_contact import knife_edge_scene
+    knife = knife_edge_scene(2.0)
+    knife["obstacles"][0]["friction"] = 0.3
+    for scene in (knife, floor_push(0.3, 0.95)):
+        solver = softspine.Solver(scene, n_elements=20)
+        first, again = solver.solve(warm=False), solver.solve(warm=False)
+        assert first.converged and again.converged
+        assert again.iterations == first.iterations
+        np.testing.assert_array_equal(again.positions, first.positions)

@@ -158,6 +158,13 @@ impl FrictionWork {
     }
 
     /// Keep the state as the last equilibrium's (with the contact set).
+    /// Forget the relaxed levels of past solves (see `relax` and
+    /// `last_level`): a solve starts at the rows' own compliance.
+    pub fn forget_levels(&mut self) {
+        self.relax = false;
+        self.last_level = 0.0;
+    }
+
     pub fn save(&mut self) {
         self.saved_anchors.clone_from(&self.anchors);
         self.saved_sliding.clone_from(&self.sliding);

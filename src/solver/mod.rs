@@ -556,6 +556,9 @@ impl Solver {
         let (model, w) = (&self.model, &mut self.work);
         w.reached_load = 0.0;
         w.kkt.clear_multipliers();
+        // Friction's relaxed levels are this solve's own: a solve before
+        // that needed them must not start this one there.
+        w.kkt.contact.friction.forget_levels();
         if let Some(limit) = &self.reach_limit {
             w.q.copy_from_slice(&model.initial_guess());
             evaluate(model, w, 1.0);

@@ -451,3 +451,20 @@ def test_a_solver_solving_cold_again_repeats_its_frictional_solve():
         assert first.converged and again.converged
         assert again.iterations == first.iterations
         np.testing.assert_array_equal(again.positions, first.positions)
+
+
+def test_a_heavy_rod_sagging_onto_a_floor_of_friction_one_is_pushed_along_it_at_n_80():
+    # Bent out of its plane first, the held leg keeps three quarters of the
+    # budget (it had half, and needed 414 of its iterations here: the
+    # iteration limit before); the in-plane leg after it is the one
+    # expected to fail.
+    scene = floor_push(1.0, 0.9)
+    scene["obstacles"][0]["point"] = [0.0, 0.0, -0.001]
+    sol = softspine.solve(scene, n_elements=80)
+    assert sol.converged and sol.stable, sol.message
+    c = sol.contacts
+    sliding = c["sliding"].astype(bool)
+    size = np.linalg.norm(c["friction"], axis=1)
+    np.testing.assert_allclose(size[sliding], c["force"][sliding], rtol=1e-9, atol=1e-12)
+    assert (size[~sliding] <= c["force"][~sliding] * (1 + 1e-9)).all()
+    assert np.abs(sol.positions[:, 1]).max() > 0.1

@@ -73,7 +73,7 @@ struct Rod<'a> {
     tip_force_offset: Vector3<f64>,
     tip_moment: Vector3<f64>,
     /// The uniform magnetic field [T, world], the magnetisation of each
-    /// element [A m^2 / m, material frame] and the tip magnet [A m^2,
+    /// equal section [A m^2 / m, material frame] and the tip magnet [A m^2,
     /// material frame].
     field: Vector3<f64>,
     magnetization: Vec<Vector3<f64>>,
@@ -139,16 +139,6 @@ impl<'a> Rod<'a> {
             point_moment[node] += lambda * p.moment;
         }
         let distributed = lambda * scene.distributed_force();
-        let (n, sections) = (model.n(), scene.magnetization.len());
-        let magnetization = (0..n)
-            .map(|i| {
-                scene
-                    .magnetization
-                    .get(section_of(i, sections.max(1), n))
-                    .copied()
-                    .unwrap_or_default()
-            })
-            .collect();
         Rod {
             model,
             inverse_stiffness: model.stiffness().map(|k| 1.0 / k),
@@ -163,7 +153,7 @@ impl<'a> Rod<'a> {
             tip_force_offset: scene.tip_force_offset,
             tip_moment: lambda * scene.tip_moment,
             field: lambda * scene.magnetic_field,
-            magnetization,
+            magnetization: scene.magnetization.clone(),
             tip_magnet: scene.tip_magnet,
         }
     }
@@ -171,7 +161,12 @@ impl<'a> Rod<'a> {
     /// The magnetic moment on element `i` of orientation `q`, per length
     /// [N m / m, world].
     fn magnetic_moment(&self, i: usize, q: Quat) -> Vector3<f64> {
-        q.rotate(self.magnetization[i]).cross(&self.field)
+        let sections = self.magnetization.len();
+        if sections == 0 {
+            return Vector3::zeros();
+        }
+        let mu = self.magnetization[section_of(i, sections, self.model.n())];
+        q.rotate(mu).cross(&self.field)
     }
 
     /// The moment the loads apply at the tip of orientation `q` [N m,
@@ -729,9 +724,9 @@ pub fn shoot(
         // finds, and when shooting cannot follow it, it says so.
     }
     let residual = direct.residual(&x).amax();
-    let direct = converged && steps == 0 && x == direct_x;
+    let direct_answer = converged && steps == 0 && x == direct_x;
     let warm = jacobian
-        .filter(|_| direct)
+        .filter(|_| direct_answer)
         .map(|jacobian| WarmShot { x, jacobian, held });
     Shot {
         x,
@@ -741,7 +736,7 @@ pub fn shoot(
         residual,
         note,
         warm,
-        stable: direct_stable.filter(|_| direct),
+        stable: direct_stable.filter(|_| direct_answer),
     }
 }
 

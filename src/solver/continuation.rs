@@ -64,8 +64,7 @@ pub(crate) fn load_path(
             // and that path fails from the flat rod at its first step.
             let loaded = Snapshot::take(w);
             let resting = !super::contact::held_slots(w).is_empty();
-            // (The test bends `w.q`; each attempt starts from `loaded`.)
-            let order = if resting && bend_a_straight_stretch(model, w, true) {
+            let order = if resting && buckling_bump(model, w, true).is_some() {
                 [true, false]
             } else {
                 [false, true]
@@ -158,6 +157,31 @@ pub(crate) fn load_path(
 /// leaves that plane, and in it the rod can only arch up off the floor.
 /// The bump is then out of the plane.
 fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace, out_of_plane: bool) -> bool {
+    let Some(bump) = buckling_bump(model, w, out_of_plane) else {
+        return false;
+    };
+    // Turned by BUCKLE_TILT at the base, down to -BUCKLE_TILT at the held
+    // node: a bump of height about BUCKLE_TILT s_k / 4, the node kept near
+    // the line (and beyond it, the rod turned as the node).
+    let s_k = model.arc(bump.node);
+    for (j, q) in w.q.iter_mut().enumerate().skip(1) {
+        let s = model.arc(j).min(s_k);
+        let tilt = BUCKLE_TILT * (1.0 - 2.0 * s / s_k);
+        *q = (Quat::from_rotation_vector(tilt * bump.axis) * *q).normalized();
+    }
+    true
+}
+
+/// The bump [`bend_a_straight_stretch`] would bend into the rod in `w.q`:
+/// the held node that ends its stretch and the axis the stretch turns about.
+struct Bump {
+    node: usize,
+    axis: Vector3<f64>,
+}
+
+/// The bump of [`bend_a_straight_stretch`], if the rod in `w.q` has a
+/// stretch to bend (`w.q` unchanged).
+fn buckling_bump(model: &RodModel, w: &mut Workspace, out_of_plane: bool) -> Option<Bump> {
     let mut r = vec![Vector3::zeros(); model.n() + 1];
     model.positions(&w.q, &mut w.interior, &mut r);
     let length = model.length();
@@ -175,7 +199,7 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace, out_of_plane: bo
         .constraints()
         .iter()
         .filter(|c| Some(c.node) != clamped);
-    let Some((k, line, offset)) = pinned.find_map(|c| {
+    let (node, line, offset) = pinned.find_map(|c| {
         let chord = r[c.node] - r[0];
         let line = chord.try_normalize(0.0)?;
         let across_line = |p: &Vector3<f64>| {
@@ -204,9 +228,7 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace, out_of_plane: bo
         let in_plane = normal.dot(&(c.target - r[0])).abs() <= STRAIGHT * length
             && normal.dot(&loads).abs() <= STRAIGHT * loads.norm();
         (!straight && planar && in_plane && shortening > 0.0).then_some((c.node, line, normal))
-    }) else {
-        return false;
-    };
+    })?;
     // The unit part of `v` across the line; none where it is round-off of
     // `scale` (a load along the line: its cross product with it).
     let across =
@@ -223,21 +245,11 @@ fn bend_a_straight_stretch(model: &RodModel, w: &mut Workspace, out_of_plane: bo
         .then(|| offset.normalize())
         .or_else(|| across(line.cross(&loads), loads.norm()))
         .or_else(|| across(model.base().rotate(softer), 1.0))
-        .or_else(|| across(model.base().rotate(stiffer), 1.0));
-    let Some(towards) = towards else {
-        return false;
-    };
-    // Turned by BUCKLE_TILT at the base, down to -BUCKLE_TILT at the held
-    // node: a bump of height about BUCKLE_TILT s_k / 4, the node kept near
-    // the line (and beyond it, the rod turned as the node).
-    let axis = line.cross(&towards);
-    let s_k = model.arc(k);
-    for (j, q) in w.q.iter_mut().enumerate().skip(1) {
-        let s = model.arc(j).min(s_k);
-        let tilt = BUCKLE_TILT * (1.0 - 2.0 * s / s_k);
-        *q = (Quat::from_rotation_vector(tilt * axis) * *q).normalized();
-    }
-    true
+        .or_else(|| across(model.base().rotate(stiffer), 1.0))?;
+    Some(Bump {
+        node,
+        axis: line.cross(&towards),
+    })
 }
 
 /// A target this far (of the length) off the line picks the bump's

@@ -157,7 +157,6 @@ impl FrictionWork {
         }
     }
 
-    /// Keep the state as the last equilibrium's (with the contact set).
     /// Forget the relaxed levels of past solves (see `relax` and
     /// `last_level`): a solve starts at the rows' own compliance.
     pub fn forget_levels(&mut self) {
@@ -165,6 +164,7 @@ impl FrictionWork {
         self.last_level = 0.0;
     }
 
+    /// Keep the state as the last equilibrium's (with the contact set).
     pub fn save(&mut self) {
         self.saved_anchors.clone_from(&self.anchors);
         self.saved_sliding.clone_from(&self.sliding);

@@ -169,11 +169,37 @@ def test_a_bad_friction_is_refused_by_name(mu):
         softspine.Scene(arc(1.0, mu))
 
 
-def test_sensitivities_are_refused_with_friction(rest_tip):
-    solver = softspine.Solver(arc(1.0, 0.3, floor=rest_tip[2]), n_elements=N)
-    solver.solve()
-    with pytest.raises(ValueError, match=r"obstacles\[0\]\.friction.*history"):
-        solver.sensitivity("gravity.linear_density")
+@pytest.mark.parametrize("mu, sliding", [(0.3, False), (0.02, True)])
+def test_sensitivities_with_friction_are_those_of_the_step_from_where_the_rod_stood(
+        rest_tip, mu, sliding):
+    # With friction an equilibrium ends a step of its history, and its
+    # sensitivities keep each contact's state: a sticking tip stays at its
+    # anchor (no derivative at all), a sliding one slides on with mu N
+    # against its move since the step's start, its direction turning with it
+    # (docs/model.md). Against central differences of that step: from the
+    # same Solution to the tip force moved either way.
+    scene = arc(1.0, mu, floor=rest_tip[2])
+    start = softspine.solve(scene, n_elements=N)
+    force = np.array([0.05, 0.0, -0.1])
+    solver = softspine.Solver({**scene, "tip_force": list(force)}, n_elements=N)
+    sol = solver.solve(start)
+    assert sol.converged and sol.contacts["sliding"].tolist() == [sliding], sol.message
+    sens = solver.sensitivity(["tip_force[0]", "tip_force[1]", "tip_force[2]"]).tip_position
+    delta = 1e-6
+    for j in range(3):
+        tips = []
+        for sign in (1.0, -1.0):
+            moved = force.copy()
+            moved[j] += sign * delta
+            step = softspine.solve({**scene, "tip_force": list(moved)}, n_elements=N,
+                                   initial=start)
+            assert step.contacts["sliding"].tolist() == [sliding]
+            tips.append(step.tip_position)
+        differences = (tips[0] - tips[1]) / (2.0 * delta)
+        np.testing.assert_allclose(sens[:, j], differences, atol=2e-9)
+    # The free rod's tip moves by 0.09 m/N along the floor; stuck, not at all.
+    along = np.abs(sens[:2, :2]).max()
+    assert along < 1e-12 if not sliding else along > 0.05
 
 
 def test_a_rod_lying_on_a_frictional_floor_sticks_with_no_friction():
@@ -208,8 +234,7 @@ def test_a_robot_curled_into_a_frictional_wall_is_held_back_the_more_friction():
     # straight under its 30 g (docs/model.md, "Coulomb friction"). Curling,
     # it pushes its tip up along the wall; friction holds it back, down, at
     # mu times the normal force (it slid all the way), and more friction
-    # leaves the tip lower. Its inverse kinematics is refused by name (an
-    # actuation found by search has no history).
+    # leaves the tip lower.
     wall = {"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0]}
     bend = np.zeros((10, 2))
     bend[:, 1] = 0.6
@@ -228,8 +253,77 @@ def test_a_robot_curled_into_a_frictional_wall_is_held_back_the_more_friction():
         assert np.linalg.norm(c["friction"][0]) == pytest.approx(mu * c["force"][0], rel=1e-8)
         heights.append(sol.tip_position[2] - plain.tip_position[2])
     assert 0.0 > heights[0] > heights[1] > heights[2], heights
-    with pytest.raises(ValueError, match=r"obstacles\[0\]\.friction.*history"):
-        robot.inverse([0.13, 0.0, -0.95], load=0.03)
+
+
+BALL = {"shape": "sphere", "centre": [0.08, 0.0, -0.5], "radius": 0.08}
+
+
+def settled_tip(robot: softspine.Robot, curvature, previous=None) -> np.ndarray:
+    """The tip at the end of an inverse answer's history (its muscles' rest
+    `curvature`), solved forward apart from the search: from rest along the
+    load path, or one step from `previous` (a Solution), at the inverse
+    solver's tolerance."""
+    scene = robot.scene(curvature, load=0.03)
+    sol = softspine.solve(scene, n_elements=robot.n_elements, residual_tol=1e-12,
+                          initial=previous)
+    assert sol.converged, sol.message
+    return sol.tip_position
+
+
+@pytest.mark.parametrize("mu", [0.1, 1.0])
+def test_the_inverse_kinematics_with_friction_ends_its_history_on_the_target(mu):
+    # The seed's robot reaches past a ball it leans on. With friction an
+    # answer is the end of its history: from rest, the load path to the
+    # answer's actuation (docs/model.md). The contact slides over the ball
+    # with mu N, and the frictionless robot at that actuation misses (by
+    # 4e-5 m with mu = 0.1: the search is not the frictionless one's).
+    target = np.array([0.1, 0.0, -0.93])
+    robot = softspine.Robot({"obstacles": [{**BALL, "friction": mu}]})
+    r = robot.inverse(target, load=0.03)
+    assert r.reached, r.message
+    c = r.solution.contacts
+    assert c["sliding"].tolist() == [True]
+    assert np.linalg.norm(c["friction"][0]) == pytest.approx(mu * c["force"][0], rel=1e-8)
+    assert np.linalg.norm(settled_tip(robot, r.rest_curvature) - target) < 1e-9
+    plain = softspine.Robot({"obstacles": [BALL]})
+    assert np.linalg.norm(plain.forward(r.rest_curvature, load=0.03).tip_position
+                          - target) > 1e-5
+
+
+def test_the_inverse_kinematics_reaches_along_a_wall_its_tip_sticks_to():
+    # The answer's tip sticks on the wall, where its exact derivative is
+    # nil along the wall: the descent's Jacobian lets what sticks go (with
+    # that derivative the search needed a second start, 80 iterations
+    # against 16, and left the wall for an S-bend).
+    wall = {"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0],
+            "friction": 0.5}
+    robot = softspine.Robot({"obstacles": [wall]})
+    target = np.array([0.13, 0.03, -0.94])
+    r = robot.inverse(target, load=0.03)
+    assert r.reached and r.starts == 1, r.message
+    c = r.solution.contacts
+    assert c["sliding"].tolist() == [False] and c["force"][0] > 1e-3
+    assert 0.0 < np.linalg.norm(c["friction"][0]) < 0.5 * c["force"][0]
+    assert np.linalg.norm(settled_tip(robot, r.rest_curvature) - target) < 1e-9
+
+
+def test_tracking_with_friction_steps_from_each_answer_and_a_batch_from_rest():
+    # Along a path each answer is one step of the robot's history from the
+    # last (a forward solve from that Solution lands on the target); a
+    # batch's targets are each on their own, from rest, whatever order.
+    robot = softspine.Robot({"obstacles": [{**BALL, "friction": 0.3}]})
+    targets = np.array([[0.1, 0.0, -0.93], [0.1, 0.01, -0.935], [0.1, 0.02, -0.94]])
+    path = robot.track(targets, load=0.03)
+    previous = None
+    for r, target in zip(path, targets, strict=True):
+        assert r.reached, r.message
+        assert np.linalg.norm(settled_tip(robot, r.rest_curvature, previous) - target) < 1e-9
+        previous = r.solution
+    assert np.linalg.norm(settled_tip(robot, path[2].rest_curvature) - targets[2]) > 1e-6
+    batch = robot.inverse_batch(targets[::-1], load=0.03)
+    for k, target in enumerate(targets[::-1]):
+        assert batch.reached[k]
+        assert np.linalg.norm(settled_tip(robot, batch.rest_curvature[k]) - target) < 1e-9
 
 
 @pytest.mark.parametrize("obstacle, mu, curvature", [

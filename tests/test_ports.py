@@ -614,16 +614,26 @@ def test_no_port_friction_is_the_frictionless_port_and_friction_comes_back():
             np.testing.assert_array_equal(back.ports[key], value)
 
 
-def test_sensitivities_and_the_inverse_kinematics_are_refused_with_a_frictional_port():
-    scene = port_scene((0.5, 0.1), 1.0)[0]
-    scene["ports"][0]["friction"] = 0.3
-    solver = softspine.Solver(scene, n_elements=20)
-    assert solver.solve().converged
-    with pytest.raises(ValueError, match=r"ports\[0\]\.friction.*history"):
-        solver.sensitivity("tip_force[2]")
-    robot = inserted_robot(ports=[{"position": [0, 0, -0.3], "friction": 0.3}])
-    with pytest.raises(ValueError, match=r"ports\[0\]\.friction.*history"):
-        robot.inverse([0.0, 0.05, -1.0])
+@pytest.mark.parametrize("mu", [0.3, 1.0])
+def test_a_robot_through_a_frictional_port_reaches_its_targets_at_the_end_of_its_history(mu):
+    # The robot hangs through a port with friction and inserts itself:
+    # each answer is one step of its history (from rest, then from the
+    # last answer), the rod sliding through the port with mu times the
+    # force across. A forward solve of that history, apart from the
+    # search, lands on the target.
+    robot = inserted_robot(ports=[{"position": [0, 0, -0.3], "friction": mu}])
+    targets = [[0.0, 0.05, -1.0], [0.01, 0.06, -1.02], [0.02, 0.07, -1.04]]
+    previous = None
+    for r, target in zip(robot.track(targets), targets, strict=True):
+        assert r.reached, r.message
+        ports = r.solution.ports
+        assert ports["sliding"].tolist() == [True]
+        across = np.linalg.norm(ports["force"][0] - ports["friction"][0])
+        assert np.linalg.norm(ports["friction"][0]) == pytest.approx(mu * across, rel=1e-8)
+        scene = robot.scene(r.rest_curvature, insertion=r.insertion)
+        sol = softspine.solve(scene, n_elements=20, residual_tol=1e-12, initial=previous)
+        assert np.linalg.norm(sol.tip_position - target) < 1e-9
+        previous = r.solution
 
 
 def test_a_rod_fed_through_a_frictional_port_by_its_base_meets_shooting_sliding_forward():

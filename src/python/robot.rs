@@ -745,6 +745,8 @@ impl PyRobot {
     /// A reusable inverse solver for one ``load`` (as ``forward``'s): each
     /// ``solve`` starts warm from the last answer, and along evenly spaced
     /// targets from the extrapolation of the last two (a control loop).
+    /// With friction each answer is the next step of the robot's history,
+    /// from the last answer (the first from rest).
     #[pyo3(signature = (load=None))]
     fn inverse_solver(
         &self,
@@ -781,6 +783,8 @@ impl PyRobot {
     ///     (m) and ``max_iterations`` override them.
     /// initial
     ///     A warm start: an earlier ``IkResult`` or a Solution's quaternions.
+    ///     With friction, where the robot stands: the answer is where it
+    ///     settles when its drive moves from there (default: from rest).
     /// pretension
     ///     A tendon-driven robot's tensions (N, one a tendon) the answer is
     ///     closest to (default zero: the least tension).

@@ -296,13 +296,18 @@ impl Robot {
             |solver, i| {
                 let target = targets[i];
                 let r = match solver {
-                    Some(solver) => solver.solve(
-                        target,
-                        aim,
-                        reference.as_deref(),
-                        ik.tol,
-                        ik.max_iterations,
-                    )?,
+                    Some(solver) => {
+                        // With friction each target's history starts at rest,
+                        // whatever the chunk solved before it.
+                        solver.stand_at_rest();
+                        solver.solve(
+                            target,
+                            aim,
+                            reference.as_deref(),
+                            ik.tol,
+                            ik.max_iterations,
+                        )?
+                    }
                     None => self.inverse(target, options)?,
                 };
                 Ok(IkSample::of(r))

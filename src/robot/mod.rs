@@ -271,6 +271,12 @@ impl Robot {
         Ok(scene)
     }
 
+    /// Whether an obstacle or a port has friction: an equilibrium is then
+    /// the end of a loading history.
+    pub fn has_friction(&self) -> bool {
+        self.friction.iter().any(|mu| *mu > 0.0) || self.ports.iter().any(|p| p.friction > 0.0)
+    }
+
     /// The direction the insertion moves the base: its tangent.
     pub fn insertion_axis(&self) -> Vector3<f64> {
         self.body.base_quaternion.rotate(Vector3::z())

@@ -894,6 +894,38 @@ pub(crate) fn unstick(w: &mut Workspace, (sliding, sticks): StuckState) {
     f.sticks = sticks;
 }
 
+/// What [`release_sticking`] changed: the contacts' anchors and sticking
+/// rows, and the ports' states.
+pub(crate) type Released = (Vec<Option<Anchor>>, Vec<Stick>, Vec<PortSlip>);
+
+/// Let every sticking contact and port go (frictionless there), a sliding
+/// one keeping its friction: the equations of a step in which what sticks
+/// starts to slide, whichever way. (A sticking contact's own derivative
+/// holds it where it is: a tip stuck on a wall does not move at all.)
+pub(crate) fn release_sticking(w: &mut Workspace) -> Released {
+    let f = &mut w.kkt.contact.friction;
+    let kept = (
+        f.anchors.clone(),
+        std::mem::take(&mut f.sticks),
+        f.ports.clone(),
+    );
+    for stick in &kept.1 {
+        f.anchors[stick.slot] = None;
+    }
+    for port in f.ports.iter_mut().filter(|p| p.sliding.is_none()) {
+        port.anchor = None;
+    }
+    kept
+}
+
+/// Put back what [`release_sticking`] changed.
+pub(crate) fn restore_sticking(w: &mut Workspace, (anchors, sticks, ports): Released) {
+    let f = &mut w.kkt.contact.friction;
+    f.anchors = anchors;
+    f.sticks = sticks;
+    f.ports = ports;
+}
+
 /// How far outside its cone a sticking contact's friction goes before it
 /// slides (relative): round-off.
 const CONE_SLACK: f64 = 1e-9;

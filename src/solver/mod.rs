@@ -211,8 +211,19 @@ impl Solver {
     /// would start the step with the rod already moved). Without friction,
     /// [`Solver::solve`] from its rotations.
     pub fn solve_after(&mut self, previous: &Solution) -> Result<Solution> {
-        self.history_base = previous.positions.first().copied();
-        let solution = self.solve(Some(&previous.quaternions));
+        let base = previous.positions.first().copied();
+        self.solve_after_state(&previous.quaternions, base)
+    }
+
+    /// [`Solver::solve_after`] from a state given by its rotations and
+    /// where its base stood (`None`: where this scene puts it).
+    pub fn solve_after_state(
+        &mut self,
+        quaternions: &[Quat],
+        base: Option<Vector3<f64>>,
+    ) -> Result<Solution> {
+        self.history_base = base;
+        let solution = self.solve(Some(quaternions));
         self.history_base = None;
         solution
     }

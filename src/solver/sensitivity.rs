@@ -1,5 +1,14 @@
 //! Sensitivities of an equilibrium by the implicit function theorem on its
 //! factored Jacobian: O(n) a column.
+//!
+//! With friction an equilibrium is the end of a step of its loading
+//! history, and its sensitivities are that step's: each contact (and port)
+//! keeps its state, a sticking one held at its anchor, a sliding one sliding
+//! on against its move since the step's start with its friction at `mu`
+//! times its normal force. That is the derivative of a solve warm from a
+//! `Solution` (`Solver::solve_after`) in the parameters it ends at, the
+//! Jacobian the inverse kinematics steps with; it is one-sided where a
+//! contact is at its cone's edge or a slide would reverse.
 
 use super::{Solver, Status};
 use crate::disc::{Interior, Loading};
@@ -32,6 +41,24 @@ impl TipSensitivity {
 }
 
 impl Solver {
+    /// `f` of this solver with every sticking contact and port of its last
+    /// equilibrium released (frictionless there; a sliding one keeps its
+    /// friction), then its state put back: the inverse kinematics' Jacobian
+    /// with friction. The exact one holds a stuck contact where it is (a tip
+    /// stuck on a wall has no derivative along it), where the descent needs
+    /// the way friction lets the robot go once it moves on. Without friction, `f`.
+    pub fn with_sticking_released<T>(&mut self, f: impl FnOnce(&mut Solver) -> T) -> T {
+        if !self.model.has_friction() {
+            return f(self);
+        }
+        let kept = super::friction::release_sticking(&mut self.work);
+        let out = f(self);
+        super::friction::restore_sticking(&mut self.work, kept);
+        super::constrained::evaluate(&self.model, &mut self.work, 1.0, true);
+        self.jacobian_at_solution = false;
+        out
+    }
+
     /// Sensitivity of the tip of the last (converged, free-tip) equilibrium to the
     /// rest curvature of each of `sections` equal sections: columns `2s` and
     /// `2s + 1` are `d/d kappa_x` and `d/d kappa_y` of section `s`. Costs two
@@ -100,7 +127,6 @@ impl Solver {
     /// loading's derivatives, by the implicit function theorem on the
     /// factored Jacobian (free tip).
     fn tip_sensitivity_with(&mut self, tangents: &[Loading]) -> Result<TipSensitivity> {
-        refuse_friction(&self.model)?;
         let columns = tangents.len();
         let n = self.model.n();
         if self.model.is_constrained() && !self.model.has_contact() {
@@ -198,7 +224,6 @@ impl Solver {
         if !model.constraints().is_empty() || model.clamped_tip().is_some() {
             return Err(Error::argument("base_sensitivity", "needs a free tip"));
         }
-        refuse_friction(model)?;
         let mut out = TipSensitivity::zeros(1);
         if !model.has_contact() {
             out.position.set_column(0, &direction);
@@ -782,7 +807,6 @@ impl Solver {
     /// `"tip_wrench"` for the tip force and moment (the columns of the 6x6
     /// tip compliance).
     pub fn sensitivity(&mut self, parameters: &[&str]) -> Result<Sensitivity> {
-        refuse_friction(&self.model)?;
         let mut base = self.scene.to_value();
         // The base's position is written only where it is not the origin;
         // as a parameter it is there at its value.
@@ -1159,25 +1183,4 @@ fn term_tangents(model: &RodModel, names: impl Iterator<Item = String>) -> Resul
                 .ok_or_else(|| Error::argument(name, "no such parameter"))
         })
         .collect()
-}
-
-/// Sensitivities are not given with friction: the equilibrium is the end of
-/// a loading history, and a derivative would have to say which contacts
-/// stick and slide under the change (and an inverse kinematics built on
-/// them which history it assumes).
-fn refuse_friction(model: &crate::model::RodModel) -> Result<()> {
-    let obstacle = (0..model.obstacles().len()).find(|&o| model.friction(o) > 0.0);
-    let key = match (obstacle, model.frictional_ports().next()) {
-        (Some(o), _) => Some(format!("obstacles[{o}].friction")),
-        (None, Some(j)) => Some(format!("ports[{j}].friction")),
-        (None, None) => None,
-    };
-    match key {
-        Some(key) => Err(Error::argument(
-            key,
-            "sensitivities (and the inverse kinematics built on them) are not given with \
-             friction: its answer depends on the loading history",
-        )),
-        None => Ok(()),
-    }
 }

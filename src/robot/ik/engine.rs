@@ -151,6 +151,44 @@ fn usable(sol: &Solution) -> bool {
     sol.converged() && sol.stable
 }
 
+/// Where the robot stands when a solve starts, which with friction is
+/// where the loading history of its answer starts: every forward solve of
+/// the search is one step of that history, from there to the trial's
+/// actuation, so the answer's equilibrium is the one the robot reaches by
+/// moving its drive from where it stood to the answer (docs/model.md,
+/// "Inverse kinematics with friction").
+#[derive(Debug, Clone)]
+enum Stance {
+    /// No friction: an equilibrium has no history, and forward solves
+    /// start warm from the last accepted state.
+    Frictionless,
+    /// At rest: each forward solve follows the load path from the rest shape.
+    Rest,
+    /// At an equilibrium: its rotations and its base's position.
+    At(Vec<Quat>, Vector3<f64>),
+}
+
+impl Stance {
+    /// The stance at an equilibrium (frictionless stays frictionless).
+    fn at(&self, sol: &Solution) -> Stance {
+        match self {
+            Stance::Frictionless => Stance::Frictionless,
+            _ => Stance::At(sol.quaternions.clone(), sol.positions[0]),
+        }
+    }
+}
+
+/// Forward statics of `solver`'s scene: without friction warm from `warm`
+/// (the straight rod again if that fails), with friction one step of the
+/// history from `stance`.
+fn forward_from(solver: &mut Solver, stance: &Stance, warm: Option<&[Quat]>) -> Result<Solution> {
+    match stance {
+        Stance::Frictionless => solver.solve_warm_or_cold(warm),
+        Stance::Rest => solver.solve(None),
+        Stance::At(q, base) => solver.solve_after_state(q, Some(*base)),
+    }
+}
+
 /// Inverse kinematics of one robot under one load, whatever drives it,
 /// reusing its forward solver and the last answer as the warm start of the
 /// next (trajectories).
@@ -172,28 +210,13 @@ pub struct InverseSolver {
     iterations: usize,
     /// The warm start the current solve was given (the last answer's equilibrium).
     given_warm: Option<Vec<Quat>>,
+    /// Where the robot stands (with friction, where the answer's history starts).
+    stance: Stance,
 }
 
 impl InverseSolver {
     /// The solver of `robot`'s own drive ([`Robot::actuation_space`]).
     pub fn new(robot: &Robot, load: &Load) -> Result<Self> {
-        // With friction an equilibrium is the end of a loading history, and
-        // which history an actuation found by search stands for is not
-        // defined (its steps are sensitivities, refused there too).
-        let obstacle = robot.friction.iter().position(|mu| *mu > 0.0);
-        let port = robot.ports.iter().position(|p| p.friction > 0.0);
-        let key = match (obstacle, port) {
-            (Some(i), _) => Some(format!("obstacles[{i}].friction")),
-            (None, Some(j)) => Some(format!("ports[{j}].friction")),
-            (None, None) => None,
-        };
-        if let Some(key) = key {
-            return Err(crate::error::Error::argument(
-                key,
-                "the inverse kinematics is not given with friction: an equilibrium with \
-                 friction depends on the loading history (solve forward instead)",
-            ));
-        }
         let drive = DriveSpace::of(robot)?;
         let scene = robot.scene(&Actuation::default(), load)?;
         let settings = Settings {
@@ -211,6 +234,11 @@ impl InverseSolver {
             start_on_path: false,
             iterations: 0,
             given_warm: None,
+            stance: if robot.has_friction() {
+                Stance::Rest
+            } else {
+                Stance::Frictionless
+            },
         })
     }
 
@@ -241,7 +269,21 @@ impl InverseSolver {
         }
         self.path = None;
         self.q = Some(start.quaternions.clone());
+        if !matches!(self.stance, Stance::Frictionless) {
+            let insertion = start.insertion.unwrap_or(0.0);
+            let base = self.robot.body.base_position + insertion * self.robot.insertion_axis();
+            self.stance = Stance::At(start.quaternions.clone(), base);
+        }
         Ok(())
+    }
+
+    /// With friction, start the next solve's history at rest (the load path
+    /// from the rest shape) rather than at the last answer: targets solved
+    /// each on its own (a batch). Without friction nothing changes.
+    pub fn stand_at_rest(&mut self) {
+        if !matches!(self.stance, Stance::Frictionless) {
+            self.stance = Stance::Rest;
+        }
     }
 
     /// An answer's coordinates in this solver's space: its drive's, then its
@@ -257,10 +299,11 @@ impl InverseSolver {
         reference_of(&self.robot, &self.drive, options)
     }
 
-    /// Forward statics at `x`, warm from the last accepted state.
+    /// Forward statics at `x`, warm from the last accepted state (with
+    /// friction, a step from where the robot stands).
     fn forward(&mut self, x: &DVector<f64>) -> Result<Solution> {
         self.drive.apply(&mut self.solver, x)?;
-        self.solver.solve_warm_or_cold(self.q.as_deref())
+        forward_from(&mut self.solver, &self.stance, self.q.as_deref())
     }
 
     /// Put the forward solver back at an accepted state (its Jacobian is the
@@ -273,7 +316,11 @@ impl InverseSolver {
     /// The goal's rows differentiated in the drive at the forward solver's
     /// state (`None` at a bifurcation).
     fn jacobian(&mut self, goal: &Goal, sol: &Solution) -> Option<DMatrix<f64>> {
-        let (position, rotation) = self.drive.tip_jacobian(&mut self.solver)?;
+        // With friction, what sticks is let go (see `with_sticking_released`).
+        let drive = &self.drive;
+        let (position, rotation) = self
+            .solver
+            .with_sticking_released(|solver| drive.tip_jacobian(solver))?;
         Some(goal.jacobian(sol, &position, &rotation))
     }
 
@@ -859,10 +906,14 @@ impl InverseSolver {
         self.drive.clamp(&self.robot, &mut x);
         // Warm from the equilibrium the step's tangent predicts (the drive's
         // sensitivity taken at the state), else from the state's.
+        // With friction a step starts where the robot stands, not at a guess.
         let moved = &x - &st.x;
-        let predicted = self
-            .solver
-            .predicted_state(&st.sol.quaternions, moved.as_slice());
+        let predicted = match self.stance {
+            Stance::Frictionless => self
+                .solver
+                .predicted_state(&st.sol.quaternions, moved.as_slice()),
+            _ => None,
+        };
         let sol = match predicted {
             Some(q) => {
                 self.drive.apply(&mut self.solver, &x)?;
@@ -1009,6 +1060,7 @@ impl InverseSolver {
         if state.usable() {
             self.last = state.x.clone();
             self.q = Some(state.sol.quaternions.clone());
+            self.stance = self.stance.at(&state.sol);
         } else {
             self.q = None;
         }
@@ -1101,6 +1153,9 @@ impl InverseSolver {
         let x = self.coordinates_of(&fit);
         let sol = self.forward(&x)?;
         self.q = usable(&sol).then(|| sol.quaternions.clone());
+        if usable(&sol) {
+            self.stance = self.stance.at(&sol);
+        }
         let miss = (tool_point(&sol, self.robot.body.tool_offset) - target).norm();
         let ending = if miss <= tol && usable(&sol) {
             IkEnding::Reached

@@ -493,7 +493,7 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     // The contacts' curvature: the Jacobian is `A + U M U^T`, whose inverse
     // the Woodbury identity applies from `A`'s.
     if !w.kkt.contact.curvature_blocks.is_empty() {
-        let Some(curvature) = CurvatureInverse::new(lu, w) else {
+        let Some(curvature) = CurvatureInverse::new(lu, w, false) else {
             return false;
         };
         curvature.correct(&mut w.scratch);
@@ -1254,9 +1254,14 @@ fn contact_margin(model: &RodModel) -> f64 {
 /// of `M` is reduced to its range, `M = V L V^T`, so that `U' = U V` and
 /// `H = A + U' L U'^T` with `L` invertible; then (Haynsworth, twice) the
 /// negative eigenvalues of `H` are those of `A`, plus those of `-L^{-1} -
-/// U'^T A^{-1} U'`, less the positive ones of `L`.
+/// U'^T A^{-1} U'`, less the positive ones of `L`. A block that is not
+/// symmetric (a port's sliding friction, which is no potential's) is
+/// reduced by its singular values instead, `M = P S Q^T`, `U' = U P` on the
+/// left and `U Q` on the right (Woodbury's identity; the inertia is then
+/// that of the symmetric parts, see [`CurvatureInverse::new`]).
 struct CurvatureInverse {
-    /// `U'` and `A^{-1} U'` (one column a kept direction).
+    /// `U'` on the right, and `A^{-1} U'` of the left (one column a kept
+    /// direction).
     columns: Vec<Vec<Vector3<f64>>>,
     y: Vec<Vec<Vector3<f64>>>,
     /// `(L^{-1} + U'^T A^{-1} U')^{-1}`.
@@ -1265,39 +1270,67 @@ struct CurvatureInverse {
     positive_blocks: usize,
 }
 
+/// Asymmetry of a curvature block, relative to its size, below which it
+/// counts as symmetric (a Hessian's, to round-off).
+const SYMMETRIC_BLOCK: f64 = 1e-13;
+
 impl CurvatureInverse {
-    fn new(lu: &BlockLu, w: &Workspace) -> Option<CurvatureInverse> {
+    /// From `lu`, the factorisation of `A` (of its symmetric part where
+    /// `symmetric_part`, for the stability verdict: then the blocks' too).
+    fn new(lu: &BlockLu, w: &Workspace, symmetric_part: bool) -> Option<CurvatureInverse> {
         let contact = &w.kkt.contact;
         if contact.curvature_blocks.is_empty() {
             return None;
         }
         let n = w.g.len();
-        let (mut columns, mut values) = (Vec::new(), Vec::new());
+        let (mut columns, mut lefts, mut values) = (Vec::new(), Vec::new(), Vec::new());
+        let mut symmetric = true;
         let mut at = 0;
+        let combine = |weights: &dyn Fn(usize) -> f64, size: usize, at: usize| {
+            let mut column = vec![Vector3::zeros(); n];
+            for a in 0..size {
+                let weight = weights(a);
+                for (x, u) in column.iter_mut().zip(&contact.curvature_columns[at + a]) {
+                    *x += weight * u;
+                }
+            }
+            column
+        };
         for block in &contact.curvature_blocks {
             let size = block.nrows();
-            let eig = SymmetricEigen::new(block.clone());
-            let largest = eig.eigenvalues.amax();
-            for (k, value) in eig.eigenvalues.iter().enumerate() {
-                if value.abs() <= 1e-12 * largest {
-                    continue;
-                }
-                let mut column = vec![Vector3::zeros(); n];
-                for a in 0..size {
-                    let weight = eig.eigenvectors[(a, k)];
-                    for (x, u) in column.iter_mut().zip(&contact.curvature_columns[at + a]) {
-                        *x += weight * u;
+            let transposed = block.transpose();
+            let skew = (block - &transposed).amax();
+            if symmetric_part || skew <= SYMMETRIC_BLOCK * block.amax() {
+                let eig = SymmetricEigen::new(0.5 * (block + &transposed));
+                let largest = eig.eigenvalues.amax();
+                for (k, value) in eig.eigenvalues.iter().enumerate() {
+                    if value.abs() <= 1e-12 * largest {
+                        continue;
                     }
+                    let column = combine(&|a| eig.eigenvectors[(a, k)], size, at);
+                    lefts.push(column.clone());
+                    columns.push(column);
+                    values.push(*value);
                 }
-                columns.push(column);
-                values.push(*value);
+            } else {
+                symmetric = false;
+                let svd = block.clone().svd(true, true);
+                let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
+                let largest = svd.singular_values.amax();
+                for (k, value) in svd.singular_values.iter().enumerate() {
+                    if *value <= 1e-12 * largest {
+                        continue;
+                    }
+                    lefts.push(combine(&|a| u[(a, k)], size, at));
+                    columns.push(combine(&|a| v_t[(k, a)], size, at));
+                    values.push(*value);
+                }
             }
             at += size;
         }
-        let y: Vec<Vec<Vector3<f64>>> = columns
-            .iter()
-            .map(|c| {
-                let mut solved = c.clone();
+        let y: Vec<Vec<Vector3<f64>>> = lefts
+            .into_iter()
+            .map(|mut solved| {
                 lu.solve_in_place(&mut solved);
                 solved
             })
@@ -1307,6 +1340,16 @@ impl CurvatureInverse {
             let diagonal = if a == b { 1.0 / values[a] } else { 0.0 };
             diagonal + dot(&columns[a], &y[b])
         });
+        if !symmetric {
+            // Woodbury's identity alone: no inertia to count.
+            return Some(CurvatureInverse {
+                columns,
+                y,
+                inverse: kernel.try_inverse()?,
+                negative_schur: 0,
+                positive_blocks: 0,
+            });
+        }
         let kernel = 0.5 * (&kernel + kernel.transpose());
         let negative_schur = SymmetricEigen::new(-kernel.clone())
             .eigenvalues
@@ -1363,7 +1406,7 @@ fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let negative = lu.factor_symmetric_part(&w.jac);
     // The contacts' curvature: the Hessian is `A + U M U^T`.
-    let curvature = negative.and_then(|_| CurvatureInverse::new(&lu, w));
+    let curvature = negative.and_then(|_| CurvatureInverse::new(&lu, w, true));
     let negative = match (&curvature, negative) {
         (_, None) => None,
         (None, Some(k)) if w.kkt.contact.curvature_blocks.is_empty() => Some(k),

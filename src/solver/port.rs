@@ -175,8 +175,9 @@ const CURVATURE_STEP: f64 = 1e-6;
 /// lambda_i d_i` (and its friction, `axial`) turns with the chord it
 /// crosses, and its shares move with the crossing; `M = -dF/dr` over the
 /// moving nodes of its element, by central differences, made symmetric
-/// (the Hessian of `-lambda . h` without friction). `None` where there is
-/// no force or nothing moves.
+/// where it is the Hessian of `-lambda . h` (unsymmetric while the rod
+/// slides through the port: its friction's turn with the chord). `None`
+/// where there is no force or nothing moves.
 pub(crate) fn curvature_block(
     model: &RodModel,
     index: usize,
@@ -240,7 +241,12 @@ pub(crate) fn curvature_block(
             .view_mut((3 * row, 0), (3, 3 * moving.len()))
             .copy_from(&part);
     }
-    let block = -0.5 * (&block + block.transpose());
+    // Without friction (or sticking) it is a Hessian, symmetric but for the
+    // differences' round-off; a sliding port's friction is no potential's.
+    let block = match axial {
+        Axial::Slide(_) => -block,
+        _ => -0.5 * (&block + block.transpose()),
+    };
     (block.amax() > 0.0).then_some((block, moving))
 }
 

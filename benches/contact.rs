@@ -6,8 +6,9 @@
 //! circle with the insertion as one more coordinate. Friction: the rod on a
 //! floor with `mu = 0.3` (every node sticks), the same rod pushed sideways
 //! at its tip by 0.05 of its weight (part sticks, part slides, some of it
-//! backwards: the relaxed levels) and the robot against the wall with
-//! `mu = 0.5` (its contact slides down it).
+//! backwards: the relaxed levels), the robot against the wall with
+//! `mu = 0.5` (its contact slides down it), and its inverse kinematics
+//! along 12 points leaning on a ball, without and with friction.
 //!
 //! `cargo bench --bench contact`; the medians go into docs/model.md's
 //! "Contact with obstacles" and the notes.
@@ -167,6 +168,34 @@ fn scenes(c: &mut Criterion) {
     group.bench_function("robot_port_track_24", |b| {
         b.iter(|| black_box(ported.track(&circle, &options).unwrap()))
     });
+    // The robot's inverse kinematics leaning on a ball, 12 points a few mm
+    // apart, without and with friction (mu = 0.3: each answer one step of
+    // its history from the last; the first from rest).
+    let ball = Obstacle::Sphere {
+        centre: Vector3::new(0.08, 0.0, -0.5),
+        radius: 0.08,
+    };
+    let leaning: Vec<Vector3<f64>> = (0..12)
+        .map(|k| Vector3::new(0.1, 0.002 * k as f64, -0.93 - 0.001 * k as f64))
+        .collect();
+    for (name, friction) in [
+        ("robot_ball_track_12", vec![]),
+        ("robot_ball_friction_track_12", vec![0.3]),
+    ] {
+        let robot = Robot {
+            obstacles: vec![ball.clone()],
+            friction,
+            ..Robot::default()
+        };
+        assert!(robot
+            .track(&leaning, &options)
+            .unwrap()
+            .iter()
+            .all(|r| r.reached));
+        group.bench_function(name, |b| {
+            b.iter(|| black_box(robot.track(&leaning, &options).unwrap()))
+        });
+    }
     group.finish();
 }
 

@@ -640,15 +640,17 @@ impl Discretisation for Fd2 {
         out: &mut [Matrix3<f64>],
     ) {
         // r_k is the sum of the chords up to k: node j moves its two
-        // elements' chords, the second only inside [1, k].
-        for j in 1..=rod.n() {
-            out[j - 1] = if j > k {
-                Matrix3::zeros()
-            } else if j < k {
-                chord_jacobian(rod, q, j).1 + chord_jacobian(rod, q, j + 1).0
-            } else {
-                chord_jacobian(rod, q, j).1
-            };
+        // elements' chords, the second only inside [1, k]. Each chord's
+        // blocks once (the end node's first, as the sum always was).
+        for block in out.iter_mut().take(rod.n()).skip(k) {
+            *block = Matrix3::zeros();
+        }
+        for i in 1..=k {
+            let (start, end) = chord_jacobian(rod, q, i);
+            out[i - 1] = end;
+            if i >= 2 {
+                out[i - 2] += start;
+            }
         }
     }
 

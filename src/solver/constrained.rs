@@ -348,6 +348,11 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     for &i in &w.kkt.contact.active {
         w.kkt.row_len.push(contact::last_node(model, i).min(n));
     }
+    if model.has_contact() {
+        let c = &mut w.kkt.contact;
+        c.chords.resize(n, (Matrix3::zeros(), Matrix3::zeros()));
+        c.chords_loaded = model.chord_jacobians(&w.q, &mut c.chords);
+    }
     mixed::load(model, w);
     let dense = !w.kkt.mixed.in_use;
     if dense {
@@ -372,6 +377,8 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
     if model.has_contact() {
         contact::curvature(model, w, dense);
     }
+    // The chords are this step's: no row loaded later may take them.
+    w.kkt.contact.chords_loaded = false;
 }
 
 /// The sliding contacts' extra columns (see `KktWorkspace::force_extra`),
@@ -1084,13 +1091,17 @@ fn newton_at(
     if let Some(tip) = model.clamped_tip_at(lambda) {
         w.q[n] = tip;
     }
-    let mut merit_now = evaluate(model, w, lambda, true);
+    // With obstacles or friction each pass evaluates again once it has
+    // chosen its candidates, Jacobian and all: the start and the end of
+    // the pass before need not.
+    let reevaluated = model.has_obstacles() || model.has_friction();
+    let mut merit_now = evaluate(model, w, lambda, !reevaluated);
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
         // The contact candidates of this step (see `contact.rs`); a step
         // whose QP changes which are held certifies nothing.
         let mut held_before = Vec::new();
-        if model.has_obstacles() || model.has_friction() {
+        if reevaluated {
             if model.has_obstacles() {
                 contact::select_candidates(model, w, contact_margin(model));
             }
@@ -1130,7 +1141,9 @@ fn newton_at(
             if it == max_iter || !friction::settle(model, w) {
                 return (true, it);
             }
-            merit_now = evaluate(model, w, lambda, true);
+            if !reevaluated {
+                merit_now = evaluate(model, w, lambda, true);
+            }
             continue;
         }
         if it == max_iter {
@@ -1144,7 +1157,11 @@ fn newton_at(
                 return (false, it + 1);
             }
         }
-        merit_now = evaluate(model, w, lambda, true);
+        // The line search left `w` evaluated at the step's end (its
+        // residual); the next pass loads the Jacobian after its candidates.
+        if !reevaluated {
+            merit_now = evaluate(model, w, lambda, true);
+        }
     }
     unreachable!("the loop returns at its last pass")
 }
@@ -1650,6 +1667,28 @@ mod tests {
         }
         w.kkt.contact.choose = false;
         compare_steps(&mut w, 1e-9);
+    }
+
+    /// A contact's row from the chords' Jacobians, loaded once a step, is
+    /// the one from its node's position Jacobian.
+    #[test]
+    fn a_row_from_the_loaded_chords_is_the_position_jacobians() {
+        let (model, mut w) = pressed_rod(false);
+        let rows = w.kkt.contact.active.len();
+        assert!(rows > 1, "{rows} rows");
+        contact::load_rows(&model, &mut w, 0);
+        let direct = w.kkt.rows[..rows].to_vec();
+        let c = &mut w.kkt.contact;
+        c.chords = vec![(Matrix3::zeros(), Matrix3::zeros()); model.n()];
+        assert!(model.chord_jacobians(&w.q, &mut c.chords));
+        c.chords_loaded = true;
+        contact::load_rows(&model, &mut w, 0);
+        let largest = direct.iter().flatten().fold(0.0f64, |a, v| a.max(v.amax()));
+        for (a, b) in direct.iter().zip(&w.kkt.rows[..rows]) {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).amax() <= 1e-14 * largest, "{x} against {y}");
+            }
+        }
     }
 
     /// A rod lying straight on a floor under its weight: the QP in mixed

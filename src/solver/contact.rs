@@ -101,6 +101,13 @@ pub(crate) struct ContactWork {
     /// Scratch for one node's `D_k` (n blocks) and for the node positions
     /// a step or a prediction moves the rod to (n + 1).
     pub position_jacobian: Vec<Matrix3<f64>>,
+    /// Every chord's Jacobian at the step's rotations (see
+    /// `Discretisation::chord_jacobians`), while `chords_loaded`: during
+    /// `constrained::load_constraint_jacobian`, for a scheme that has them.
+    /// A row then costs its nodes' additions, not a position Jacobian each
+    /// (which computes every chord's before it).
+    pub chords: Vec<(Matrix3<f64>, Matrix3<f64>)>,
+    pub chords_loaded: bool,
     pub moved: Vec<Vector3<f64>>,
     /// The held contacts' curvature terms (see [`curvature`]): the columns
     /// `U` (`D_k^T e_a` of each node and axis, `n` vectors each) and the
@@ -507,10 +514,23 @@ pub(crate) fn load_row(
         if weight == 0.0 || node == 0 {
             continue;
         }
-        let d = &mut w.kkt.contact.position_jacobian;
-        model.position_jacobian(&w.q, node, &w.interior, d);
-        for (x, b) in w.kkt.rows[r].iter_mut().zip(d.iter()) {
-            *x += weight * b.transpose() * direction;
+        let (c, row) = (&mut w.kkt.contact, &mut w.kkt.rows[r]);
+        let v = weight * direction;
+        if c.chords_loaded {
+            // r_node is the sum of the chords up to it.
+            for i in 1..=node {
+                let (start, end) = &c.chords[i - 1];
+                row[i - 1] += end.transpose() * v;
+                if i >= 2 {
+                    row[i - 2] += start.transpose() * v;
+                }
+            }
+        } else {
+            let d = &mut c.position_jacobian;
+            model.position_jacobian(&w.q, node, &w.interior, d);
+            for (x, b) in row.iter_mut().zip(d.iter()) {
+                *x += b.transpose() * v;
+            }
         }
     }
     if model.clamped_tip().is_some() {

@@ -98,6 +98,22 @@ def test_obstacles_and_contact_forces_are_drawn():
     assert len(traces(fig, "muscles")) == 2 * 3  # three muscles on each backbone
 
 
+def test_a_contact_force_is_drawn_whole_with_its_friction():
+    # The robot bent into a frictional wall slides down it: its arrow is the
+    # wall's whole force on the rod, the friction beside the normal force.
+    wall = {"shape": "half_space", "point": [0.15, 0, 0], "normal": [-1, 0, 0], "friction": 0.5}
+    robot = softspine.Robot({"obstacles": [wall]})
+    sol = robot.forward(np.tile([0.0, 0.6], (10, 1)), load=0.03)
+    c = sol.contacts
+    assert len(c["force"]) == 1 and np.linalg.norm(c["friction"][0]) > 0.1 * c["force"][0]
+    (forces,) = traces(softspine.view(sol, robot=robot), "contact forces")
+    arrow = np.array([forces.x[1] - forces.x[0], forces.y[1] - forces.y[0],
+                      forces.z[1] - forces.z[0]])
+    whole = c["force"][0] * c["normal"][0] + c["friction"][0]
+    np.testing.assert_allclose(arrow, 0.1 * robot.length * whole / np.linalg.norm(whole),
+                               atol=1e-12)
+
+
 def test_headless_chromium_draws_the_robot(tmp_path, tendon_robot):
     # kaleido renders the figure in its own headless Chromium: the picture
     # shows the blue tube, the orange tendons and the grey disks.

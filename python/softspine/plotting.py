@@ -201,25 +201,35 @@ def _obstacle_surfaces(obstacle: dict[str, Any], u: np.ndarray, v: np.ndarray, e
     raise ValueError(f"obstacles: unknown shape {shape!r}")
 
 
+def contact_force_vectors(solution: Solution) -> np.ndarray:
+    """Each contact's whole force on the rod, (k, 3), N: its normal force
+    along the obstacle's normal plus its friction."""
+    contacts = solution.contacts
+    normal = np.asarray(contacts["normal"], dtype=float).reshape(-1, 3)
+    force = np.asarray(contacts["force"], dtype=float)
+    friction = np.asarray(contacts["friction"], dtype=float).reshape(-1, 3)
+    return normal * force[:, None] + friction
+
+
 def plot_contacts(solution: Solution, ax: Axes3D, *, scale: float | None = None,
                   **arrows: Any) -> Axes3D:
-    """Draw a solution's contact forces as arrows at the points touched,
-    along the obstacles' normals, and its ports (a black dot each) with
-    their forces on the rod; ``scale`` (m per N) defaults to drawing the
-    largest force a tenth of the rod's length."""
+    """Draw a solution's contact forces on the rod as arrows at the points
+    touched (the normal force and, with friction, the friction beside it),
+    and its ports (a black dot each) with their forces on the rod; ``scale``
+    (m per N) defaults to drawing the largest force a tenth of the rod's
+    length."""
     contacts, ports = solution.contacts, solution.ports
-    force = np.asarray(contacts["force"])
+    contact_forces = contact_force_vectors(solution)
     port_forces = np.asarray(ports["force"]).reshape(-1, 3)
-    sizes = np.r_[force, np.linalg.norm(port_forces, axis=1)]
+    sizes = np.r_[np.linalg.norm(contact_forces, axis=1), np.linalg.norm(port_forces, axis=1)]
     if len(sizes) == 0:
         return ax
     if scale is None:
         scale = 0.1 * solution.length / max(float(sizes.max()), 1e-300)
     arrows.setdefault("color", "tab:red")
-    if len(force):
+    if len(contact_forces):
         points = np.asarray(contacts["point"])
-        vectors = np.asarray(contacts["normal"]) * (scale * force)[:, None]
-        ax.quiver(*points.T, *vectors.T, **arrows)
+        ax.quiver(*points.T, *(scale * contact_forces).T, **arrows)
     if len(port_forces):
         points = np.asarray(ports["point"]).reshape(-1, 3)
         ax.scatter(*points.T, color="k", s=12)

@@ -155,19 +155,20 @@ def _arrows(go: Any, points: np.ndarray, vectors: np.ndarray, name: str, color: 
 
 
 def _forces(go: Any, sol: Solution) -> list[Any]:
-    """Contact forces along the obstacles' normals, port forces on the rod."""
+    """Contact forces on the rod (normal and friction), port forces on it."""
+    from .plotting import contact_force_vectors
+
     contacts, ports = sol.contacts, sol.ports
-    force = np.asarray(contacts["force"], dtype=float)
+    contact_forces = contact_force_vectors(sol)
     port_forces = np.asarray(ports["force"], dtype=float).reshape(-1, 3)
-    sizes = np.r_[force, np.linalg.norm(port_forces, axis=1)]
+    sizes = np.r_[np.linalg.norm(contact_forces, axis=1), np.linalg.norm(port_forces, axis=1)]
     if len(sizes) == 0 or sizes.max() <= 0.0:
         return []
     scale = 0.1 * sol.length / float(sizes.max())
     traces = []
-    if len(force):
-        vectors = np.asarray(contacts["normal"]) * (scale * force)[:, None]
-        traces.append(_arrows(go, np.asarray(contacts["point"]), vectors, "contact forces",
-                              "crimson"))
+    if len(contact_forces):
+        traces.append(_arrows(go, np.asarray(contacts["point"]), scale * contact_forces,
+                              "contact forces", "crimson"))
     if len(port_forces):
         points = np.asarray(ports["point"]).reshape(-1, 3)
         traces.append(_arrows(go, points, scale * port_forces, "port forces", "black"))

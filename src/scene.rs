@@ -456,7 +456,7 @@ impl Scene {
             (!self.tendons.is_empty(), "tendons"),
             (!shooting && magnetic, "magnetic actuation"),
             (
-                !self.sections.is_empty(),
+                !shooting && !self.sections.is_empty(),
                 "sections with their own length, stiffness or density",
             ),
             (

@@ -55,17 +55,19 @@ struct TipTarget {
 /// The loads at one load scale and the rod's fixed data, as the integration needs them.
 struct Rod<'a> {
     model: &'a RodModel,
-    inverse_stiffness: Vector3<f64>,
-    /// Distributed force [N/m], world frame.
-    distributed: Vector3<f64>,
+    /// Each element's (from 0) inverse stiffness [1 / N m^2], or one entry
+    /// for a rod of one stiffness.
+    inverse_stiffness: Vec<Vector3<f64>>,
+    /// Each element's distributed force [N/m], world frame (its section's).
+    distributed: Vec<Vector3<f64>>,
     /// Point load at each node (index = node), world frame [N]; the tip's
     /// counts in the tip condition.
     point: Vec<Vector3<f64>>,
     /// Point moment at each node (index = node), world frame [N m]; the
     /// tip's counts in the tip condition.
     point_moment: Vec<Vector3<f64>>,
-    /// Distributed moment [N m / m], world frame.
-    distributed_moment: Vector3<f64>,
+    /// Each element's distributed moment [N m / m], world frame.
+    distributed_moment: Vec<Vector3<f64>>,
     /// The free rod's base force (the sum of every load) [N].
     free_base_force: Vector3<f64>,
     tip_force: Vector3<f64>,
@@ -131,24 +133,46 @@ struct TipState {
 
 impl<'a> Rod<'a> {
     fn new(model: &'a RodModel, scene: &Scene, lambda: f64) -> Self {
-        let mut point = vec![Vector3::zeros(); model.n() + 1];
-        let mut point_moment = vec![Vector3::zeros(); model.n() + 1];
+        let n = model.n();
+        let mesh = model.mesh();
+        let mut point = vec![Vector3::zeros(); n + 1];
+        let mut point_moment = vec![Vector3::zeros(); n + 1];
         for p in &scene.point_loads {
-            let node = ((p.s / model.ds()).round() as usize).min(model.n());
+            let node = mesh.nearest_node(p.s);
             point[node] += lambda * p.force;
             point_moment[node] += lambda * p.moment;
         }
-        let distributed = lambda * scene.distributed_force();
+        // Sections of their own: each element its section's density,
+        // moment and stiffness (the elastic term's, one entry if uniform).
+        let sections = scene.sections();
+        let section = |i: usize| section_of(i, sections, n);
+        let distributed: Vec<Vector3<f64>> = (0..n)
+            .map(|i| lambda * scene.section_force(section(i)))
+            .collect();
+        let distributed_moment = (0..n)
+            .map(|i| {
+                lambda
+                    * scene
+                        .section_moment(section(i))
+                        .unwrap_or(scene.distributed_moment)
+            })
+            .collect();
+        let lengths = mesh.element_lengths();
+        let total: Vector3<f64> = distributed.iter().zip(lengths).map(|(f, h)| f * *h).sum();
         Rod {
             model,
-            inverse_stiffness: model.stiffness().map(|k| 1.0 / k),
+            inverse_stiffness: model
+                .rod()
+                .loading
+                .stiffness
+                .iter()
+                .map(|k| k.map(|k| 1.0 / k))
+                .collect(),
+            free_base_force: lambda * scene.tip_force + total + point.iter().sum::<Vector3<f64>>(),
             distributed,
-            free_base_force: lambda * scene.tip_force
-                + distributed * model.length()
-                + point.iter().sum::<Vector3<f64>>(),
             point,
             point_moment,
-            distributed_moment: lambda * scene.distributed_moment,
+            distributed_moment,
             tip_force: lambda * scene.tip_force,
             tip_force_offset: scene.tip_force_offset,
             tip_moment: lambda * scene.tip_moment,
@@ -190,10 +214,14 @@ impl<'a> Rod<'a> {
         force: Vector3<f64>,
         u0: Vector3<f64>,
     ) -> (Quat, Vector3<f64>, Vector3<f64>) {
-        let u = u0 + self.inverse_stiffness.component_mul(&q.inverse_rotate(m));
+        let compliance = match self.inverse_stiffness.as_slice() {
+            [one] => one,
+            each => &each[i],
+        };
+        let u = u0 + compliance.component_mul(&q.inverse_rotate(m));
         let dq = q * Quat::pure(0.5 * u);
         let t = q.tangent();
-        let mut l = self.distributed_moment;
+        let mut l = self.distributed_moment[i];
         if self.field != Vector3::zeros() {
             l += self.magnetic_moment(i, q);
         }
@@ -210,7 +238,6 @@ impl<'a> Rod<'a> {
         mut points: Option<&mut [Vector3<f64>]>,
     ) -> TipState {
         let model = self.model;
-        let h = model.ds();
         let (mut q, mut r, mut m) = (model.base(), model.base_position(), m0);
         let mut force = n0;
         if let Some(qs) = quats.as_mut() {
@@ -228,8 +255,9 @@ impl<'a> Rod<'a> {
                 break;
             }
             let u0 = model.rod().loading.rest_curvature[i];
-            let f_mid = force - 0.5 * h * self.distributed;
-            let f_end = force - h * self.distributed;
+            let h = model.h(i + 1);
+            let f_mid = force - 0.5 * h * self.distributed[i];
+            let f_end = force - h * self.distributed[i];
             let (dq1, dr1, dm1) = self.derivative(i, q, m, force, u0);
             let (dq2, dr2, dm2) =
                 self.derivative(i, add(q, dq1, 0.5 * h), m + 0.5 * h * dm1, f_mid, u0);
@@ -799,12 +827,9 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
     if let (Some(q), true) = (initial, held) {
         let (a, b) = (model.base(), q[1].normalized());
         let b = if a.dot(b) < 0.0 { -b } else { b };
-        let u = (2.0 / model.ds()) * (a.conj() * b).v;
-        return a.rotate(
-            model
-                .stiffness()
-                .component_mul(&(u - model.rod().loading.rest_curvature[0])),
-        );
+        let u = (2.0 / model.h(1)) * (a.conj() * b).v;
+        let stiffness = model.rod().loading.stiffness[0];
+        return a.rotate(stiffness.component_mul(&(u - model.rod().loading.rest_curvature[0])));
     }
     let rest = match initial {
         Some(q) => q.iter().map(|q| q.normalized()).collect(),
@@ -815,8 +840,8 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
     let base = r[0];
     let mut moment = rod.end_moment(rest[model.n()]) - rod.point_moment[model.n()];
     for i in 0..model.n() {
-        let mid = 0.5 * (r[i] + r[i + 1]) - base;
-        moment += mid.cross(&(rod.distributed * model.ds())) + rod.distributed_moment * model.ds();
+        let (mid, h) = (0.5 * (r[i] + r[i + 1]) - base, model.h(i + 1));
+        moment += mid.cross(&(rod.distributed[i] * h)) + rod.distributed_moment[i] * h;
         if rod.field != Vector3::zeros() {
             let next = if rest[i].dot(rest[i + 1]) < 0.0 {
                 -rest[i + 1]
@@ -824,7 +849,7 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
                 rest[i + 1]
             };
             let turn = slerp(rest[i], next, 0.5);
-            moment += rod.magnetic_moment(i, turn) * model.ds();
+            moment += rod.magnetic_moment(i, turn) * h;
         }
     }
     for (node, (p, m)) in rod.point.iter().zip(&rod.point_moment).enumerate() {

@@ -184,14 +184,16 @@ impl Solver {
             n_elements: model.n(),
             scheme: crate::disc::Scheme::Rk4,
             length: model.length(),
-            section_lengths: Vec::new(),
+            section_lengths: self.scene.section_lengths(),
             quaternions: w.q.clone(),
             positions,
             internal_quaternions: Vec::new(),
             breaks: Some(model.breaks().to_vec()),
             forces: model.node_forces(&reactions),
             stiffness: model.stiffness(),
-            section_stiffness: Vec::new(),
+            section_stiffness: (0..self.scene.sections.len())
+                .map(|k| self.scene.section_stiffness(k))
+                .collect(),
             rest_curvature: self.scene.rest_curvature.clone(),
             tip_moment: model.tip_moment(),
             tip_reaction_force: tip.reaction_force,

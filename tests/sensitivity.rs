@@ -317,3 +317,59 @@ fn calibration_recovers_known_parameters_within_their_uncertainty() {
         fit.rms
     );
 }
+
+/// A precurved rod with a tendon whose tip, under its weight, rests on a
+/// floor where it stood unloaded (`floor`: that height, with friction 0.3;
+/// none: no floor, no weight).
+fn tendon_arc(floor: Option<f64>) -> Scene {
+    let mut text = String::from(
+        r#"{"length": 1, "stiffness": {"kx": 1, "ky": 1, "kz": 1},
+            "base_quaternion": [0.7071067811865476, 0, 0.7071067811865476, 0],
+            "rest_curvature": [[0, 2]],
+            "tendons": [{"tension": 0.1, "offset": [0.01, 0]}]"#,
+    );
+    if let Some(z) = floor {
+        text += &format!(
+            r#", "gravity": {{"linear_density": 1, "vector": [0, 0, -1]}},
+            "obstacles": [{{"shape": "half_space", "point": [0, 0, {z}],
+                            "normal": [0, 0, 1], "friction": 0.3}}]"#
+        );
+    }
+    Scene::from_json_str(&(text + "}")).unwrap()
+}
+
+/// The inverse kinematics' Jacobian with friction lets what sticks go, its
+/// friction held as a fixed force: the same equilibrium, so a differenced
+/// drive (a tendon's tension, through the general sensitivity) is given
+/// there. Releasing the contact's friction altogether had left the residual
+/// far from converged, and that sensitivity refused ("needs a converged
+/// equilibrium"): a tendon-driven robot's IK could not step where its
+/// contact stuck. Held, the stuck tip does not move along the floor.
+#[test]
+fn what_sticks_is_let_go_at_the_same_equilibrium_for_every_drive() {
+    let settings = Settings {
+        n_elements: Some(40),
+        ..Settings::default()
+    };
+    let rest = softspine::solve(&tendon_arc(None), settings.clone(), None).unwrap();
+    let mut solver = Solver::new(&tendon_arc(Some(rest.tip_position().z)), settings).unwrap();
+    let sol = solver.solve(None).unwrap();
+    assert!(sol.converged() && sol.contacts.len() == 1 && !sol.contacts[0].sliding);
+    let held = solver.sensitivity(&["tendons[0].tension"]).unwrap();
+    assert!(
+        held.tip_position.column(0).xy().norm() < 1e-9,
+        "{}",
+        held.tip_position
+    );
+    let released = solver
+        .with_sticking_released(|s| s.sensitivity(&["tendons[0].tension"]))
+        .unwrap();
+    assert!(
+        released.tip_position[(0, 0)].abs() > 1e-3,
+        "{}",
+        released.tip_position
+    );
+    // The workspace is the equilibrium's again.
+    let again = solver.sensitivity(&["tendons[0].tension"]).unwrap();
+    assert_eq!(again.tip_position, held.tip_position);
+}

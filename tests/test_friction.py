@@ -255,6 +255,17 @@ def test_a_robot_curled_into_a_frictional_wall_is_held_back_the_more_friction():
     assert 0.0 > heights[0] > heights[1] > heights[2], heights
 
 
+def test_a_sensitivity_moving_the_rod_against_what_sticks_is_refused_by_name(rest_tip):
+    # The base moved under a stuck tip: the sticking rows' own motion is not
+    # differenced, and the answer was the tip dragged along with the base
+    # (the floor does not move); refused by name while anything sticks.
+    solver = softspine.Solver(arc(1.0, 0.3, floor=rest_tip[2]), n_elements=N)
+    assert solver.solve().contacts["sliding"].tolist() == [False]
+    with pytest.raises(ValueError, match=r"base_position\[0\].*sticks"):
+        solver.sensitivity("base_position[0]")
+    assert solver.sensitivity("tip_force[0]").tip_position.shape == (3, 1)
+
+
 BALL = {"shape": "sphere", "centre": [0.08, 0.0, -0.5], "radius": 0.08}
 
 

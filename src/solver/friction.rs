@@ -898,10 +898,12 @@ pub(crate) fn unstick(w: &mut Workspace, (sliding, sticks): StuckState) {
 /// rows, and the ports' states.
 pub(crate) type Released = (Vec<Option<Anchor>>, Vec<Stick>, Vec<PortSlip>);
 
-/// Let every sticking contact and port go (frictionless there), a sliding
-/// one keeping its friction: the equations of a step in which what sticks
-/// starts to slide, whichever way. (A sticking contact's own derivative
-/// holds it where it is: a tip stuck on a wall does not move at all.)
+/// Let every sticking contact and port go, free to slide with their
+/// friction held at its value (a fixed force, no rows), a sliding one
+/// keeping its own: the equations of a step in which what sticks starts to
+/// slide, whichever way. The equilibrium is the same one. (A sticking
+/// contact's own derivative holds it where it is: a tip stuck on a wall
+/// does not move at all.)
 pub(crate) fn release_sticking(w: &mut Workspace) -> Released {
     let f = &mut w.kkt.contact.friction;
     let kept = (
@@ -909,13 +911,21 @@ pub(crate) fn release_sticking(w: &mut Workspace) -> Released {
         std::mem::take(&mut f.sticks),
         f.ports.clone(),
     );
-    for stick in &kept.1 {
-        f.anchors[stick.slot] = None;
-    }
+    // A port's row then keeps its multiplier, the friction, where it is.
     for port in f.ports.iter_mut().filter(|p| p.sliding.is_none()) {
         port.anchor = None;
     }
     kept
+}
+
+/// Whether a contact or a port sticks at the last evaluation (its rows
+/// hold a material point where it is).
+pub(crate) fn sticks_anywhere(model: &RodModel, w: &Workspace) -> bool {
+    let f = &w.kkt.contact.friction;
+    !f.sticks.is_empty()
+        || model
+            .frictional_ports()
+            .any(|j| f.ports[j].anchor.is_some() && f.ports[j].sliding.is_none())
 }
 
 /// Put back what [`release_sticking`] changed.

@@ -230,6 +230,7 @@ impl Solver {
             return Ok(out);
         }
         let w = &mut self.work;
+        refuse_moving_what_sticks(model, w, "base_sensitivity")?;
         self.state_tangents_at.clear();
         self.state_tangents.clear();
         self.jacobian_at_solution = false;
@@ -1013,6 +1014,9 @@ impl Solver {
                     }
                 }
             } else {
+                if model.has_contact() {
+                    refuse_moving_what_sticks(model, w, &out.parameters[j])?;
+                }
                 let (stencil, d) = if model.has_contact() {
                     let found = differenced(
                         model,
@@ -1171,6 +1175,20 @@ impl Solver {
         }
         Ok(out)
     }
+}
+
+/// A parameter that moves the rod against its surroundings (the base, a
+/// differenced one) while a contact or port sticks is refused by name: the
+/// sticking rows' own motion is not differenced (the IK's Jacobian, which
+/// lets what sticks go, has none).
+fn refuse_moving_what_sticks(model: &RodModel, w: &super::Workspace, name: &str) -> Result<()> {
+    if !super::friction::sticks_anywhere(model, w) {
+        return Ok(());
+    }
+    Err(Error::argument(
+        name,
+        "not given while a contact or port sticks: it moves the rod against what holds it",
+    ))
 }
 
 /// The loading's derivatives in the named parameters, each from its term.

@@ -50,3 +50,30 @@ def pushed_along_a_floor(ei: float, weight: float, mu: float, length: float,
     assert fit.success, fit.message
     displacement: np.ndarray = np.linalg.solve(k, b - fit.x)
     return displacement
+
+
+def check_step_sensitivity(scene: dict, start, force: np.ndarray, n: int, state,
+                           atol: float = 2e-9) -> np.ndarray:
+    """The tip's sensitivity to the tip force at the end of the step from
+    `start` (a Solution) to `force`, against central differences of that
+    step: whole solves from the same start to the force moved either way by
+    1e-6 N, each keeping the friction state `state(solution)` the step
+    ended in. Returns the sensitivity (3 x 3)."""
+    import softspine
+
+    solver = softspine.Solver({**scene, "tip_force": list(force)}, n_elements=n)
+    sol = solver.solve(start)
+    assert sol.converged, sol.message
+    sens = solver.sensitivity(["tip_force[0]", "tip_force[1]", "tip_force[2]"]).tip_position
+    delta = 1e-6
+    for j in range(3):
+        tips = []
+        for sign in (1.0, -1.0):
+            moved = np.array(force, dtype=float)
+            moved[j] += sign * delta
+            step = softspine.solve({**scene, "tip_force": list(moved)}, n_elements=n,
+                                   initial=start)
+            assert state(step) == state(sol)
+            tips.append(step.tip_position)
+        np.testing.assert_allclose(sens[:, j], (tips[0] - tips[1]) / (2.0 * delta), atol=atol)
+    return sens

@@ -335,9 +335,14 @@ pub(crate) fn load(model: &RodModel, w: &mut Workspace) {
         return;
     }
     let n = model.n();
-    work.chords.resize(n, (Matrix3::zeros(), Matrix3::zeros()));
-    if !model.chord_jacobians(&w.q, &mut work.chords) {
-        return;
+    if w.kkt.contact.chords_loaded {
+        // This step's, loaded once for every row.
+        work.chords.clone_from(&w.kkt.contact.chords);
+    } else {
+        work.chords.resize(n, (Matrix3::zeros(), Matrix3::zeros()));
+        if !model.chord_jacobians(&w.q, &mut work.chords) {
+            return;
+        }
     }
     if model.clamped_tip().is_some() {
         // The tip's rotation is held: it moves no chord.

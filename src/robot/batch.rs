@@ -436,7 +436,7 @@ impl Robot {
         settings: &BatchSettings,
     ) -> Result<Sample> {
         solver.set_drives(&a.rest_curvature, &a.tensions, a.field)?;
-        solver.set_base_position(self.body.base_position + a.insertion * self.insertion_axis())?;
+        solver.set_base_position(self.base_at(a.insertion))?;
         let near =
             last.q.is_some() && self.actuation_turn(&last.actuation, a, stiffness) < WARM_TURN;
         let from = if settings.warm_start && near {

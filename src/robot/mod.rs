@@ -267,7 +267,7 @@ impl Robot {
             )
         }?;
         self.check_insertion(actuation.insertion)?;
-        scene.base_position += actuation.insertion * self.insertion_axis();
+        scene.base_position = self.base_at(actuation.insertion);
         Ok(scene)
     }
 
@@ -275,6 +275,11 @@ impl Robot {
     /// the end of a loading history.
     pub fn has_friction(&self) -> bool {
         self.friction.iter().any(|mu| *mu > 0.0) || self.ports.iter().any(|p| p.friction > 0.0)
+    }
+
+    /// Where an insertion [m] puts the base: moved along its tangent.
+    pub fn base_at(&self, insertion: f64) -> Vector3<f64> {
+        self.body.base_position + insertion * self.insertion_axis()
     }
 
     /// The direction the insertion moves the base: its tangent.
@@ -657,7 +662,7 @@ impl Robot {
         let [lo, hi] = self.insertion_range.unwrap_or([0.0, 0.0]);
         for (i, port) in self.ports.iter().enumerate() {
             for d in [lo, hi] {
-                let base = self.body.base_position + d * self.insertion_axis();
+                let base = self.base_at(d);
                 if port.axis.dot(&(port.position - base)) <= 0.0 {
                     let key = match self.insertion_range {
                         Some(_) => "insertion_range".to_string(),

@@ -1315,10 +1315,19 @@ impl CurvatureInverse {
         };
         for block in &contact.curvature_blocks {
             let size = block.nrows();
-            let transposed = block.transpose();
-            let skew = (block - &transposed).amax();
+            // Its asymmetry, read in place (this runs at every Newton step).
+            let skew = (0..size)
+                .flat_map(|a| (0..a).map(move |b| (a, b)))
+                .fold(0.0f64, |m, (a, b)| {
+                    m.max((block[(a, b)] - block[(b, a)]).abs())
+                });
             if symmetric_part || skew <= SYMMETRIC_BLOCK * block.amax() {
-                let eig = SymmetricEigen::new(0.5 * (block + &transposed));
+                let symmetric = if skew == 0.0 {
+                    block.clone()
+                } else {
+                    0.5 * (block + block.transpose())
+                };
+                let eig = SymmetricEigen::new(symmetric);
                 let largest = eig.eigenvalues.amax();
                 for (k, value) in eig.eigenvalues.iter().enumerate() {
                     if value.abs() <= 1e-12 * largest {

@@ -270,8 +270,7 @@ impl InverseSolver {
         self.path = None;
         self.q = Some(start.quaternions.clone());
         if !matches!(self.stance, Stance::Frictionless) {
-            let insertion = start.insertion.unwrap_or(0.0);
-            let base = self.robot.body.base_position + insertion * self.robot.insertion_axis();
+            let base = self.robot.base_at(start.insertion.unwrap_or(0.0));
             self.stance = Stance::At(start.quaternions.clone(), base);
         }
         Ok(())

@@ -42,11 +42,12 @@ impl TipSensitivity {
 
 impl Solver {
     /// `f` of this solver with every sticking contact and port of its last
-    /// equilibrium released (frictionless there; a sliding one keeps its
-    /// friction), then its state put back: the inverse kinematics' Jacobian
-    /// with friction. The exact one holds a stuck contact where it is (a tip
-    /// stuck on a wall has no derivative along it), where the descent needs
-    /// the way friction lets the robot go once it moves on. Without friction, `f`.
+    /// equilibrium released (free to slide, its friction held at its value;
+    /// a sliding one keeps its own), then its state put back: the inverse
+    /// kinematics' Jacobian with friction. The exact one holds a stuck
+    /// contact where it is (a tip stuck on a wall has no derivative along
+    /// it), where the descent needs the way friction lets the robot go once
+    /// it moves on. Without friction, `f`.
     pub fn with_sticking_released<T>(&mut self, f: impl FnOnce(&mut Solver) -> T) -> T {
         if !self.model.has_friction() {
             return f(self);

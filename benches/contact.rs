@@ -1,6 +1,7 @@
 //! Frictionless contact (issue 28): a heavy rod lying on a floor (every node
 //! in contact) and lifted off it, a cantilever pressed on a knife edge, and
-//! the seed's robot bent into a wall, beside the same robot without it.
+//! the seed's robot bent into a wall and onto a ball, beside the same robot
+//! without them.
 //! Sliding ports: a heavy cantilever bent through a port off its line, the
 //! seed's robot bent through a port, and its inverse kinematics along a
 //! circle with the insertion as one more coordinate. Friction: the rod on a
@@ -122,6 +123,15 @@ fn scenes(c: &mut Criterion) {
         }],
         ..Robot::default()
     };
+    // The same robot leaning on a ball of 10 cm its rest shape runs through
+    // (one contact, on the ball's near side).
+    let balled = Robot {
+        obstacles: vec![Obstacle::Sphere {
+            centre: Vector3::new(0.2, 0.0, -0.75),
+            radius: 0.1,
+        }],
+        ..Robot::default()
+    };
     let walled_friction = Robot {
         friction: vec![0.5],
         ..walled.clone()
@@ -139,6 +149,7 @@ fn scenes(c: &mut Criterion) {
     for (name, robot, drive) in [
         ("robot_free", Robot::default(), &bend),
         ("robot_wall", walled, &bend),
+        ("robot_ball", balled, &bend),
         ("robot_wall_friction", walled_friction, &bend),
         ("robot_port", ported.clone(), &inserted),
     ] {

@@ -263,6 +263,49 @@ def test_a_robot_bent_into_a_wall_leans_on_it():
     assert again.to_dict()["obstacles"] == [WALL] and again.to_dict()["radius"] == 0.03
 
 
+BALL = {"shape": "sphere", "centre": [0.2, 0.0, -0.75], "radius": 0.1}
+
+
+def test_a_robot_whose_rest_shape_runs_through_a_ball_leans_on_its_near_side():
+    # Bent 0.6 /m the rest shape runs through the ball; the solve starts
+    # from the free equilibrium (less deep in it, not through it) and ends
+    # where Newton from the rest shape itself ends, on the ball's near side.
+    bend = np.zeros((10, 2))
+    bend[:, 1] = 0.6
+    robot = softspine.Robot({"obstacles": [BALL]})
+    rest = softspine.Robot().forward(bend, load=0.0)
+    centre = np.array(BALL["centre"])
+    assert np.linalg.norm(rest.positions - centre, axis=1).min() < 0.1
+    sol = robot.forward(bend, load=0.03)
+    assert sol.converged and sol.stable, sol.message
+    assert len(sol.contacts["force"]) == 1 and sol.contacts["normal"][0, 0] < -0.9
+    # The surface (2 cm off the backbone) touches the ball, nowhere inside.
+    distance = np.linalg.norm(sol.positions - centre, axis=1)
+    assert distance.min() > 0.12 - 1e-9
+    from_rest = robot.forward(bend, load=0.03, initial=rest.quaternions)
+    assert from_rest.converged
+    np.testing.assert_allclose(sol.positions, from_rest.positions, atol=1e-9)
+    np.testing.assert_allclose(sol.contacts["force"], from_rest.contacts["force"], rtol=1e-8)
+
+
+def test_a_rod_whose_rest_shape_runs_into_a_thin_edge_is_not_dropped_through_it():
+    # A rod at rest 1 mm above the axis of a knife edge 5 mm thick: deep in
+    # a curved obstacle, so the solve would start from the free
+    # equilibrium, but that one sags 7 cm clear under the edge, through it:
+    # Newton from it would find the rod hanging free below the edge. The
+    # rod is pushed up out of the edge and rests on it.
+    rho = 0.005
+    scene = knife_edge_scene(0.5, 0.6, rho)
+    scene["base_position"] = [0.0, 0.0, -rho + 0.001]
+    free = softspine.solve({k: v for k, v in scene.items() if k != "obstacles"}, n_elements=20)
+    assert free.positions[:, 2].min() < -0.05
+    sol = softspine.solve(scene, n_elements=20)
+    assert sol.converged and sol.stable, sol.message
+    assert len(sol.contacts["force"]) >= 1
+    assert sol.contacts["normal"][:, 2].min() > 0.99
+    np.testing.assert_allclose(sol.contacts["arc_length"].mean(), 0.6, atol=0.01)
+
+
 def test_a_target_inside_an_obstacle_is_refused_with_the_reason():
     robot = softspine.Robot({"obstacles": [WALL]})
     ik = robot.inverse([0.2, 0.0, -0.9], load=0.03)

@@ -11,7 +11,7 @@
 //! is smooth, except a lumen of varying radius (see [`Obstacle::Lumen`]).
 
 pub mod mesh_file;
-mod obstacle;
+pub(crate) mod obstacle;
 mod port;
 mod triangle_mesh;
 

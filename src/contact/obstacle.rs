@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::read::{finite, string, vec3, Table};
 use crate::value::Value;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// A rigid obstacle, world frame [m].
 #[derive(Debug, Clone, PartialEq)]
@@ -149,6 +149,49 @@ impl Obstacle {
             }
             Obstacle::Lumen { centreline, radius } => lumen(p, centreline, radius),
             Obstacle::Mesh(mesh) => mesh.proximity(p),
+        }
+    }
+
+    /// The derivative of the normal field at `p`, `dnu/dp` (the Hessian of
+    /// the gap where it is a distance): in closed form for a plane, a sphere
+    /// and a capsule, by central differences of step `step` [m] for the
+    /// others. It turns a contact force with the surface it leans on (see
+    /// `solver::contact::curvature`).
+    pub fn normal_jacobian(&self, p: &Vector3<f64>, step: f64) -> Matrix3<f64> {
+        // A sphere about `c` (a capsule's nearest axis point) seen from `p`,
+        // with the directions `along` in which the normal does not turn.
+        let round = |c: Vector3<f64>, along: Option<Vector3<f64>>| {
+            let d = p - c;
+            let distance = d.norm();
+            if distance == 0.0 {
+                return Matrix3::zeros();
+            }
+            let nu = d / distance;
+            let mut flat = Matrix3::identity() - nu * nu.transpose();
+            if let Some(t) = along {
+                flat -= t * t.transpose();
+            }
+            flat / distance
+        };
+        match self {
+            Obstacle::HalfSpace { .. } => Matrix3::zeros(),
+            Obstacle::Sphere { centre, .. } => round(*centre, None),
+            Obstacle::Capsule { a, b, .. } => {
+                let t = segment_parameter(p, a, b);
+                let axis = (b - a).try_normalize(0.0);
+                let inside = t > 0.0 && t < 1.0;
+                round(a + t * (b - a), axis.filter(|_| inside))
+            }
+            _ => {
+                let mut jacobian = Matrix3::zeros();
+                for axis in 0..3 {
+                    let mut e = Vector3::zeros();
+                    e[axis] = step;
+                    let turn = self.proximity(&(p + e)).normal - self.proximity(&(p - e)).normal;
+                    jacobian.set_column(axis, &(turn / (2.0 * step)));
+                }
+                jacobian
+            }
         }
     }
 
@@ -674,7 +717,7 @@ pub(crate) mod tests {
     use super::*;
 
     /// One of each shape.
-    fn shapes() -> Vec<Obstacle> {
+    pub(crate) fn shapes() -> Vec<Obstacle> {
         let text = r#"[
             {"shape": "half_space", "point": [0, 0, -0.5], "normal": [0, 0.3, 1]},
             {"shape": "sphere", "centre": [0.2, 0.1, -0.3], "radius": 0.15},
@@ -748,6 +791,30 @@ pub(crate) mod tests {
                 }
             }
             assert!(checked > 300, "{}: {checked} smooth points", shape.shape());
+        }
+    }
+
+    #[test]
+    fn the_normals_closed_form_derivative_is_its_difference() {
+        // A plane's, a sphere's and a capsule's `normal_jacobian` in closed
+        // form against central differences of the normal (the others' are
+        // those differences).
+        let h = 1e-6;
+        for shape in shapes().into_iter().take(3) {
+            for p in points() {
+                let exact = shape.normal_jacobian(&p, h);
+                let differenced = Matrix3::from_fn(|r, c| {
+                    let d = Vector3::ith(c, h);
+                    (shape.proximity(&(p + d)).normal[r] - shape.proximity(&(p - d)).normal[r])
+                        / (2.0 * h)
+                });
+                let scale = 1.0 + differenced.norm();
+                assert!(
+                    (exact - differenced).norm() < 1e-6 * scale,
+                    "{}: at {p}, {exact} against {differenced}",
+                    shape.shape()
+                );
+            }
         }
     }
 

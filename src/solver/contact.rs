@@ -11,7 +11,7 @@
 //! strictly between the nodes (a sphere, a cylinder's edge, a box's corner
 //! between two nodes). Every obstacle's gap is convex along a chord (a
 //! signed distance to a convex set; a lumen's is concave, so its nearest
-//! point is a node), so that point is found by bisection on the gap's slope.
+//! point is a node), so that point is the root of the gap's slope, bracketed.
 //!
 //! A force `lambda nu` at the point `(1 - s) r_(k-1) + s r_k` does the
 //! virtual work of `(1 - s) lambda nu` at node `k - 1` and `s lambda nu` at
@@ -41,8 +41,8 @@ use crate::disc::NodeForces;
 use crate::model::RodModel;
 use nalgebra::{Matrix3, Vector3};
 
-/// Bisection steps for the nearest point of a chord: `2^-48` of its length.
-const BISECTION_STEPS: usize = 48;
+/// How closely the nearest point of a chord is found: `2^-48` of its length.
+const NEAREST_WIDTH: f64 = 3.552713678800501e-15;
 
 /// One slot's geometry at the last evaluation.
 #[derive(Debug, Clone, Copy)]
@@ -199,9 +199,82 @@ pub(crate) fn force(model: &RodModel, w: &Workspace, i: usize) -> f64 {
     w.kkt.reactions[offset(model, w) + i].x
 }
 
+/// The deepest penetration of any obstacle by the rod in `w.q`: the least
+/// gap of every slot (located afresh), `+inf` without obstacles.
+fn deepest_gap(model: &RodModel, w: &mut Workspace) -> f64 {
+    model.positions(&w.q, &mut w.interior, &mut w.kkt.positions);
+    locate(model, &w.kkt.positions, &mut w.kkt.contact.sites);
+    w.kkt
+        .contact
+        .sites
+        .iter()
+        .fold(f64::INFINITY, |a, s| a.min(s.gap))
+}
+
+/// The start of a direct solve among obstacles: from the start in `w.q`
+/// (the rest shape), the loaded rod's equilibrium without them, where the
+/// rest shape runs deep into a curved obstacle and the free equilibrium
+/// converges, penetrates less deeply and has not passed through any (see
+/// [`passed_through`]). Deep inside a curved obstacle the linearised gaps
+/// of the contact Newton are far off: the seed's robot whose rest shape
+/// runs through a ball takes 5 contact iterations from it and 3 from its
+/// free equilibrium, whose own 3 iterations cost a third as much each. A
+/// rest shape on or into a plane stays (its gaps are linear: a rod resting
+/// on a floor, which its loads would carry through). Returns the free
+/// solve's iterations.
+pub(crate) fn start_from_free_equilibrium(
+    model: &RodModel,
+    w: &mut Workspace,
+    (max_iter, tol): (usize, f64),
+) -> usize {
+    let at_rest = deepest_gap(model, w);
+    if at_rest >= 0.0 {
+        return 0;
+    }
+    // How far the normal turns over the depth at the deepest slot.
+    let Some((i, deepest)) =
+        (w.kkt.contact.sites.iter().enumerate()).min_by(|a, b| a.1.gap.total_cmp(&b.1.gap))
+    else {
+        return 0;
+    };
+    let obstacle = &model.obstacles()[slot(model, i).0];
+    let turn = obstacle.normal_jacobian(&deepest.point, CURVATURE_STEP * model.length());
+    if -at_rest * turn.norm() < CURVED_DEPTH {
+        return 0;
+    }
+    let (rest, rest_sites) = (w.q.clone(), w.kkt.contact.sites.clone());
+    let free = super::newton::iterate_free(model, w, 1.0, (max_iter, tol), true);
+    let kept = free.converged
+        && deepest_gap(model, w) > at_rest
+        && !passed_through(&rest_sites, &w.kkt.contact.sites);
+    if !kept {
+        w.q.copy_from_slice(&rest);
+    }
+    free.iterations
+}
+
+/// The depth into an obstacle, times the rate its normal turns there, from
+/// which a direct solve starts at the free equilibrium: the linearised gap
+/// is then off by an eighth of the depth.
+const CURVED_DEPTH: f64 = 0.25;
+
+/// Whether any slot moved from its site in `before` through its obstacle to
+/// its site in `after`: its normal reversed, and it moved beyond the
+/// tangent plane it had (a thin edge the free rod sagged through, which
+/// the contact Newton would then hold from the wrong side).
+fn passed_through(before: &[Site], after: &[Site]) -> bool {
+    before.iter().zip(after).any(|(b, a)| {
+        b.gap.is_finite()
+            && a.gap.is_finite()
+            && a.normal.dot(&b.normal) < 0.0
+            && b.gap + b.normal.dot(&(a.point - b.point)) < 0.0
+    })
+}
+
 /// The point of the chord `a`-`b` nearest the obstacle and its gap, when it
-/// lies strictly inside; `None` when it is an end. Bisection on the gap's
-/// slope along the chord (the gap is convex along it, see the module).
+/// lies strictly inside; `None` when it is an end. The root of the gap's
+/// slope along the chord (the gap is convex along it, see the module),
+/// to [`NEAREST_WIDTH`].
 fn nearest_inside(
     obstacle: &Obstacle,
     a: &Vector3<f64>,
@@ -213,13 +286,39 @@ fn nearest_inside(
     if at_a.normal.dot(&chord) >= 0.0 || at_b.normal.dot(&chord) <= 0.0 {
         return None;
     }
+    // Regula falsi with the Illinois halving, which brings both ends in;
+    // a bisection where the bracket did not halve over the last two steps
+    // (a kinked gap: a box's edge), so never slower than bisection by more
+    // than twice.
+    let slope = |t: f64| obstacle.proximity(&(a + t * chord)).normal.dot(&chord);
     let (mut lo, mut hi) = (0.0f64, 1.0f64);
-    for _ in 0..BISECTION_STEPS {
-        let mid = 0.5 * (lo + hi);
-        if obstacle.proximity(&(a + mid * chord)).normal.dot(&chord) < 0.0 {
-            lo = mid;
+    let (mut slope_lo, mut slope_hi) = (at_a.normal.dot(&chord), at_b.normal.dot(&chord));
+    // The bracket's widths one and two steps back.
+    let mut widths = [2.0f64; 2];
+    let mut last_side = 0i8;
+    while hi - lo > NEAREST_WIDTH {
+        let t = if hi - lo > 0.5 * widths[0] {
+            0.5 * (lo + hi)
         } else {
-            hi = mid;
+            (lo * slope_hi - hi * slope_lo) / (slope_hi - slope_lo)
+        };
+        let t = if t > lo && t < hi { t } else { 0.5 * (lo + hi) };
+        widths = [widths[1], hi - lo];
+        let at = slope(t);
+        if at < 0.0 {
+            (lo, slope_lo) = (t, at);
+            if last_side < 0 {
+                slope_hi *= 0.5;
+            }
+            last_side = -1;
+        } else if at > 0.0 {
+            (hi, slope_hi) = (t, at);
+            if last_side > 0 {
+                slope_lo *= 0.5;
+            }
+            last_side = 1;
+        } else {
+            (lo, hi) = (t, t);
         }
     }
     let s = 0.5 * (lo + hi);
@@ -538,24 +637,45 @@ pub(crate) fn load_row(
     }
 }
 
-/// The direction of each node's share of a unit contact force of slot `i`
-/// with its nodes at `ra` (node `k - 1`, an element's) and `rb`: `[nu]` for
-/// a node, `[(1 - s) nu, s nu]` at the chord's nearest point for an
-/// element. `None` where the element's nearest point is a node.
-fn unit_shares(
-    obstacle: &Obstacle,
+/// The derivative of a slot's unit shares of its force (`nu` at a node;
+/// `(1 - s) nu` and `s nu` at an element's nodes `a`, `b`) with its nodes'
+/// positions, from the normal's derivative `turn` at its point: 3 x 3 at a
+/// node, 6 x 6 at an element, where the point also slides along the chord
+/// to stay the nearest, `nu . (r_b - r_a) = 0`, so that
+/// `ds/dr_a = (nu - (1 - s) turn^T d) / c`, `ds/dr_b = -(s turn^T d + nu) / c`
+/// with `d = r_b - r_a` and `c = d^T turn d` (> 0: the gap is convex along
+/// the chord).
+fn share_jacobian(
     place: Place,
+    site: &Site,
+    turn: &Matrix3<f64>,
     ra: &Vector3<f64>,
     rb: &Vector3<f64>,
-) -> Option<[Vector3<f64>; 2]> {
-    match place {
-        Place::Node(_) => Some([obstacle.proximity(rb).normal, Vector3::zeros()]),
-        Place::Element(_) => {
-            let (pa, pb) = (obstacle.proximity(ra), obstacle.proximity(rb));
-            let (s, p) = nearest_inside(obstacle, ra, rb, &pa, &pb)?;
-            Some([(1.0 - s) * p.normal, s * p.normal])
+) -> nalgebra::DMatrix<f64> {
+    if let Place::Node(_) = place {
+        return nalgebra::DMatrix::from_iterator(3, 3, turn.iter().copied());
+    }
+    let (s, nu) = (site.s, site.normal);
+    let d = rb - ra;
+    let c = d.dot(&(turn * d));
+    let along = turn.transpose() * d;
+    // The weights of the shares and of the point's motion, node a then b.
+    let weights = [1.0 - s, s];
+    let slide = if c > 0.0 {
+        [(nu - (1.0 - s) * along) / c, -(s * along + nu) / c]
+    } else {
+        [Vector3::zeros(); 2]
+    };
+    let mut jac = nalgebra::DMatrix::zeros(6, 6);
+    for (i, (wi, sign)) in weights.iter().zip([-1.0, 1.0]).enumerate() {
+        for (j, (wj, ds)) in weights.iter().zip(&slide).enumerate() {
+            // d(w_i nu)/dr_j = (dw_i/ds) nu ds^T + w_i turn (w_j I + d ds^T)
+            let part = sign * nu * ds.transpose()
+                + *wi * turn * (Matrix3::identity() * *wj + d * ds.transpose());
+            jac.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&part);
         }
     }
+    jac
 }
 
 /// Relative step of the differences of a contact's force directions: a
@@ -593,8 +713,7 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
             Place::Node(k) => (k, k),
             Place::Element(k) => (k - 1, k),
         };
-        let r = &w.kkt.positions;
-        let step = CURVATURE_STEP * model.h(b.max(1));
+        let site = &w.kkt.contact.sites[i];
         // The nodes that move: a clamped base (node 0) and a clamped tip
         // do not.
         let moving: Vec<usize> = match place {
@@ -604,44 +723,18 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
         .into_iter()
         .filter(|&k| k > 0 && !(clamped && k == n))
         .collect();
-        if moving.is_empty() {
+        // An element's point at one of its nodes is that node's (it has no
+        // slide along the chord to differentiate).
+        if moving.is_empty() || (matches!(place, Place::Element(_)) && !site.inside) {
             continue;
         }
-        let shares = match place {
-            Place::Node(_) => 1,
-            Place::Element(_) => 2,
-        };
-        // dF/dr: rows the nodes' shares (3 each), columns the moving nodes' coordinates.
-        let mut jac = nalgebra::DMatrix::zeros(3 * shares, 3 * moving.len());
-        let mut ok = true;
-        for (m, &k) in moving.iter().enumerate() {
-            for axis in 0..3 {
-                let shifted = |sign: f64| {
-                    let (mut ra, mut rb) = (r[a], r[b]);
-                    if k == a && shares == 2 {
-                        ra[axis] += sign * step;
-                    } else {
-                        rb[axis] += sign * step;
-                    }
-                    unit_shares(obstacle, place, &ra, &rb)
-                };
-                let (Some(plus), Some(minus)) = (shifted(1.0), shifted(-1.0)) else {
-                    ok = false;
-                    break;
-                };
-                for share in 0..shares {
-                    let d = (plus[share] - minus[share]) / (2.0 * step);
-                    jac.view_mut((3 * share, 3 * m + axis), (3, 1))
-                        .copy_from(&d);
-                }
-            }
-        }
-        if !ok {
-            continue;
-        }
-        // The shares act on the nodes in `moving` (a base node's share goes
-        // into the clamp): keep the rows of the moving nodes.
-        let rows: Vec<usize> = match place {
+        let step = CURVATURE_STEP * model.h(b.max(1));
+        let turn = obstacle.normal_jacobian(&site.point, step);
+        let jac = share_jacobian(place, site, &turn, &w.kkt.positions[a], &w.kkt.positions[b]);
+        // dF/dr, rows the nodes' shares and columns their coordinates (3
+        // each); a base node's share goes into the clamp: keep the moving
+        // nodes' rows and columns.
+        let kept: Vec<usize> = match place {
             Place::Node(_) => vec![0],
             Place::Element(_) => [(a, 0), (b, 1)]
                 .into_iter()
@@ -649,12 +742,13 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
                 .map(|(_, share)| share)
                 .collect(),
         };
-        let mut block = nalgebra::DMatrix::zeros(3 * moving.len(), 3 * moving.len());
-        for (row, &share) in rows.iter().enumerate() {
-            let part = jac.view((3 * share, 0), (3, 3 * moving.len()));
-            block
-                .view_mut((3 * row, 0), (3, 3 * moving.len()))
-                .copy_from(&part);
+        let mut block = nalgebra::DMatrix::zeros(3 * kept.len(), 3 * kept.len());
+        for (row, &r) in kept.iter().enumerate() {
+            for (column, &c) in kept.iter().enumerate() {
+                block
+                    .fixed_view_mut::<3, 3>(3 * row, 3 * column)
+                    .copy_from(&jac.fixed_view::<3, 3>(3 * r, 3 * c));
+            }
         }
         let block = -lambda * 0.5 * (&block + block.transpose());
         if block.amax() == 0.0 {
@@ -760,4 +854,91 @@ pub(crate) fn contacts(model: &RodModel, w: &Workspace) -> Vec<Contact> {
         .collect();
     out.sort_by(|a, b| a.arc_length.total_cmp(&b.arc_length));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::obstacle::tests::{points, shapes};
+
+    /// A slot's unit shares with its chord at `ra`, `rb` (an element's), or
+    /// `None` where the chord's nearest point is an end.
+    fn shares(
+        obstacle: &Obstacle,
+        ra: &Vector3<f64>,
+        rb: &Vector3<f64>,
+    ) -> Option<[Vector3<f64>; 2]> {
+        let (pa, pb) = (obstacle.proximity(ra), obstacle.proximity(rb));
+        let (s, p) = nearest_inside(obstacle, ra, rb, &pa, &pb)?;
+        Some([(1.0 - s) * p.normal, s * p.normal])
+    }
+
+    #[test]
+    fn the_shares_derivative_is_their_difference() {
+        // `share_jacobian` (the normal's turn and the point's slide along the
+        // chord) against central differences of the shares, each with its
+        // chord's nearest point found again, for chords whose nearest point
+        // lies inside them on every curved shape (a lumen's is a node).
+        let h = 1e-6;
+        let points = points();
+        let curved = shapes().into_iter().skip(1);
+        for shape in curved.filter(|o| !matches!(o, Obstacle::Lumen { .. })) {
+            let mut checked = 0;
+            for pair in points.chunks(2) {
+                let (ra, rb) = (pair[0], pair[0] + 0.2 * (pair[1] - pair[0]));
+                let (pa, pb) = (shape.proximity(&ra), shape.proximity(&rb));
+                let Some((s, p)) = nearest_inside(&shape, &ra, &rb, &pa, &pb) else {
+                    continue;
+                };
+                let site = Site {
+                    gap: p.gap,
+                    normal: p.normal,
+                    s,
+                    point: ra + s * (rb - ra),
+                    inside: true,
+                };
+                let turn = shape.normal_jacobian(&site.point, 1e-7);
+                let exact = share_jacobian(Place::Element(1), &site, &turn, &ra, &rb);
+                let mut differenced = nalgebra::DMatrix::zeros(6, 6);
+                let mut smooth = true;
+                for column in 0..6 {
+                    let d = Vector3::ith(column % 3, h);
+                    let moved = |sign: f64| {
+                        let (mut a, mut b) = (ra, rb);
+                        if column < 3 {
+                            a += sign * d;
+                        } else {
+                            b += sign * d;
+                        }
+                        shares(&shape, &a, &b)
+                    };
+                    let (Some(plus), Some(minus)) = (moved(1.0), moved(-1.0)) else {
+                        smooth = false;
+                        break;
+                    };
+                    for share in 0..2 {
+                        let change = (plus[share] - minus[share]) / (2.0 * h);
+                        differenced
+                            .fixed_view_mut::<3, 1>(3 * share, column)
+                            .copy_from(&change);
+                    }
+                }
+                // Away from a box's or a mesh's edges, where the normal jumps.
+                if !smooth || differenced.norm() > 1e3 {
+                    continue;
+                }
+                let scale = 1.0 + differenced.norm();
+                if shape.has_edges() && (&exact - &differenced).norm() > 1e-3 * scale {
+                    continue;
+                }
+                assert!(
+                    (&exact - &differenced).norm() < 1e-5 * scale,
+                    "{}: chord {ra} to {rb}, {exact} against {differenced}",
+                    shape.shape()
+                );
+                checked += 1;
+            }
+            assert!(checked > 5, "{}: {checked} chords", shape.shape());
+        }
+    }
 }

@@ -636,6 +636,20 @@ impl Solver {
             };
             friction::anchor_at_saved_moved(model, w, moved);
         }
+        // Among obstacles only (nothing held, no friction, whose history
+        // starts at rest), Newton may start from the free equilibrium.
+        let among_obstacles = model.has_obstacles()
+            && !model.has_friction()
+            && model.constraints().is_empty()
+            && model.clamped_tip().is_none()
+            && model.ports().is_empty();
+        if initial.is_none()
+            && among_obstacles
+            && self.settings.method.engine() == Engine::Potential(Local::Newton)
+        {
+            let budget = ((budget - spent).min(DIRECT_ITERATIONS), tol);
+            spent += contact::start_from_free_equilibrium(model, w, budget);
+        }
         let direct = if follow_path {
             LocalOutcome {
                 converged: false,

@@ -102,6 +102,19 @@ fn iterate(
             iterations,
         };
     }
+    iterate_free(model, w, lambda, (max_iter, tol), give_up_when_stalled)
+}
+
+/// [`iterate`] on the rod's own equations (its loads, nothing held or
+/// touched): a free rod's Newton, and the start among obstacles that
+/// `contact::start_from_free_equilibrium` tries.
+pub(crate) fn iterate_free(
+    model: &RodModel,
+    w: &mut Workspace,
+    lambda: f64,
+    (max_iter, tol): (usize, f64),
+    give_up_when_stalled: bool,
+) -> LocalOutcome {
     model.residual_jacobian(&w.q, lambda, &mut w.interior, &mut w.g, &mut w.jac);
     let mut merit = model.merit(&w.g);
     let mut progress = Progress::new();

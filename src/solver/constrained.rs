@@ -246,6 +246,11 @@ pub(crate) fn evaluate(
             }
         }
     }
+    evaluated_merit(model, w)
+}
+
+/// The merit of the last evaluation with the present candidates' gaps.
+fn evaluated_merit(model: &RodModel, w: &Workspace) -> f64 {
     let contact = &w.kkt.contact;
     let gaps = contact.gaps.iter().zip(&contact.held);
     let contact_rows: f64 = gaps.map(|(x, held)| contact_error(*x, *held).powi(2)).sum();
@@ -500,7 +505,7 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     // The contacts' curvature: the Jacobian is `A + U M U^T`, whose inverse
     // the Woodbury identity applies from `A`'s.
     if !w.kkt.contact.curvature_blocks.is_empty() {
-        let Some(curvature) = CurvatureInverse::new(lu, w, false) else {
+        let Some(curvature) = CurvatureInverse::for_step(lu, w) else {
             return false;
         };
         curvature.correct(&mut w.scratch);
@@ -1096,19 +1101,31 @@ fn newton_at(
     // the pass before need not.
     let reevaluated = model.has_obstacles() || model.has_friction();
     let mut merit_now = evaluate(model, w, lambda, !reevaluated);
+    // Whether `w` holds the evaluation of its state, Jacobian and all (a
+    // step's first trial, accepted): where the candidates then chosen move
+    // no force (no friction to update), it stands.
+    let mut evaluated_with_jacobian = false;
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
         // The contact candidates of this step (see `contact.rs`); a step
         // whose QP changes which are held certifies nothing.
         let mut held_before = Vec::new();
         if reevaluated {
+            let mut forces_moved = true;
             if model.has_obstacles() {
-                contact::select_candidates(model, w, contact_margin(model));
+                forces_moved = contact::select_candidates(model, w, contact_margin(model));
             }
             friction::update(model, w);
-            merit_now = evaluate(model, w, lambda, true);
+            if evaluated_with_jacobian && !forces_moved && !model.has_friction() {
+                contact::gather_forces(model, w);
+                contact::gather_gaps(w);
+                merit_now = evaluated_merit(model, w);
+            } else {
+                merit_now = evaluate(model, w, lambda, true);
+            }
             held_before = contact::held_slots(w);
         }
+        evaluated_with_jacobian = false;
         let norm = residual_norm(model, w);
         if !norm.is_finite() || interrupt::requested() {
             return (false, it);
@@ -1149,17 +1166,24 @@ fn newton_at(
         if it == max_iter {
             return (false, it);
         }
-        if let Err(merit_back) = search_along_step(model, w, lambda, merit_now, tol) {
-            // A step whose QP changed the held set and that the merit
-            // refuses: the contact set has cycled into a bad guess. Step
-            // once with the held set the iteration began with, unchosen.
-            if settled || !hold_and_step(model, w, lambda, &held_before, merit_back) {
-                return (false, it + 1);
+        match search_along_step(model, w, lambda, merit_now, tol) {
+            Ok((merit, with_jacobian)) => {
+                evaluated_with_jacobian = with_jacobian;
+                merit_now = merit;
+            }
+            Err(merit_back) => {
+                // A step whose QP changed the held set and that the merit
+                // refuses: the contact set has cycled into a bad guess. Step
+                // once with the held set the iteration began with, unchosen.
+                if settled || !hold_and_step(model, w, lambda, &held_before, merit_back) {
+                    return (false, it + 1);
+                }
             }
         }
         // The line search left `w` evaluated at the step's end (its
-        // residual); the next pass loads the Jacobian after its candidates.
-        if !reevaluated {
+        // residual, its Jacobian too where the whole step was taken); the
+        // next pass loads the Jacobian after its candidates.
+        if !reevaluated && !evaluated_with_jacobian {
             merit_now = evaluate(model, w, lambda, true);
         }
     }
@@ -1169,24 +1193,28 @@ fn newton_at(
 /// Take the step in `w.step` (the multipliers' too) from `w.q` by
 /// backtracking on the merit from `merit_now`, or, refused, go back to the
 /// start (evaluated, its Jacobian loaded) and return its merit as the error.
+/// Taken, its merit and whether the step's end was evaluated with its
+/// Jacobian (the first trial is, the whole step; the others are not).
 fn search_along_step(
     model: &RodModel,
     w: &mut Workspace,
     lambda: f64,
     merit_now: f64,
     tol: f64,
-) -> Result<(), f64> {
+) -> Result<(f64, bool), f64> {
     let n = model.n();
     take_multiplier_step(model, w);
     // The start is kept in `w.trial` and `reactions_start`; trials go in place.
     w.trial.copy_from_slice(&w.q);
     w.kkt.reactions_start.copy_from_slice(&w.kkt.reactions);
     let alpha = step_limit(&w.step, 1.0, 0.3);
+    let mut with_jacobian = false;
     let accepted = super::newton::backtrack(
         w,
         alpha,
         merit_now,
-        |w, alpha, _| {
+        |w, alpha, first| {
+            with_jacobian = first;
             for j in 1..=n {
                 w.q[j] = w.trial[j].perturbed(alpha * w.step[j - 1]);
             }
@@ -1199,16 +1227,16 @@ fn search_along_step(
             {
                 *r = r0 + alpha * d;
             }
-            evaluate(model, w, lambda, false)
+            evaluate(model, w, lambda, first)
         },
         |w| residual_norm(model, w) <= tol,
     );
-    if accepted.is_none() {
+    let Some(accepted) = accepted else {
         w.q.copy_from_slice(&w.trial);
         w.kkt.reactions.copy_from_slice(&w.kkt.reactions_start);
         return Err(evaluate(model, w, lambda, true));
-    }
-    Ok(())
+    };
+    Ok((accepted, with_jacobian))
 }
 
 /// A Newton step with the contacts `held` held and the other candidates
@@ -1267,115 +1295,99 @@ fn contact_margin(model: &RodModel) -> f64 {
 }
 
 /// The inverse of `A + U M U^T` from `A`'s factorisation (the contacts'
-/// curvature, see `contact::curvature`), and the inertia it adds. Each block
-/// of `M` is reduced to its range, `M = V L V^T`, so that `U' = U V` and
-/// `H = A + U' L U'^T` with `L` invertible; then (Haynsworth, twice) the
-/// negative eigenvalues of `H` are those of `A`, plus those of `-L^{-1} -
-/// U'^T A^{-1} U'`, less the positive ones of `L`. A block that is not
-/// symmetric (a port's sliding friction, which is no potential's) is
-/// reduced by its singular values instead, `M = P S Q^T`, `U' = U P` on the
-/// left and `U Q` on the right (Woodbury's identity; the inertia is then
-/// that of the symmetric parts, see [`CurvatureInverse::new`]).
+/// curvature, see `contact::curvature`; `M` block-diagonal, one block a
+/// contact), by Woodbury's identity: `(A + U M U^T)^{-1} = A^{-1} - Y W U^T
+/// A^{-1}` with `Y = A^{-1} U` and `W = M (I + U^T Y M)^{-1}`, which needs no
+/// inverse of `M` (singular: a sphere turns its force in two directions of
+/// three) and holds for a block that is not symmetric (a port's sliding
+/// friction, which is no potential's). For the stability verdict it also
+/// counts the inertia it adds: see [`CurvatureInverse::with_inertia`].
 struct CurvatureInverse {
-    /// `U'` on the right, and `A^{-1} U'` of the left (one column a kept
-    /// direction).
+    /// The columns of `U` (or `U'`, see `with_inertia`) and `Y = A^{-1} U`.
     columns: Vec<Vec<Vector3<f64>>>,
     y: Vec<Vec<Vector3<f64>>>,
-    /// `(L^{-1} + U'^T A^{-1} U')^{-1}`.
+    /// `W`.
     inverse: DMatrix<f64>,
     negative_schur: usize,
     positive_blocks: usize,
 }
 
-/// Asymmetry of a curvature block, relative to its size, below which it
-/// counts as symmetric (a Hessian's, to round-off).
-const SYMMETRIC_BLOCK: f64 = 1e-13;
-
 impl CurvatureInverse {
-    /// From `lu`, the factorisation of `A` (of its symmetric part where
-    /// `symmetric_part`, for the stability verdict: then the blocks' too).
-    fn new(lu: &BlockLu, w: &Workspace, symmetric_part: bool) -> Option<CurvatureInverse> {
+    /// For a Newton step, from `lu`, the factorisation of `A`. A symmetric
+    /// block (a contact's: a Hessian) is reduced to its range first, `M = V
+    /// L V^T`, `U' = U V` (a sphere's element contact: 3 columns of 6, each a
+    /// banded solve less); another keeps its columns.
+    fn for_step(lu: &BlockLu, w: &Workspace) -> Option<CurvatureInverse> {
         let contact = &w.kkt.contact;
         if contact.curvature_blocks.is_empty() {
             return None;
         }
         let n = w.g.len();
-        let (mut columns, mut lefts, mut values) = (Vec::new(), Vec::new(), Vec::new());
-        let mut symmetric = true;
+        let mut columns = Vec::new();
+        // The blocks of `M'` (diagonal where reduced), at their columns.
+        let mut blocks: Vec<(usize, DMatrix<f64>)> = Vec::new();
         let mut at = 0;
-        let combine = |weights: &dyn Fn(usize) -> f64, size: usize, at: usize| {
-            let mut column = vec![Vector3::zeros(); n];
-            for a in 0..size {
-                let weight = weights(a);
-                for (x, u) in column.iter_mut().zip(&contact.curvature_columns[at + a]) {
-                    *x += weight * u;
-                }
-            }
-            column
-        };
         for block in &contact.curvature_blocks {
             let size = block.nrows();
-            // Its asymmetry, read in place (this runs at every Newton step).
-            let skew = (0..size)
-                .flat_map(|a| (0..a).map(move |b| (a, b)))
-                .fold(0.0f64, |m, (a, b)| {
-                    m.max((block[(a, b)] - block[(b, a)]).abs())
-                });
-            if symmetric_part || skew <= SYMMETRIC_BLOCK * block.amax() {
-                let symmetric = if skew == 0.0 {
-                    block.clone()
-                } else {
-                    0.5 * (block + block.transpose())
-                };
-                let eig = SymmetricEigen::new(symmetric);
-                let largest = eig.eigenvalues.amax();
-                for (k, value) in eig.eigenvalues.iter().enumerate() {
-                    if value.abs() <= 1e-12 * largest {
-                        continue;
-                    }
-                    let column = combine(&|a| eig.eigenvectors[(a, k)], size, at);
-                    lefts.push(column.clone());
-                    columns.push(column);
-                    values.push(*value);
+            let raw = &contact.curvature_columns[at..at + size];
+            if is_symmetric(block) {
+                for (value, vector) in range_of(block) {
+                    blocks.push((columns.len(), DMatrix::from_element(1, 1, value)));
+                    columns.push(combined(raw, &vector, n));
                 }
             } else {
-                symmetric = false;
-                let svd = block.clone().svd(true, true);
-                let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
-                let largest = svd.singular_values.amax();
-                for (k, value) in svd.singular_values.iter().enumerate() {
-                    if *value <= 1e-12 * largest {
-                        continue;
-                    }
-                    lefts.push(combine(&|a| u[(a, k)], size, at));
-                    columns.push(combine(&|a| v_t[(k, a)], size, at));
-                    values.push(*value);
-                }
+                blocks.push((columns.len(), block.clone()));
+                columns.extend(raw.iter().cloned());
             }
             at += size;
         }
-        let y: Vec<Vec<Vector3<f64>>> = lefts
-            .into_iter()
-            .map(|mut solved| {
-                lu.solve_in_place(&mut solved);
-                solved
-            })
-            .collect();
+        let k = columns.len();
+        let mut m = DMatrix::zeros(k, k);
+        for (first, block) in &blocks {
+            let size = block.nrows();
+            m.view_mut((*first, *first), (size, size)).copy_from(block);
+        }
+        let y = solved_columns(lu, columns.clone());
+        let g = DMatrix::from_fn(k, k, |a, b| dot(&columns[a], &y[b]));
+        let kernel = (DMatrix::identity(k, k) + g * &m).try_inverse()?;
+        Some(CurvatureInverse {
+            columns,
+            y,
+            inverse: m * kernel,
+            negative_schur: 0,
+            positive_blocks: 0,
+        })
+    }
+
+    /// For the stability verdict, from `lu`, the factorisation of the
+    /// symmetric part of `A`, with the blocks' symmetric parts, each
+    /// reduced to its range: `W = (L^{-1} + U'^T A^{-1} U')^{-1}`. Then
+    /// (Haynsworth, twice) the negative eigenvalues of `H = A + U' L U'^T`
+    /// are those of `A`, plus those of `-L^{-1} - U'^T A^{-1} U'`, less the
+    /// positive ones of `L`.
+    fn with_inertia(lu: &BlockLu, w: &Workspace) -> Option<CurvatureInverse> {
+        let contact = &w.kkt.contact;
+        if contact.curvature_blocks.is_empty() {
+            return None;
+        }
+        let n = w.g.len();
+        let (mut columns, mut values) = (Vec::new(), Vec::new());
+        let mut at = 0;
+        for block in &contact.curvature_blocks {
+            let size = block.nrows();
+            let raw = &contact.curvature_columns[at..at + size];
+            for (value, vector) in range_of(&(0.5 * (block + block.transpose()))) {
+                columns.push(combined(raw, &vector, n));
+                values.push(value);
+            }
+            at += size;
+        }
+        let y = solved_columns(lu, columns.clone());
         let k = values.len();
         let kernel = DMatrix::from_fn(k, k, |a, b| {
             let diagonal = if a == b { 1.0 / values[a] } else { 0.0 };
             diagonal + dot(&columns[a], &y[b])
         });
-        if !symmetric {
-            // Woodbury's identity alone: no inertia to count.
-            return Some(CurvatureInverse {
-                columns,
-                y,
-                inverse: kernel.try_inverse()?,
-                negative_schur: 0,
-                positive_blocks: 0,
-            });
-        }
         let kernel = 0.5 * (&kernel + kernel.transpose());
         let negative_schur = SymmetricEigen::new(-kernel.clone())
             .eigenvalues
@@ -1405,6 +1417,78 @@ impl CurvatureInverse {
     }
 }
 
+/// Asymmetry of a curvature block, relative to its size, below which it
+/// counts as symmetric (a Hessian's, to round-off).
+const SYMMETRIC_BLOCK: f64 = 1e-13;
+
+/// Whether a curvature block is symmetric (see [`SYMMETRIC_BLOCK`]), read in
+/// place (this runs at every Newton step).
+fn is_symmetric(block: &DMatrix<f64>) -> bool {
+    let size = block.nrows();
+    let skew = (0..size)
+        .flat_map(|a| (0..a).map(move |b| (a, b)))
+        .fold(0.0f64, |m, (a, b)| {
+            m.max((block[(a, b)] - block[(b, a)]).abs())
+        });
+    skew <= SYMMETRIC_BLOCK * block.amax()
+}
+
+/// The eigenpairs of a symmetric block whose values are not nil (beside
+/// its largest): its range. A contact's block is 3 x 3 or 6 x 6, whose
+/// decompositions are on the stack.
+fn range_of(block: &DMatrix<f64>) -> Vec<(f64, DVector<f64>)> {
+    // The eigenpairs of a fixed-size copy (nalgebra's decomposition needs
+    // its dimension spelt out).
+    macro_rules! kept {
+        ($d:literal) => {{
+            let fixed = nalgebra::SMatrix::<f64, $d, $d>::from_fn(|a, b| block[(a, b)]);
+            let eig = fixed.symmetric_eigen();
+            let largest = eig.eigenvalues.amax();
+            (0..$d)
+                .filter(|&k| eig.eigenvalues[k].abs() > 1e-12 * largest)
+                .map(|k| {
+                    let column = eig.eigenvectors.column(k);
+                    (
+                        eig.eigenvalues[k],
+                        DVector::from_iterator($d, column.iter().copied()),
+                    )
+                })
+                .collect()
+        }};
+    }
+    match block.nrows() {
+        3 => kept!(3),
+        6 => kept!(6),
+        _ => {
+            let eig = SymmetricEigen::new(block.clone());
+            let largest = eig.eigenvalues.amax();
+            (0..block.nrows())
+                .filter(|&k| eig.eigenvalues[k].abs() > 1e-12 * largest)
+                .map(|k| (eig.eigenvalues[k], eig.eigenvectors.column(k).into_owned()))
+                .collect()
+        }
+    }
+}
+
+/// `sum_a weights_a columns_a` (`n` blocks).
+fn combined(columns: &[Vec<Vector3<f64>>], weights: &DVector<f64>, n: usize) -> Vec<Vector3<f64>> {
+    let mut out = vec![Vector3::zeros(); n];
+    for (column, weight) in columns.iter().zip(weights.iter()) {
+        for (x, u) in out.iter_mut().zip(column) {
+            *x += *weight * u;
+        }
+    }
+    out
+}
+
+/// `A^{-1}` applied to each of `columns`.
+fn solved_columns(lu: &BlockLu, mut columns: Vec<Vec<Vector3<f64>>>) -> Vec<Vec<Vector3<f64>>> {
+    for column in &mut columns {
+        lu.solve_in_place(column);
+    }
+    columns
+}
+
 /// Stability of a constrained equilibrium: the reduced Hessian `Z^T A Z` on the
 /// null space of `D` is positive definite iff the KKT matrix has exactly 3m
 /// negative eigenvalues; by Haynsworth's inertia formula that number is
@@ -1432,7 +1516,7 @@ fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
     let mut lu = std::mem::replace(&mut w.lu, BlockLu::new(0));
     let negative = lu.factor_symmetric_part(&w.jac);
     // The contacts' curvature: the Hessian is `A + U M U^T`.
-    let curvature = negative.and_then(|_| CurvatureInverse::new(&lu, w, true));
+    let curvature = negative.and_then(|_| CurvatureInverse::with_inertia(&lu, w));
     let negative = match (&curvature, negative) {
         (_, None) => None,
         (None, Some(k)) if w.kkt.contact.curvature_blocks.is_empty() => Some(k),

@@ -243,7 +243,8 @@ pub(crate) fn start_from_free_equilibrium(
         return 0;
     }
     let (rest, rest_sites) = (w.q.clone(), w.kkt.contact.sites.clone());
-    let free = super::newton::iterate_free(model, w, 1.0, (max_iter, tol), true);
+    let free =
+        super::newton::iterate_free(model, w, 1.0, (max_iter, tol.max(START_TOLERANCE)), true);
     let kept = free.converged
         && deepest_gap(model, w) > at_rest
         && !passed_through(&rest_sites, &w.kkt.contact.sites);
@@ -252,6 +253,12 @@ pub(crate) fn start_from_free_equilibrium(
     }
     free.iterations
 }
+
+/// How near the free equilibrium a start is solved (its residual and last
+/// step, see `newton::certified`): the contact Newton goes on from it. The
+/// seed's robot through a ball: 110 us from a start within 1e-2, 120 us
+/// from one to round-off.
+const START_TOLERANCE: f64 = 1e-2;
 
 /// The depth into an obstacle, times the rate its normal turns there, from
 /// which a direct solve starts at the free equilibrium: the linearised gap
@@ -515,12 +522,15 @@ pub(crate) fn gather_gaps(w: &mut Workspace) {
 /// sites: every slot held, and every slot closer to its obstacle than
 /// `margin` [m] (a step moves the rod by less near the answer; one that
 /// goes farther finds the slots it pushed in at the next step). A slot that
-/// is no candidate has its force zeroed.
-pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64) {
+/// is no candidate has its force zeroed. Returns whether any contact force
+/// on the rod changed (a held element's handed to its node, a candidate's
+/// dropped): else the last evaluation's residual and Jacobian stand.
+pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64) -> bool {
     let n = model.n();
     let first = offset(model, w);
     let c = &mut w.kkt.contact;
     let (old_active, old_held) = (std::mem::take(&mut c.active), std::mem::take(&mut c.held));
+    let mut moved = false;
     let mut held_before: Vec<usize> = old_active
         .iter()
         .zip(&old_held)
@@ -534,6 +544,7 @@ pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64
         if let Place::Element(k) = place {
             if !site.inside {
                 let lambda = w.kkt.reactions[first + i].x;
+                moved |= lambda != 0.0;
                 w.kkt.reactions[first + i] = Vector3::zeros();
                 held_before.retain(|&j| j != i);
                 let node = if site.s < 0.5 { k - 1 } else { k };
@@ -558,6 +569,8 @@ pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64
     }
     held_before.sort_unstable();
     for i in 0..c.sites.len() {
+        let acted =
+            old_active.binary_search(&i).is_ok() && w.kkt.reactions[first + i] != Vector3::zeros();
         let was_held = held_before.binary_search(&i).is_ok();
         let site = &c.sites[i];
         let eligible = match slot(model, i).1 {
@@ -568,9 +581,11 @@ pub(crate) fn select_candidates(model: &RodModel, w: &mut Workspace, margin: f64
             c.active.push(i);
             c.held.push(was_held);
         } else {
+            moved |= acted;
             w.kkt.reactions[first + i] = Vector3::zeros();
         }
     }
+    moved
 }
 
 /// The held candidates, to see whether a step changed them.
@@ -594,6 +609,26 @@ pub(crate) fn load_rows(model: &RodModel, w: &mut Workspace, from: usize) {
     w.kkt.contact.active = active;
 }
 
+/// `D_k = dr_k / dtheta` (n blocks) into the contacts' `position_jacobian`:
+/// from the step's chords where they are loaded (`r_k` is the sum of the
+/// chords up to it), else from the scheme.
+fn node_position_jacobian(model: &RodModel, w: &mut Workspace, k: usize) {
+    let c = &mut w.kkt.contact;
+    if !c.chords_loaded {
+        model.position_jacobian(&w.q, k, &w.interior, &mut c.position_jacobian);
+        return;
+    }
+    let d = &mut c.position_jacobian;
+    d.iter_mut().for_each(|x| *x = Matrix3::zeros());
+    for i in 1..=k {
+        let (start, end) = &c.chords[i - 1];
+        d[i - 1] += end;
+        if i >= 2 {
+            d[i - 2] += start;
+        }
+    }
+}
+
 /// KKT row `r` of a force along `direction` shared between nodes as
 /// `shares` (a contact's, a port's): `sum weight D_k^T direction` as `n`
 /// vectors (zero on a clamped tip's node; node 0, the base, moves nothing).
@@ -613,10 +648,10 @@ pub(crate) fn load_row(
         if weight == 0.0 || node == 0 {
             continue;
         }
-        let (c, row) = (&mut w.kkt.contact, &mut w.kkt.rows[r]);
         let v = weight * direction;
-        if c.chords_loaded {
+        if w.kkt.contact.chords_loaded {
             // r_node is the sum of the chords up to it.
+            let (c, row) = (&w.kkt.contact, &mut w.kkt.rows[r]);
             for i in 1..=node {
                 let (start, end) = &c.chords[i - 1];
                 row[i - 1] += end.transpose() * v;
@@ -625,8 +660,8 @@ pub(crate) fn load_row(
                 }
             }
         } else {
-            let d = &mut c.position_jacobian;
-            model.position_jacobian(&w.q, node, &w.interior, d);
+            node_position_jacobian(model, w, node);
+            let (d, row) = (&w.kkt.contact.position_jacobian, &mut w.kkt.rows[r]);
             for (x, b) in row.iter_mut().zip(d.iter()) {
                 *x += b.transpose() * v;
             }
@@ -783,9 +818,9 @@ fn push_curvature(
 ) {
     let n = model.n();
     let clamped = model.clamped_tip().is_some();
-    let c = &mut w.kkt.contact;
     for &k in moving.iter().filter(|_| with_columns) {
-        model.position_jacobian(&w.q, k, &w.interior, &mut c.position_jacobian);
+        node_position_jacobian(model, w, k);
+        let c = &mut w.kkt.contact;
         for axis in 0..3 {
             if c.curvature_columns.len() <= *used {
                 c.curvature_columns.push(vec![Vector3::zeros(); n]);
@@ -802,6 +837,7 @@ fn push_curvature(
             *used += 1;
         }
     }
+    let c = &mut w.kkt.contact;
     c.curvature_blocks.push(block);
     c.curvature_nodes.push(moving);
 }

@@ -132,6 +132,18 @@ fn scenes(c: &mut Criterion) {
         }],
         ..Robot::default()
     };
+    // A wall 5 cm off the axis in front of that ball: the robot leans on
+    // the wall alone, its rest shape deep in both.
+    let walled_balled = Robot {
+        obstacles: vec![
+            Obstacle::HalfSpace {
+                point: Vector3::new(0.05, 0.0, 0.0),
+                normal: -Vector3::x(),
+            },
+            balled.obstacles[0].clone(),
+        ],
+        ..Robot::default()
+    };
     let walled_friction = Robot {
         friction: vec![0.5],
         ..walled.clone()
@@ -150,6 +162,7 @@ fn scenes(c: &mut Criterion) {
         ("robot_free", Robot::default(), &bend),
         ("robot_wall", walled, &bend),
         ("robot_ball", balled, &bend),
+        ("robot_wall_ball", walled_balled, &bend),
         ("robot_wall_friction", walled_friction, &bend),
         ("robot_port", ported.clone(), &inserted),
     ] {

@@ -288,6 +288,22 @@ def test_a_robot_whose_rest_shape_runs_through_a_ball_leans_on_its_near_side():
     np.testing.assert_allclose(sol.contacts["force"], from_rest.contacts["force"], rtol=1e-8)
 
 
+def test_a_robot_deep_in_a_wall_and_a_ball_leans_on_the_wall_alone():
+    # A wall 5 cm off the axis in front of the ball: the rest shape runs
+    # deep into both, the answer touches the wall only, as without the
+    # ball. The start is chosen by the ball (its gap is far from linear
+    # there), not by the wall, the deeper: from the rest shape the direct
+    # solve's QP cycled.
+    bend = np.zeros((10, 2))
+    bend[:, 1] = 0.6
+    wall = {"shape": "half_space", "point": [0.05, 0.0, 0.0], "normal": [-1.0, 0.0, 0.0]}
+    sol = softspine.Robot({"obstacles": [wall, BALL]}).forward(bend, load=0.03)
+    alone = softspine.Robot({"obstacles": [wall]}).forward(bend, load=0.03)
+    assert sol.converged and sol.stable and sol.continuation_steps == 0, sol.message
+    assert list(sol.contacts["obstacle"]) == [0]
+    np.testing.assert_allclose(sol.positions, alone.positions, atol=1e-9)
+
+
 def test_a_rod_whose_rest_shape_runs_into_a_thin_edge_is_not_dropped_through_it():
     # A rod at rest 1 mm above the axis of a knife edge 5 mm thick: deep in
     # a curved obstacle, so the solve would start from the free

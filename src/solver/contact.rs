@@ -199,54 +199,50 @@ pub(crate) fn force(model: &RodModel, w: &Workspace, i: usize) -> f64 {
     w.kkt.reactions[offset(model, w) + i].x
 }
 
-/// The deepest penetration of any obstacle by the rod in `w.q`: the least
-/// gap of every slot (located afresh), `+inf` without obstacles.
-fn deepest_gap(model: &RodModel, w: &mut Workspace) -> f64 {
+/// How far off the contact Newton's linearised gaps are at the rod in
+/// `w.q` (its slots located afresh): the largest depth into an obstacle
+/// times the rate its normal turns there (nil in a plane, whose gap is
+/// linear; zero where nothing penetrates).
+fn curved_depth(model: &RodModel, w: &mut Workspace) -> f64 {
     model.positions(&w.q, &mut w.interior, &mut w.kkt.positions);
     locate(model, &w.kkt.positions, &mut w.kkt.contact.sites);
-    w.kkt
-        .contact
-        .sites
-        .iter()
-        .fold(f64::INFINITY, |a, s| a.min(s.gap))
+    let step = CURVATURE_STEP * model.length();
+    let sites = w.kkt.contact.sites.iter().enumerate();
+    sites
+        .filter(|(_, site)| site.gap < 0.0)
+        .map(|(i, site)| {
+            let obstacle = &model.obstacles()[slot(model, i).0];
+            -site.gap * obstacle.normal_jacobian(&site.point, step).norm()
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The start of a direct solve among obstacles: from the start in `w.q`
 /// (the rest shape), the loaded rod's equilibrium without them, where the
-/// rest shape runs deep into a curved obstacle and the free equilibrium
-/// converges, penetrates less deeply and has not passed through any (see
-/// [`passed_through`]). Deep inside a curved obstacle the linearised gaps
-/// of the contact Newton are far off: the seed's robot whose rest shape
-/// runs through a ball takes 5 contact iterations from it and 3 from its
-/// free equilibrium, whose own 3 iterations cost a third as much each. A
-/// rest shape on or into a plane stays (its gaps are linear: a rod resting
-/// on a floor, which its loads would carry through). Returns the free
-/// solve's iterations.
+/// rest shape runs deep into a curved obstacle (its [`curved_depth`] above
+/// [`CURVED_DEPTH`]) and the free equilibrium converges, is less so and has
+/// not passed through any obstacle (see [`passed_through`]). Deep inside a
+/// curved obstacle the linearised gaps of the contact Newton are far off:
+/// the seed's robot whose rest shape runs through a ball takes 5 contact
+/// iterations from it and 3 from its free equilibrium, whose own iterations
+/// cost a third as much each; beside a wall the direct solve failed from
+/// the rest shape (61 iterations on the load path). A rest shape on or into
+/// a plane stays (a rod resting on a floor, which its loads would carry
+/// through). Returns the free solve's iterations.
 pub(crate) fn start_from_free_equilibrium(
     model: &RodModel,
     w: &mut Workspace,
     (max_iter, tol): (usize, f64),
 ) -> usize {
-    let at_rest = deepest_gap(model, w);
-    if at_rest >= 0.0 {
-        return 0;
-    }
-    // How far the normal turns over the depth at the deepest slot.
-    let Some((i, deepest)) =
-        (w.kkt.contact.sites.iter().enumerate()).min_by(|a, b| a.1.gap.total_cmp(&b.1.gap))
-    else {
-        return 0;
-    };
-    let obstacle = &model.obstacles()[slot(model, i).0];
-    let turn = obstacle.normal_jacobian(&deepest.point, CURVATURE_STEP * model.length());
-    if -at_rest * turn.norm() < CURVED_DEPTH {
+    let at_rest = curved_depth(model, w);
+    if at_rest < CURVED_DEPTH {
         return 0;
     }
     let (rest, rest_sites) = (w.q.clone(), w.kkt.contact.sites.clone());
     let free =
         super::newton::iterate_free(model, w, 1.0, (max_iter, tol.max(START_TOLERANCE)), true);
     let kept = free.converged
-        && deepest_gap(model, w) > at_rest
+        && curved_depth(model, w) < at_rest
         && !passed_through(&rest_sites, &w.kkt.contact.sites);
     if !kept {
         w.q.copy_from_slice(&rest);
@@ -260,9 +256,8 @@ pub(crate) fn start_from_free_equilibrium(
 /// from one to round-off.
 const START_TOLERANCE: f64 = 1e-2;
 
-/// The depth into an obstacle, times the rate its normal turns there, from
-/// which a direct solve starts at the free equilibrium: the linearised gap
-/// is then off by an eighth of the depth.
+/// The [`curved_depth`] from which a direct solve starts at the free
+/// equilibrium: the linearised gap is then off by an eighth of the depth.
 const CURVED_DEPTH: f64 = 0.25;
 
 /// Whether any slot moved from its site in `before` through its obstacle to

@@ -1214,7 +1214,7 @@ fn search_along_step(
         alpha,
         merit_now,
         |w, alpha, first| {
-            with_jacobian = first;
+            with_jacobian = first && !model.has_friction();
             for j in 1..=n {
                 w.q[j] = w.trial[j].perturbed(alpha * w.step[j - 1]);
             }
@@ -1227,7 +1227,9 @@ fn search_along_step(
             {
                 *r = r0 + alpha * d;
             }
-            evaluate(model, w, lambda, first)
+            // With friction the next pass evaluates again whatever it
+            // chooses: no Jacobian here for it to throw away.
+            evaluate(model, w, lambda, first && !model.has_friction())
         },
         |w| residual_norm(model, w) <= tol,
     );

@@ -290,8 +290,8 @@ fn nearest_inside(
     }
     // Regula falsi with the Illinois halving, which brings both ends in;
     // a bisection where the bracket did not halve over the last two steps
-    // (a kinked gap: a box's edge), so never slower than bisection by more
-    // than twice.
+    // (a kinked gap: a box's edge), so that the bracket halves at least
+    // every three slopes.
     let slope = |t: f64| obstacle.proximity(&(a + t * chord)).normal.dot(&chord);
     let (mut lo, mut hi) = (0.0f64, 1.0f64);
     let (mut slope_lo, mut slope_hi) = (at_a.normal.dot(&chord), at_b.normal.dot(&chord));
@@ -313,14 +313,16 @@ fn nearest_inside(
                 slope_hi *= 0.5;
             }
             last_side = -1;
-        } else if at > 0.0 {
+        } else if at == 0.0 {
+            (lo, hi) = (t, t);
+        } else {
+            // Positive, or not a number (a degenerate obstacle): the bracket
+            // closes from above, as bisection's did.
             (hi, slope_hi) = (t, at);
             if last_side > 0 {
                 slope_lo *= 0.5;
             }
             last_side = 1;
-        } else {
-            (lo, hi) = (t, t);
         }
     }
     let s = 0.5 * (lo + hi);

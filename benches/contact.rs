@@ -158,8 +158,24 @@ fn scenes(c: &mut Criterion) {
         insertion: 0.1,
         ..bend.clone()
     };
+    // Its first five sections bent 2.8 /m, the last five straight: the
+    // straight half lies on a floor 33 cm below the base (8 contacts).
+    let half_bent = Actuation::muscles(
+        (0..10)
+            .map(|s| [0.0, if s < 5 { 2.8 } else { 0.0 }])
+            .collect(),
+    );
+    let floored = Robot {
+        obstacles: vec![Obstacle::HalfSpace {
+            point: Vector3::new(0.0, 0.0, -0.33),
+            normal: Vector3::z(),
+        }],
+        ..Robot::default()
+    };
     for (name, robot, drive) in [
         ("robot_free", Robot::default(), &bend),
+        ("robot_free_half_bent", Robot::default(), &half_bent),
+        ("robot_floor", floored, &half_bent),
         ("robot_wall", walled, &bend),
         ("robot_ball", balled, &bend),
         ("robot_wall_ball", walled_balled, &bend),

@@ -74,6 +74,25 @@ impl BlockTridiagonal {
         }
     }
 
+    /// Whether the matrix is symmetric to `relative` of its largest entry.
+    pub fn is_symmetric(&self, relative: f64) -> bool {
+        let largest = self
+            .diag
+            .iter()
+            .chain(&self.upper)
+            .chain(&self.lower)
+            .fold(0.0f64, |m, b| m.max(b.amax()));
+        let cutoff = relative * largest;
+        self.diag
+            .iter()
+            .all(|d| (d - d.transpose()).amax() <= cutoff)
+            && self
+                .upper
+                .iter()
+                .zip(&self.lower)
+                .all(|(u, l)| (u - l.transpose()).amax() <= cutoff)
+    }
+
     /// Largest absolute diagonal entry (a scale for damping).
     pub fn max_diagonal(&self) -> f64 {
         self.diag
@@ -222,6 +241,36 @@ impl BlockLu {
             b[j] -= r;
         }
     }
+
+    /// Solve `(A + shift I) x = b` in place for each of `columns` (all of
+    /// one length), block by block for all at once: each block of the
+    /// factors is read once, and the columns' recurrences, independent,
+    /// overlap (one column's is a chain of dependent 3 x 3 products).
+    pub fn solve_columns_in_place(&self, columns: &mut [Vec<Vector3<f64>>]) {
+        let Some(n) = columns.first().map(Vec::len) else {
+            return;
+        };
+        if n == 0 {
+            return;
+        }
+        for b in columns.iter_mut() {
+            b[0] = self.inv_pivot[0] * b[0];
+        }
+        for j in 1..n {
+            let (lower, inv_pivot) = (self.lower[j - 1], self.inv_pivot[j]);
+            for b in columns.iter_mut() {
+                let r = b[j] - lower * b[j - 1];
+                b[j] = inv_pivot * r;
+            }
+        }
+        for j in (0..n - 1).rev() {
+            let coupling = self.coupling[j];
+            for b in columns.iter_mut() {
+                let r = coupling * b[j + 1];
+                b[j] -= r;
+            }
+        }
+    }
 }
 
 /// Inverse of a 3x3 block, refused when the block is numerically singular: its
@@ -361,6 +410,26 @@ mod tests {
                 b[j],
                 x[j]
             );
+        }
+    }
+
+    #[test]
+    fn columns_solved_together_are_each_solved() {
+        let n = 9;
+        let mut lu = BlockLu::new(n);
+        lu.factor(&sample(n), 0.3).unwrap();
+        let columns: Vec<Vec<Vector3<f64>>> = (0..5)
+            .map(|c| {
+                (0..n)
+                    .map(|j| Vector3::new((c + j) as f64, 1.0 - (c * j) as f64, 0.1 * c as f64))
+                    .collect()
+            })
+            .collect();
+        let mut together = columns.clone();
+        lu.solve_columns_in_place(&mut together);
+        for (mut one, both) in columns.into_iter().zip(&together) {
+            lu.solve_in_place(&mut one);
+            assert_eq!(&one, both);
         }
     }
 

@@ -499,9 +499,7 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
             *x += e;
         }
     }
-    for col in &mut w.kkt.columns[..rows] {
-        lu.solve_in_place(col);
-    }
+    lu.solve_columns_in_place(&mut w.kkt.columns[..rows]);
     // The contacts' curvature: the Jacobian is `A + U M U^T`, whose inverse
     // the Woodbury identity applies from `A`'s.
     if !w.kkt.contact.curvature_blocks.is_empty() {
@@ -520,10 +518,25 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     if w.kkt.rhs.len() != rows {
         w.kkt.rhs = DVector::zeros(rows);
     }
+    // `S = D A^-1 D^T`: where `A + U M U^T` is symmetric, so is `S`, and
+    // each pair of entries is the one dot product, over the shorter row.
+    let symmetric = w.kkt.force_extra.is_empty()
+        && w.jac.is_symmetric(SYMMETRIC_JACOBIAN)
+        && w.kkt.contact.curvature_blocks.iter().all(is_symmetric);
     for r in 0..rows {
-        for k in 0..rows {
-            let len = w.kkt.row_len[r];
-            w.kkt.schur[(r, k)] = dot(&w.kkt.rows[r][..len], &w.kkt.columns[k][..len]);
+        let first = if symmetric { r } else { 0 };
+        for k in first..rows {
+            let (a, b) = if symmetric && w.kkt.row_len[k] < w.kkt.row_len[r] {
+                (k, r)
+            } else {
+                (r, k)
+            };
+            let len = w.kkt.row_len[a];
+            let entry = dot(&w.kkt.rows[a][..len], &w.kkt.columns[b][..len]);
+            w.kkt.schur[(r, k)] = entry;
+            if symmetric {
+                w.kkt.schur[(k, r)] = entry;
+            }
         }
         w.kkt.rhs[r] = dot(&w.kkt.rows[r], &w.scratch) - row_residual(w, r);
     }
@@ -555,6 +568,8 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
             s: &w.kkt.schur,
             b: &w.kkt.rhs,
             symmetric: w.kkt.force_extra.is_empty(),
+            free_rows: Vec::with_capacity(rows),
+            fixed_rows: Vec::with_capacity(rows),
         };
         let Some(x) = bounded_qp(
             &mut schur,
@@ -647,22 +662,35 @@ struct Schur<'a> {
     b: &'a DVector<f64>,
     /// Whether `S` is symmetric (no sliding contact's friction in it).
     symmetric: bool,
+    /// Scratch of [`Subproblem::solve`]: the rows solved for, and the
+    /// others (held at their bounds).
+    free_rows: Vec<usize>,
+    fixed_rows: Vec<usize>,
 }
 
 impl Subproblem for Schur<'_> {
     fn solve(&mut self, free: &[bool], x: &mut DVector<f64>) -> bool {
         let (s, b) = (self.s, self.b);
-        let rows: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+        // The QP solves a few working sets a step: the index lists are
+        // reused, and the fixed rows' part of the right-hand side is summed
+        // over them alone.
+        self.free_rows.clear();
+        self.fixed_rows.clear();
+        for (i, &f) in free.iter().enumerate() {
+            if f {
+                self.free_rows.push(i);
+            } else {
+                self.fixed_rows.push(i);
+            }
+        }
+        let (rows, fixed) = (&self.free_rows, &self.fixed_rows);
         if rows.is_empty() {
             return true;
         }
         let mut sub = DMatrix::from_fn(rows.len(), rows.len(), |r, c| s[(rows[r], rows[c])]);
         let mut rhs = DVector::from_fn(rows.len(), |r, _| {
             let i = rows[r];
-            b[i] - (0..free.len())
-                .filter(|&j| !free[j])
-                .map(|j| s[(i, j)] * x[j])
-                .sum::<f64>()
+            b[i] - fixed.iter().map(|&j| s[(i, j)] * x[j]).sum::<f64>()
         });
         let solved = if self.symmetric {
             dense::solve_symmetric_in_place(&mut sub, &mut rhs)
@@ -1419,6 +1447,11 @@ impl CurvatureInverse {
     }
 }
 
+/// Asymmetry of the Jacobian, relative to its largest entry, below which
+/// the Schur complement is formed as symmetric (a potential's Hessian, to
+/// round-off; a dead moment's is not).
+const SYMMETRIC_JACOBIAN: f64 = 1e-12;
+
 /// Asymmetry of a curvature block, relative to its size, below which it
 /// counts as symmetric (a Hessian's, to round-off).
 const SYMMETRIC_BLOCK: f64 = 1e-13;
@@ -1485,9 +1518,7 @@ fn combined(columns: &[Vec<Vector3<f64>>], weights: &DVector<f64>, n: usize) -> 
 
 /// `A^{-1}` applied to each of `columns`.
 fn solved_columns(lu: &BlockLu, mut columns: Vec<Vec<Vector3<f64>>>) -> Vec<Vec<Vector3<f64>>> {
-    for column in &mut columns {
-        lu.solve_in_place(column);
-    }
+    lu.solve_columns_in_place(&mut columns);
     columns
 }
 

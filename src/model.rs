@@ -564,6 +564,13 @@ impl RodModel {
         self.contact_radius
     }
 
+    /// Another radius for contact [m], of either sign: every gap offset by
+    /// the change (the approach of `solver/homotopy.rs` moves the obstacles
+    /// in by growing it from below the rod's own).
+    pub(crate) fn set_contact_radius(&mut self, radius: f64) {
+        self.contact_radius = radius;
+    }
+
     /// The scale of the applied loads at path parameter `lambda`.
     pub fn load_scale(&self, lambda: f64) -> f64 {
         if self.loads_held_fixed {

@@ -304,6 +304,43 @@ def test_a_robot_deep_in_a_wall_and_a_ball_leans_on_the_wall_alone():
     np.testing.assert_allclose(sol.positions, alone.positions, atol=1e-9)
 
 
+FLOOR_60_CM = {"shape": "half_space", "point": [0.0, 0.0, -0.6], "normal": [0.0, 0.0, 1.0]}
+
+
+def test_a_robot_hanging_closer_to_a_floor_than_its_length_is_set_down_on_it():
+    # The 1 m robot bent 0.1 /m, its base 60 cm above a floor: its rest
+    # shape and the straight rod both pass through the floor, so neither
+    # Newton from rest nor the curl from straight has a start (before, no
+    # convergence after 247 iterations). The floor is moved in from below
+    # the free equilibrium instead; the same answer as raising the floor
+    # by hand in warm steps through the public API.
+    bend = np.zeros((10, 2))
+    bend[:, 1] = 0.1
+    sol = softspine.Robot({"obstacles": [FLOOR_60_CM]}).forward(bend, load=0.03)
+    assert sol.converged and sol.stable, sol.message
+    assert "moved in" in sol.message
+    radius = 0.02
+    assert sol.positions[:, 2].min() >= -0.6 + radius - 1e-9
+    assert np.all(sol.contacts["force"] > 0) and np.all(sol.contacts["obstacle"] == 0)
+    assert sol.positions[-1, 0] > 0.3  # laid down toward its bend
+    free = softspine.Robot().forward(bend, load=0.03)
+    height, last = free.positions[:, 2].min() - 0.01, free
+    while height < -0.6:
+        height = min(height + 0.1, -0.6)
+        floor = dict(FLOOR_60_CM, point=[0.0, 0.0, height])
+        last = softspine.Robot({"obstacles": [floor]}).forward(bend, load=0.03, initial=last)
+        assert last.converged and last.stable, (height, last.message)
+    np.testing.assert_allclose(sol.positions, last.positions, atol=1e-9)
+
+
+def test_a_straight_robot_pressed_along_its_axis_into_a_floor_says_why_it_fails():
+    # Straight and loaded along its axis, the rod buckles to a side that
+    # nothing chooses: refused with that reason, not a bare "no convergence".
+    sol = softspine.Robot({"obstacles": [FLOOR_60_CM]}).forward(np.zeros((10, 2)), load=0.03)
+    assert not sol.converged
+    assert "free equilibrium is straight" in sol.message and "buckles" in sol.message
+
+
 def test_a_rod_whose_rest_shape_runs_into_a_thin_edge_is_not_dropped_through_it():
     # A rod at rest 1 mm above the axis of a knife edge 5 mm thick: deep in
     # a curved obstacle, so the solve would start from the free

@@ -13,6 +13,7 @@
 //! mixed.rs         the same system banded, for many contacts
 //! continuation.rs  the load path from the rest shape
 //! nested.rs        the coarse rod of nested iteration
+//! homotopy.rs      a start where the rest shape passes through obstacles
 //! adaptive.rs      accuracy on demand
 //! sensitivity.rs   the tip's derivatives (implicit function theorem)
 //! report.rs        shooting and the paper's method (crate::methods), reported like the others
@@ -24,6 +25,7 @@ mod contact;
 mod continuation;
 mod dense;
 mod friction;
+mod homotopy;
 mod lm;
 mod mixed;
 mod nested;
@@ -48,6 +50,7 @@ pub use solution::{Solution, Status, MAX_RESOLVED_TURN};
 pub(crate) use workspace::{step_limit, LocalOutcome, LocalSolver, Workspace};
 
 use constrained::Snapshot;
+use homotopy::Homotopy;
 use solution::judge;
 use workspace::residual_norm;
 pub(crate) use workspace::{evaluate, is_stable};
@@ -91,9 +94,9 @@ pub struct Solver {
     /// ([`crate::blocktri::BlockLu::is_factor_of`]). Cleared by every change
     /// of the model, at every solve's start and by the general sensitivity.
     jacobian_at_solution: bool,
-    /// How the last cold solve curled the rod from straight first, where its
-    /// rest shape passes through an obstacle ([`Solver::curl_from_straight`]).
-    curled: Option<Curl>,
+    /// The homotopies the last cold solve took to a start, in order, where
+    /// its rest shape passes through an obstacle (see `homotopy.rs`).
+    homotopies: Vec<Homotopy>,
     /// Where the next warm start's rod stood: its base position, where it
     /// differs from the scene's ([`Solver::solve_after`]). Friction's
     /// history starts there.
@@ -104,23 +107,6 @@ pub struct Solver {
     pub(crate) warm_shot: Option<crate::methods::shooting::WarmShot>,
     pub(crate) last_shot: Option<crate::methods::shooting::WarmShot>,
 }
-
-/// The rest curvature's homotopy of a cold solve whose rest shape passes
-/// through an obstacle: its steps, their Newton iterations and the obstacle.
-#[derive(Debug, Clone)]
-struct Curl {
-    obstacle: usize,
-    steps: usize,
-    iterations: usize,
-    /// Why it did not reach the scene's rest curvature.
-    failed: Option<String>,
-}
-
-/// The curl's first step, its shortest, and how many iterations a step may
-/// take and still let the next one double.
-const CURL_STEP: f64 = 0.25;
-const CURL_MIN_STEP: f64 = 1.0 / 64.0;
-const CURL_EASY_STEP: usize = 8;
 
 impl Solver {
     pub fn new(scene: &Scene, settings: Settings) -> Result<Self> {
@@ -196,7 +182,7 @@ impl Solver {
             state_tangents: Vec::new(),
             state_tangents_at: Vec::new(),
             jacobian_at_solution: false,
-            curled: None,
+            homotopies: Vec::new(),
             history_base: None,
             warm_shot: None,
             last_shot: None,
@@ -226,77 +212,6 @@ impl Solver {
         let solution = self.solve(Some(quaternions));
         self.history_base = None;
         solution
-    }
-
-    /// Where the rest shape passes through an obstacle, the load path has no
-    /// start (the rest shape is not admissible): the rod's rest curvature is
-    /// ramped from straight instead, the loads at full scale, as a robot's
-    /// muscles curl it. The straight rod is solved cold, then each scaled
-    /// rest curvature warm from the last, with adaptive steps, up to the
-    /// scene's own: the state its solve starts from (and certifies). With
-    /// friction this is the history: the loads, then the curl. `Err`: why
-    /// it could not (the straight rod fails too, or a step will not go).
-    fn curl_from_straight(&mut self, obstacle: usize) -> std::result::Result<Vec<Quat>, String> {
-        let full = self.scene.rest_curvature.clone();
-        let mut settings = self.settings.clone();
-        settings.n_elements = Some(self.model.n());
-        let base = self.scene.clone();
-        let scaled = |alpha: f64| -> Scene {
-            let mut scene = base.clone();
-            scene.rest_curvature = full.iter().map(|k| [alpha * k[0], alpha * k[1]]).collect();
-            scene
-        };
-        let mut curl = Curl {
-            obstacle,
-            steps: 0,
-            iterations: 0,
-            failed: None,
-        };
-        // `Err` where a curled scene cannot be solved at all (its reason),
-        // `None` where its solve does not end converged and stable.
-        let solve = |alpha: f64, initial: Option<&[Quat]>, curl: &mut Curl| {
-            let mut solver = Solver::new(&scaled(alpha), settings.clone()).map_err(|e| {
-                format!("the rod curled to {alpha:.3} of its rest curvature is refused: {e}")
-            })?;
-            let sol = solver
-                .solve_uninterrupted(initial)
-                .map_err(|e| e.to_string())?;
-            curl.iterations += sol.iterations;
-            curl.steps += 1;
-            Ok::<_, String>((sol.converged() && sol.stable).then_some(sol.quaternions))
-        };
-        let outcome = (|| {
-            let Some(mut q) = solve(0.0, None, &mut curl)? else {
-                return Err("the straight rod does not converge either".to_string());
-            };
-            let (mut alpha, mut step) = (0.0f64, CURL_STEP);
-            while alpha < 1.0 && !interrupt::requested() {
-                let before = curl.iterations;
-                let next_alpha = (alpha + step).min(1.0);
-                match solve(next_alpha, Some(&q), &mut curl)? {
-                    Some(next) => {
-                        q = next;
-                        alpha = next_alpha;
-                        if curl.iterations - before <= CURL_EASY_STEP {
-                            step *= 2.0;
-                        }
-                    }
-                    None if step > CURL_MIN_STEP => step *= 0.5,
-                    None => {
-                        return Err(format!(
-                            "the curl stopped at {alpha:.3} of the rest curvature"
-                        ))
-                    }
-                }
-                if curl.iterations >= self.settings.max_iterations {
-                    return Err(format!("the curl ran out of iterations at {alpha:.3}"));
-                }
-            }
-            Ok(q)
-        })();
-        curl.failed = outcome.as_ref().err().cloned();
-        self.curled = Some(curl);
-        outcome
     }
 
     pub fn model(&self) -> &RodModel {
@@ -493,21 +408,26 @@ impl Solver {
     }
 
     /// [`Solver::solve_strategy`], where a cold solve's rest shape passes
-    /// through an obstacle with the rod curled to it from straight
-    /// ([`Solver::curl_from_straight`]): first with friction (the curl is
-    /// then its history, the load path from that rest shape having none),
-    /// and where the solve fails without.
+    /// through an obstacle from a start a homotopy gives (see
+    /// `homotopy.rs`): the rod curled to its rest shape from straight,
+    /// first with friction (the curl is then its history, the load path
+    /// from that rest shape having none) and where the solve fails without;
+    /// where that fails too (or the rest shape is straight), frictionless,
+    /// the obstacles moved in from where the free equilibrium clears them.
     fn solve_uninterrupted(&mut self, initial: Option<&[Quat]>) -> Result<Solution> {
-        self.curled = None;
+        self.homotopies.clear();
         let curvature = self.scene.rest_curvature.iter().any(|k| *k != [0.0, 0.0]);
+        let friction = self.model.has_friction();
         let through = match initial {
-            None if curvature && self.reach_limit.is_none() => self.model.obstacle_at_rest(),
+            None if (curvature || !friction) && self.reach_limit.is_none() => {
+                self.model.obstacle_at_rest()
+            }
             _ => None,
         };
         let Some(obstacle) = through else {
             return self.solve_strategy(initial);
         };
-        let first = if self.model.has_friction() {
+        let first = if friction {
             None
         } else {
             let sol = self.solve_strategy(None)?;
@@ -516,24 +436,31 @@ impl Solver {
             }
             Some(sol)
         };
-        match (self.curl_from_straight(obstacle), first) {
-            (Ok(q), first) => {
+        // A straight rod through an obstacle too cannot start the curl.
+        let curled = if curvature && (friction || self.straight_rod_clears()) {
+            self.curl_from_straight(obstacle).ok()
+        } else {
+            None
+        };
+        let start = match curled {
+            None if !friction => self.approach_obstacles(obstacle).ok(),
+            start => start,
+        };
+        match (start, first) {
+            (Some(q), first) => {
                 let mut sol = self.solve_strategy(Some(&q))?;
                 // The failed cold attempt's iterations count too.
                 sol.iterations += first.map_or(0, |f| f.iterations);
                 Ok(sol)
             }
-            (Err(_), None) => self.solve_strategy(None),
-            (Err(why), Some(mut sol)) => {
-                let o = obstacle;
-                if let Some(curl) = &self.curled {
-                    sol.iterations += curl.iterations;
-                    sol.continuation_steps += curl.steps;
+            (None, None) => self.solve_strategy(None),
+            (None, Some(mut sol)) => {
+                // Finished before the homotopies: their notes go on now.
+                for homotopy in &self.homotopies {
+                    sol.iterations += homotopy.iterations;
+                    sol.continuation_steps += homotopy.steps;
+                    sol.message.push_str(&homotopy.note());
                 }
-                sol.message.push_str(&format!(
-                    "; the rest shape passes through obstacles[{o}], and curling the rod to it \
-                     from straight failed: {why}"
-                ));
                 Ok(sol)
             }
         }
@@ -785,21 +712,10 @@ impl Solver {
             message.push_str(" (unstable equilibrium)");
         }
         let (mut iterations, mut continuation_steps) = (iterations, continuation_steps);
-        if let Some(curl) = &self.curled {
-            iterations += curl.iterations;
-            continuation_steps += curl.steps;
-            let o = curl.obstacle;
-            message.push_str(&match &curl.failed {
-                None => format!(
-                    "; the rest shape passes through obstacles[{o}], so the rod was curled to it \
-                     from straight first ({} solves)",
-                    curl.steps
-                ),
-                Some(why) => format!(
-                    "; the rest shape passes through obstacles[{o}], and curling the rod to it \
-                     from straight failed: {why}"
-                ),
-            });
+        for homotopy in &self.homotopies {
+            iterations += homotopy.iterations;
+            continuation_steps += homotopy.steps;
+            message.push_str(&homotopy.note());
         }
         if let Some(note) = note {
             message = note;

@@ -1,0 +1,274 @@
+//! A start for a cold solve whose rest shape passes through an obstacle.
+//!
+//! The load path starts at the rest shape, which is then no admissible
+//! state, and Newton from it may land on the obstacle's far side or not
+//! converge. Two homotopies bring the rod to a start instead, each a
+//! sequence of warm solves with adaptive steps:
+//!
+//! * the curl ([`Solver::curl_from_straight`]): the rest curvature ramped
+//!   from straight, the loads at full scale, as a robot's muscles curl it
+//!   (with friction this is the history);
+//! * the approach ([`Solver::approach_obstacles`]), where the straight rod
+//!   passes through an obstacle too (a robot hanging closer to a floor than
+//!   its length): the obstacles moved in from where the rod's free
+//!   equilibrium clears them, every gap offset by the free equilibrium's
+//!   depth and the offset ramped to zero. An offset gap is a contact radius
+//!   `r - (1 - alpha) d`, so each step is the scene itself with another
+//!   radius, whatever the obstacles' shapes.
+
+use super::Solver;
+use crate::contact::Obstacle;
+use crate::interrupt;
+use crate::quat::Quat;
+use crate::scene::Scene;
+use nalgebra::Vector3;
+
+/// A homotopy a cold solve took to its start: which, for which obstacle,
+/// its steps, their Newton iterations, and why it stopped short.
+#[derive(Debug, Clone)]
+pub(super) struct Homotopy {
+    kind: Kind,
+    obstacle: usize,
+    pub(super) steps: usize,
+    pub(super) iterations: usize,
+    failed: Option<String>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    Curl,
+    Approach,
+}
+
+impl Homotopy {
+    /// The solve message's note: what was done and with how many solves.
+    pub(super) fn note(&self) -> String {
+        let o = self.obstacle;
+        match (self.kind, &self.failed) {
+            (Kind::Curl, None) => format!(
+                "; the rest shape passes through obstacles[{o}], so the rod was curled to it from \
+                 straight first ({} solves)",
+                self.steps
+            ),
+            (Kind::Curl, Some(why)) => format!(
+                "; the rest shape passes through obstacles[{o}], and curling the rod to it from \
+                 straight failed: {why}"
+            ),
+            (Kind::Approach, None) => format!(
+                "; the rest shape passes through obstacles[{o}], so the obstacles were moved in \
+                 from where the rod's free equilibrium clears them first ({} solves)",
+                self.steps
+            ),
+            (Kind::Approach, Some(why)) => format!(
+                "; the rest shape passes through obstacles[{o}], and moving the obstacles in from \
+                 where the rod's free equilibrium clears them failed: {why}"
+            ),
+        }
+    }
+}
+
+/// A homotopy's first step (of the way from 0 to 1), its shortest, and how
+/// many iterations a step may take and still let the next one double.
+const FIRST_STEP: f64 = 0.25;
+const MIN_STEP: f64 = 1.0 / 64.0;
+const EASY_STEP: usize = 8;
+
+/// How far the approach's start clears every obstacle, of the rod's length.
+const APPROACH_CLEARANCE: f64 = 1e-3;
+
+/// Points a chord is sampled at for its depth in an obstacle (besides its
+/// nodes): a thin obstacle may lie between two nodes.
+const CHORD_SAMPLES: usize = 8;
+
+impl Solver {
+    /// Where the rest shape passes through an obstacle, the load path has no
+    /// start (the rest shape is not admissible): the rod's rest curvature is
+    /// ramped from straight instead, the loads at full scale, as a robot's
+    /// muscles curl it. The straight rod is solved cold, then each scaled
+    /// rest curvature warm from the last, with adaptive steps, up to the
+    /// scene's own: the state its solve starts from (and certifies). With
+    /// friction this is the history: the loads, then the curl. `Err`: why
+    /// it could not (the straight rod fails too, or a step will not go).
+    pub(super) fn curl_from_straight(
+        &mut self,
+        obstacle: usize,
+    ) -> std::result::Result<Vec<Quat>, String> {
+        let full = self.scene.rest_curvature.clone();
+        let base = self.scene.clone();
+        let scaled = move |alpha: f64| -> Scene {
+            let mut scene = base.clone();
+            scene.rest_curvature = full.iter().map(|k| [alpha * k[0], alpha * k[1]]).collect();
+            scene
+        };
+        let mut settings = self.settings.clone();
+        settings.n_elements = Some(self.model.n());
+        let mut homotopy = Homotopy {
+            kind: Kind::Curl,
+            obstacle,
+            steps: 0,
+            iterations: 0,
+            failed: None,
+        };
+        // `Err` where a curled scene cannot be solved at all (its reason),
+        // `None` where its solve does not end converged and stable.
+        let solve = |alpha: f64, initial: Option<&[Quat]>, h: &mut Homotopy| {
+            let mut solver = Solver::new(&scaled(alpha), settings.clone()).map_err(|e| {
+                format!("the rod curled to {alpha:.3} of its rest curvature is refused: {e}")
+            })?;
+            let sol = solver.solve_strategy(initial).map_err(|e| e.to_string())?;
+            h.iterations += sol.iterations;
+            h.steps += 1;
+            Ok::<_, String>((sol.converged() && sol.stable).then_some(sol.quaternions))
+        };
+        let outcome = match solve(0.0, None, &mut homotopy) {
+            Ok(Some(q)) => self.ramp(q, &mut homotopy, |alpha, q, h| solve(alpha, Some(q), h)),
+            Ok(None) => Err("the straight rod does not converge either".to_string()),
+            Err(why) => Err(why),
+        };
+        homotopy.failed = outcome.as_ref().err().cloned();
+        self.homotopies.push(homotopy);
+        outcome
+    }
+
+    /// Where the straight rod passes through an obstacle too, the obstacles
+    /// are moved in instead (see the module's notes): from the rod's free
+    /// equilibrium (every obstacle left out), every gap offset by its
+    /// depth into them and a clearance, the offset ramped to zero with warm
+    /// steps. Frictionless only: with friction the curl is the history.
+    pub(super) fn approach_obstacles(
+        &mut self,
+        obstacle: usize,
+    ) -> std::result::Result<Vec<Quat>, String> {
+        let mut settings = self.settings.clone();
+        settings.n_elements = Some(self.model.n());
+        let mut homotopy = Homotopy {
+            kind: Kind::Approach,
+            obstacle,
+            steps: 0,
+            iterations: 0,
+            failed: None,
+        };
+        let outcome = (|| {
+            let mut free_scene = self.scene.clone();
+            free_scene.obstacles.clear();
+            free_scene.friction.clear();
+            let free = Solver::new(&free_scene, settings.clone())
+                .and_then(|mut solver| solver.solve_strategy(None))
+                .map_err(|e| format!("the rod without its obstacles is refused: {e}"))?;
+            homotopy.iterations += free.iterations;
+            homotopy.steps += 1;
+            if !(free.converged() && free.stable) {
+                return Err("the rod without its obstacles does not converge either".to_string());
+            }
+            let radius = self.model.contact_radius();
+            let depth = depth_into(&self.scene.obstacles, &free.positions, radius);
+            if depth <= 0.0 {
+                // The free equilibrium clears every obstacle: it is a start.
+                return Ok(free.quaternions);
+            }
+            let offset = depth + APPROACH_CLEARANCE * self.model.length();
+            let mut solver =
+                Solver::new(&self.scene, settings.clone()).map_err(|e| e.to_string())?;
+            let straight = is_straight(&free.positions);
+            self.ramp(free.quaternions, &mut homotopy, |alpha, q, h| {
+                solver
+                    .model
+                    .set_contact_radius(radius - (1.0 - alpha) * offset);
+                let sol = solver.solve_strategy(Some(q)).map_err(|e| e.to_string())?;
+                h.iterations += sol.iterations;
+                h.steps += 1;
+                Ok((sol.converged() && sol.stable).then_some(sol.quaternions))
+            })
+            .map_err(|why| {
+                if straight {
+                    format!(
+                        "{why} (its free equilibrium is straight: pressed along it, the rod \
+                         buckles to a side that nothing in the scene chooses; a rest curvature \
+                         or a load across it does)"
+                    )
+                } else {
+                    why
+                }
+            })
+        })();
+        homotopy.failed = outcome.as_ref().err().cloned();
+        self.homotopies.push(homotopy);
+        outcome
+    }
+
+    /// Whether the straight rod (the base's tangent, unloaded) clears every
+    /// obstacle: the curl's start.
+    pub(super) fn straight_rod_clears(&self) -> bool {
+        let model = &self.model;
+        let straight = vec![model.base(); model.n() + 1];
+        let mut nodes = vec![Vector3::zeros(); model.n() + 1];
+        model.positions(&straight, &mut model.new_interior(), &mut nodes);
+        depth_into(&self.scene.obstacles, &nodes, model.contact_radius()) <= 0.0
+    }
+
+    /// A homotopy's steps from 0 (where `q` is its answer) to 1: each
+    /// solved warm from the last by `solve` (`None`: not converged and
+    /// stable, so the step halves), doubling after an easy one.
+    fn ramp(
+        &self,
+        mut q: Vec<Quat>,
+        homotopy: &mut Homotopy,
+        mut solve: impl FnMut(f64, &[Quat], &mut Homotopy) -> Result<Option<Vec<Quat>>, String>,
+    ) -> Result<Vec<Quat>, String> {
+        let (mut alpha, mut step) = (0.0f64, FIRST_STEP);
+        while alpha < 1.0 && !interrupt::requested() {
+            let before = homotopy.iterations;
+            let next_alpha = (alpha + step).min(1.0);
+            match solve(next_alpha, &q, homotopy)? {
+                Some(next) => {
+                    q = next;
+                    alpha = next_alpha;
+                    if homotopy.iterations - before <= EASY_STEP {
+                        step *= 2.0;
+                    }
+                }
+                None if step > MIN_STEP => step *= 0.5,
+                None => return Err(format!("it stopped at {alpha:.3} of the way")),
+            }
+            if homotopy.iterations >= self.settings.max_iterations {
+                return Err(format!("it ran out of iterations at {alpha:.3} of the way"));
+            }
+        }
+        Ok(q)
+    }
+}
+
+/// How deep the rod whose nodes are `nodes` reaches into any of
+/// `obstacles` (its surface `radius` off the backbone), at its nodes and
+/// along its chords; negative where it clears them all.
+fn depth_into(obstacles: &[Obstacle], nodes: &[Vector3<f64>], radius: f64) -> f64 {
+    let mut depth = f64::NEG_INFINITY;
+    for obstacle in obstacles {
+        for pair in nodes.windows(2) {
+            for k in 0..=CHORD_SAMPLES {
+                let t = k as f64 / CHORD_SAMPLES as f64;
+                let p = pair[0] + t * (pair[1] - pair[0]);
+                depth = depth.max(radius - obstacle.proximity(&p).gap);
+            }
+        }
+    }
+    depth
+}
+
+/// Whether the nodes lie on the line through the first and the last (to
+/// round-off of the span): a rod the obstacles would press along its axis.
+fn is_straight(nodes: &[Vector3<f64>]) -> bool {
+    let (Some(first), Some(last)) = (nodes.first(), nodes.last()) else {
+        return true;
+    };
+    let span = last - first;
+    let length = span.norm();
+    if length == 0.0 {
+        return false;
+    }
+    let axis = span / length;
+    nodes.iter().all(|p| {
+        let d = p - first;
+        (d - d.dot(&axis) * axis).norm() <= 1e-9 * length
+    })
+}

@@ -357,6 +357,7 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
         let c = &mut w.kkt.contact;
         c.chords.resize(n, (Matrix3::zeros(), Matrix3::zeros()));
         c.chords_loaded = model.chord_jacobians(&w.q, &mut c.chords);
+        c.along = None;
     }
     mixed::load(model, w);
     let dense = !w.kkt.mixed.in_use;
@@ -520,7 +521,9 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     }
     // `S = D A^-1 D^T`: where `A + U M U^T` is symmetric, so is `S`, and
     // each pair of entries is the one dot product, over the shorter row.
-    let symmetric = w.kkt.force_extra.is_empty()
+    // Telling it reads the whole Jacobian: worth it for many rows only.
+    let symmetric = rows >= SYMMETRIC_SCHUR_ROWS
+        && w.kkt.force_extra.is_empty()
         && w.jac.is_symmetric(SYMMETRIC_JACOBIAN)
         && w.kkt.contact.curvature_blocks.iter().all(is_symmetric);
     for r in 0..rows {
@@ -1446,6 +1449,12 @@ impl CurvatureInverse {
         }
     }
 }
+
+/// Rows of the Schur complement from which its symmetry is looked for:
+/// the check (about 3,500 instructions at n = 20, as many again a contact
+/// block) costs about what the half of `S` it saves does at 8 rows, both
+/// in proportion to n (callgrind, the seed's robot on a ball: 5 rows).
+const SYMMETRIC_SCHUR_ROWS: usize = 8;
 
 /// Asymmetry of the Jacobian, relative to its largest entry, below which
 /// the Schur complement is formed as symmetric (a potential's Hessian, to

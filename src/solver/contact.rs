@@ -108,6 +108,12 @@ pub(crate) struct ContactWork {
     /// (which computes every chord's before it).
     pub chords: Vec<(Matrix3<f64>, Matrix3<f64>)>,
     pub chords_loaded: bool,
+    /// The chords' terms along one direction `nu`, for the rows that share
+    /// it (every contact on a plane): `E_i^T nu` at rotation `i - 1` and
+    /// `F_i^T nu` at `i - 2`, for the loaded chords (`None` where not yet).
+    pub along: Option<Vector3<f64>>,
+    pub along_ends: Vec<Vector3<f64>>,
+    pub along_starts: Vec<Vector3<f64>>,
     pub moved: Vec<Vector3<f64>>,
     /// The held contacts' curvature terms (see [`curvature`]): the columns
     /// `U` (`D_k^T e_a` of each node and axis, `n` vectors each) and the
@@ -647,14 +653,31 @@ pub(crate) fn load_row(
         }
         let v = weight * direction;
         if w.kkt.contact.chords_loaded {
-            // r_node is the sum of the chords up to it.
-            let (c, row) = (&w.kkt.contact, &mut w.kkt.rows[r]);
-            for i in 1..=node {
-                let (start, end) = &c.chords[i - 1];
-                row[i - 1] += end.transpose() * v;
-                if i >= 2 {
-                    row[i - 2] += start.transpose() * v;
-                }
+            // r_node is the sum of the chords up to it: its row the chords'
+            // terms along the direction, up to the node.
+            let c = &mut w.kkt.contact;
+            if c.along != Some(*direction) {
+                c.along_ends.clear();
+                c.along_ends
+                    .extend(c.chords.iter().map(|(_, end)| end.transpose() * direction));
+                c.along_starts.clear();
+                c.along_starts.extend(
+                    c.chords
+                        .iter()
+                        .skip(1)
+                        .map(|(start, _)| start.transpose() * direction),
+                );
+                c.along = Some(*direction);
+            }
+            let row = &mut w.kkt.rows[r];
+            for (x, e) in row[..node].iter_mut().zip(&c.along_ends) {
+                *x += weight * e;
+            }
+            for (x, s) in row[..node.saturating_sub(1)]
+                .iter_mut()
+                .zip(&c.along_starts)
+            {
+                *x += weight * s;
             }
         } else {
             node_position_jacobian(model, w, node);

@@ -74,25 +74,6 @@ impl BlockTridiagonal {
         }
     }
 
-    /// Whether the matrix is symmetric to `relative` of its largest entry.
-    pub fn is_symmetric(&self, relative: f64) -> bool {
-        let largest = self
-            .diag
-            .iter()
-            .chain(&self.upper)
-            .chain(&self.lower)
-            .fold(0.0f64, |m, b| m.max(b.amax()));
-        let cutoff = relative * largest;
-        self.diag
-            .iter()
-            .all(|d| (d - d.transpose()).amax() <= cutoff)
-            && self
-                .upper
-                .iter()
-                .zip(&self.lower)
-                .all(|(u, l)| (u - l.transpose()).amax() <= cutoff)
-    }
-
     /// Largest absolute diagonal entry (a scale for damping).
     pub fn max_diagonal(&self) -> f64 {
         self.diag

@@ -519,27 +519,10 @@ fn kkt_step(lu: &BlockLu, w: &mut Workspace) -> bool {
     if w.kkt.rhs.len() != rows {
         w.kkt.rhs = DVector::zeros(rows);
     }
-    // `S = D A^-1 D^T`: where `A + U M U^T` is symmetric, so is `S`, and
-    // each pair of entries is the one dot product, over the shorter row.
-    // Telling it reads the whole Jacobian: worth it for many rows only.
-    let symmetric = rows >= SYMMETRIC_SCHUR_ROWS
-        && w.kkt.force_extra.is_empty()
-        && w.jac.is_symmetric(SYMMETRIC_JACOBIAN)
-        && w.kkt.contact.curvature_blocks.iter().all(is_symmetric);
     for r in 0..rows {
-        let first = if symmetric { r } else { 0 };
-        for k in first..rows {
-            let (a, b) = if symmetric && w.kkt.row_len[k] < w.kkt.row_len[r] {
-                (k, r)
-            } else {
-                (r, k)
-            };
-            let len = w.kkt.row_len[a];
-            let entry = dot(&w.kkt.rows[a][..len], &w.kkt.columns[b][..len]);
-            w.kkt.schur[(r, k)] = entry;
-            if symmetric {
-                w.kkt.schur[(k, r)] = entry;
-            }
+        for k in 0..rows {
+            let len = w.kkt.row_len[r];
+            w.kkt.schur[(r, k)] = dot(&w.kkt.rows[r][..len], &w.kkt.columns[k][..len]);
         }
         w.kkt.rhs[r] = dot(&w.kkt.rows[r], &w.scratch) - row_residual(w, r);
     }
@@ -1449,17 +1432,6 @@ impl CurvatureInverse {
         }
     }
 }
-
-/// Rows of the Schur complement from which its symmetry is looked for:
-/// the check (about 3,500 instructions at n = 20, as many again a contact
-/// block) costs about what the half of `S` it saves does at 8 rows, both
-/// in proportion to n (callgrind, the seed's robot on a ball: 5 rows).
-const SYMMETRIC_SCHUR_ROWS: usize = 8;
-
-/// Asymmetry of the Jacobian, relative to its largest entry, below which
-/// the Schur complement is formed as symmetric (a potential's Hessian, to
-/// round-off; a dead moment's is not).
-const SYMMETRIC_JACOBIAN: f64 = 1e-12;
 
 /// Asymmetry of a curvature block, relative to its size, below which it
 /// counts as symmetric (a Hessian's, to round-off).

@@ -41,6 +41,16 @@ enum Kind {
 }
 
 impl Homotopy {
+    fn new(kind: Kind, obstacle: usize) -> Homotopy {
+        Homotopy {
+            kind,
+            obstacle,
+            steps: 0,
+            iterations: 0,
+            failed: None,
+        }
+    }
+
     /// The solve message's note: what was done and with how many solves.
     pub(super) fn note(&self) -> String {
         let o = self.obstacle;
@@ -102,13 +112,7 @@ impl Solver {
         };
         let mut settings = self.settings.clone();
         settings.n_elements = Some(self.model.n());
-        let mut homotopy = Homotopy {
-            kind: Kind::Curl,
-            obstacle,
-            steps: 0,
-            iterations: 0,
-            failed: None,
-        };
+        let mut homotopy = Homotopy::new(Kind::Curl, obstacle);
         // `Err` where a curled scene cannot be solved at all (its reason),
         // `None` where its solve does not end converged and stable.
         let solve = |alpha: f64, initial: Option<&[Quat]>, h: &mut Homotopy| {
@@ -141,13 +145,7 @@ impl Solver {
     ) -> std::result::Result<Vec<Quat>, String> {
         let mut settings = self.settings.clone();
         settings.n_elements = Some(self.model.n());
-        let mut homotopy = Homotopy {
-            kind: Kind::Approach,
-            obstacle,
-            steps: 0,
-            iterations: 0,
-            failed: None,
-        };
+        let mut homotopy = Homotopy::new(Kind::Approach, obstacle);
         let outcome = (|| {
             let mut free_scene = self.scene.clone();
             free_scene.obstacles.clear();

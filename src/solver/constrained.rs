@@ -354,10 +354,7 @@ pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
         w.kkt.row_len.push(contact::last_node(model, i).min(n));
     }
     if model.has_contact() {
-        let c = &mut w.kkt.contact;
-        c.chords.resize(n, (Matrix3::zeros(), Matrix3::zeros()));
-        c.chords_loaded = model.chord_jacobians(&w.q, &mut c.chords);
-        c.along = None;
+        w.kkt.contact.load_chords(model, &w.q);
     }
     mixed::load(model, w);
     let dense = !w.kkt.mixed.in_use;
@@ -1785,10 +1782,8 @@ mod tests {
         assert!(rows > 1, "{rows} rows");
         contact::load_rows(&model, &mut w, 0);
         let direct = w.kkt.rows[..rows].to_vec();
-        let c = &mut w.kkt.contact;
-        c.chords = vec![(Matrix3::zeros(), Matrix3::zeros()); model.n()];
-        assert!(model.chord_jacobians(&w.q, &mut c.chords));
-        c.chords_loaded = true;
+        w.kkt.contact.load_chords(&model, &w.q);
+        assert!(w.kkt.contact.chords_loaded);
         contact::load_rows(&model, &mut w, 0);
         let largest = direct.iter().flatten().fold(0.0f64, |a, v| a.max(v.amax()));
         for (a, b) in direct.iter().zip(&w.kkt.rows[..rows]) {

@@ -39,6 +39,7 @@ use super::Workspace;
 use crate::contact::{Obstacle, Proximity};
 use crate::disc::NodeForces;
 use crate::model::RodModel;
+use crate::quat::Quat;
 use nalgebra::{Matrix3, Vector3};
 
 /// How closely the nearest point of a chord is found: `2^-48` of its length.
@@ -110,7 +111,8 @@ pub(crate) struct ContactWork {
     pub chords_loaded: bool,
     /// The chords' terms along one direction `nu`, for the rows that share
     /// it (every contact on a plane): `E_i^T nu` at rotation `i - 1` and
-    /// `F_i^T nu` at `i - 2`, for the loaded chords (`None` where not yet).
+    /// `F_i^T nu` at `i - 2`, of the loaded chords (`None` where not yet),
+    /// as far along the rod as a row has needed.
     pub along: Option<Vector3<f64>>,
     pub along_ends: Vec<Vector3<f64>>,
     pub along_starts: Vec<Vector3<f64>>,
@@ -131,6 +133,15 @@ pub(crate) struct ContactWork {
 }
 
 impl ContactWork {
+    /// Load every chord's Jacobian at `q` (see `chords`), where the scheme
+    /// has them; the terms along a direction are then computed again.
+    pub fn load_chords(&mut self, model: &RodModel, q: &[Quat]) {
+        self.chords
+            .resize(model.n(), (Matrix3::zeros(), Matrix3::zeros()));
+        self.chords_loaded = model.chord_jacobians(q, &mut self.chords);
+        self.along = None;
+    }
+
     /// The forces at nodes of the last evaluation (held points and contacts).
     pub fn node_forces(&self) -> NodeForces<'_> {
         NodeForces {
@@ -657,18 +668,27 @@ pub(crate) fn load_row(
             // terms along the direction, up to the node.
             let c = &mut w.kkt.contact;
             if c.along != Some(*direction) {
+                // Another direction (a port's, a tangent, a curved
+                // obstacle's normal): computed again from the base.
                 c.along_ends.clear();
-                c.along_ends
-                    .extend(c.chords.iter().map(|(_, end)| end.transpose() * direction));
                 c.along_starts.clear();
-                c.along_starts.extend(
-                    c.chords
-                        .iter()
-                        .skip(1)
-                        .map(|(start, _)| start.transpose() * direction),
-                );
                 c.along = Some(*direction);
             }
+            // Up to the node only: rows that turn their direction each time
+            // cost what they did without the terms kept.
+            let computed = c.along_ends.len();
+            c.along_ends.extend(
+                c.chords[computed..node.max(computed)]
+                    .iter()
+                    .map(|(_, end)| end.transpose() * direction),
+            );
+            let computed = c.along_starts.len();
+            let needed = node.saturating_sub(1).max(computed);
+            c.along_starts.extend(
+                c.chords[computed + 1..needed + 1]
+                    .iter()
+                    .map(|(start, _)| start.transpose() * direction),
+            );
             let row = &mut w.kkt.rows[r];
             for (x, e) in row[..node].iter_mut().zip(&c.along_ends) {
                 *x += weight * e;

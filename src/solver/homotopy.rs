@@ -38,6 +38,8 @@ pub(super) struct Homotopy {
 enum Kind {
     Curl,
     Approach,
+    /// The approach's start, the free equilibrium, cleared them already.
+    Free,
 }
 
 impl Homotopy {
@@ -69,6 +71,10 @@ impl Homotopy {
                  from where the rod's free equilibrium clears them first ({} solves)",
                 self.steps
             ),
+            (Kind::Free, _) => format!(
+                "; the rest shape passes through obstacles[{o}], so the solve started from the \
+                 rod's free equilibrium, which clears them"
+            ),
             (Kind::Approach, Some(why)) => format!(
                 "; the rest shape passes through obstacles[{o}], and moving the obstacles in from \
                  where the rod's free equilibrium clears them failed: {why}"
@@ -85,6 +91,14 @@ const EASY_STEP: usize = 8;
 
 /// How far the approach's start clears every obstacle, of the rod's length.
 const APPROACH_CLEARANCE: f64 = 1e-3;
+
+/// How deep a straight rod may reach into an obstacle and still clear it,
+/// of the rod's length (`RodModel::obstacle_at_rest`'s round-off).
+const AT_REST_DEPTH: f64 = 1e-9;
+
+/// The cosine of the largest angle between an obstacle's normal and a
+/// straight rod's axis at which it presses the rod along its axis.
+const ALONG_AXIS: f64 = 0.9;
 
 /// Points a chord is sampled at for its depth in an obstacle (besides its
 /// nodes): a thin obstacle may lie between two nodes.
@@ -159,15 +173,16 @@ impl Solver {
                 return Err("the rod without its obstacles does not converge either".to_string());
             }
             let radius = self.model.contact_radius();
-            let depth = depth_into(&self.scene.obstacles, &free.positions, radius);
-            if depth <= 0.0 {
+            let deepest = depth_into(&self.scene.obstacles, &free.positions, radius);
+            if deepest.depth <= 0.0 {
                 // The free equilibrium clears every obstacle: it is a start.
+                homotopy.kind = Kind::Free;
                 return Ok(free.quaternions);
             }
-            let offset = depth + APPROACH_CLEARANCE * self.model.length();
+            let offset = deepest.depth + APPROACH_CLEARANCE * self.model.length();
             let mut solver =
                 Solver::new(&self.scene, settings.clone()).map_err(|e| e.to_string())?;
-            let straight = is_straight(&free.positions);
+            let pressed = pressed_along_its_axis(&free.positions, &deepest.normal);
             self.ramp(free.quaternions, &mut homotopy, |alpha, q, h| {
                 solver
                     .model
@@ -178,7 +193,7 @@ impl Solver {
                 Ok((sol.converged() && sol.stable).then_some(sol.quaternions))
             })
             .map_err(|why| {
-                if straight {
+                if pressed {
                     format!(
                         "{why} (its free equilibrium is straight: pressed along it, the rod \
                          buckles to a side that nothing in the scene chooses; a rest curvature \
@@ -198,10 +213,11 @@ impl Solver {
     /// obstacle: the curl's start.
     pub(super) fn straight_rod_clears(&self) -> bool {
         let model = &self.model;
-        let straight = vec![model.base(); model.n() + 1];
         let mut nodes = vec![Vector3::zeros(); model.n() + 1];
-        model.positions(&straight, &mut model.new_interior(), &mut nodes);
-        depth_into(&self.scene.obstacles, &nodes, model.contact_radius()) <= 0.0
+        model.positions(&model.straight(), &mut model.new_interior(), &mut nodes);
+        // As deep as `obstacle_at_rest` lets a rest shape be.
+        let deepest = depth_into(&self.scene.obstacles, &nodes, model.contact_radius());
+        deepest.depth <= AT_REST_DEPTH * model.length()
     }
 
     /// A homotopy's steps from 0 (where `q` is its answer) to 1: each
@@ -236,37 +252,55 @@ impl Solver {
     }
 }
 
+/// The deepest point of a rod in its obstacles.
+struct Deepest {
+    /// How deep (negative where the rod clears them all) [m].
+    depth: f64,
+    /// The obstacle's normal there.
+    normal: Vector3<f64>,
+}
+
 /// How deep the rod whose nodes are `nodes` reaches into any of
 /// `obstacles` (its surface `radius` off the backbone), at its nodes and
-/// along its chords; negative where it clears them all.
-fn depth_into(obstacles: &[Obstacle], nodes: &[Vector3<f64>], radius: f64) -> f64 {
-    let mut depth = f64::NEG_INFINITY;
+/// along its chords.
+fn depth_into(obstacles: &[Obstacle], nodes: &[Vector3<f64>], radius: f64) -> Deepest {
+    let mut deepest = Deepest {
+        depth: f64::NEG_INFINITY,
+        normal: Vector3::zeros(),
+    };
     for obstacle in obstacles {
         for pair in nodes.windows(2) {
             for k in 0..=CHORD_SAMPLES {
                 let t = k as f64 / CHORD_SAMPLES as f64;
-                let p = pair[0] + t * (pair[1] - pair[0]);
-                depth = depth.max(radius - obstacle.proximity(&p).gap);
+                let near = obstacle.proximity(&(pair[0] + t * (pair[1] - pair[0])));
+                if radius - near.gap > deepest.depth {
+                    deepest = Deepest {
+                        depth: radius - near.gap,
+                        normal: near.normal,
+                    };
+                }
             }
         }
     }
-    depth
+    deepest
 }
 
 /// Whether the nodes lie on the line through the first and the last (to
-/// round-off of the span): a rod the obstacles would press along its axis.
-fn is_straight(nodes: &[Vector3<f64>]) -> bool {
+/// round-off of the span) and `normal` presses along it: a rod that buckles
+/// to a side nothing chooses.
+fn pressed_along_its_axis(nodes: &[Vector3<f64>], normal: &Vector3<f64>) -> bool {
     let (Some(first), Some(last)) = (nodes.first(), nodes.last()) else {
-        return true;
+        return false;
     };
     let span = last - first;
     let length = span.norm();
-    if length == 0.0 {
+    if nodes.len() < 3 || length == 0.0 {
         return false;
     }
     let axis = span / length;
-    nodes.iter().all(|p| {
+    let straight = nodes.iter().all(|p| {
         let d = p - first;
         (d - d.dot(&axis) * axis).norm() <= 1e-9 * length
-    })
+    });
+    straight && axis.dot(normal).abs() >= ALONG_AXIS
 }

@@ -662,7 +662,6 @@ pub(crate) fn load_row(
         if weight == 0.0 || node == 0 {
             continue;
         }
-        let v = weight * direction;
         if w.kkt.contact.chords_loaded {
             // r_node is the sum of the chords up to it: its row the chords'
             // terms along the direction, up to the node.
@@ -702,6 +701,7 @@ pub(crate) fn load_row(
         } else {
             node_position_jacobian(model, w, node);
             let (d, row) = (&w.kkt.contact.position_jacobian, &mut w.kkt.rows[r]);
+            let v = weight * direction;
             for (x, b) in row.iter_mut().zip(d.iter()) {
                 *x += b.transpose() * v;
             }

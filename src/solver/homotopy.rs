@@ -16,9 +16,10 @@
 //!   `r - (1 - alpha) d`, so each step is the scene itself with another
 //!   radius, whatever the obstacles' shapes.
 
+use super::contact::{self, Site};
 use super::Solver;
-use crate::contact::Obstacle;
 use crate::interrupt;
+use crate::model::RodModel;
 use crate::quat::Quat;
 use crate::scene::Scene;
 use nalgebra::Vector3;
@@ -100,10 +101,6 @@ const AT_REST_DEPTH: f64 = 1e-9;
 /// straight rod's axis at which it presses the rod along its axis.
 const ALONG_AXIS: f64 = 0.9;
 
-/// Points a chord is sampled at for its depth in an obstacle (besides its
-/// nodes): a thin obstacle may lie between two nodes.
-const CHORD_SAMPLES: usize = 8;
-
 impl Solver {
     /// Where the rest shape passes through an obstacle, the load path has no
     /// start (the rest shape is not admissible): the rod's rest curvature is
@@ -173,7 +170,7 @@ impl Solver {
                 return Err("the rod without its obstacles does not converge either".to_string());
             }
             let radius = self.model.contact_radius();
-            let deepest = depth_into(&self.scene.obstacles, &free.positions, radius);
+            let deepest = deepest_point(&self.model, &free.positions);
             if deepest.depth <= 0.0 {
                 // The free equilibrium clears every obstacle: it is a start.
                 homotopy.kind = Kind::Free;
@@ -216,8 +213,7 @@ impl Solver {
         let mut nodes = vec![Vector3::zeros(); model.n() + 1];
         model.positions(&model.straight(), &mut model.new_interior(), &mut nodes);
         // As deep as `obstacle_at_rest` lets a rest shape be.
-        let deepest = depth_into(&self.scene.obstacles, &nodes, model.contact_radius());
-        deepest.depth <= AT_REST_DEPTH * model.length()
+        deepest_point(model, &nodes).depth <= AT_REST_DEPTH * model.length()
     }
 
     /// A homotopy's steps from 0 (where `q` is its answer) to 1: each
@@ -260,29 +256,28 @@ struct Deepest {
     normal: Vector3<f64>,
 }
 
-/// How deep the rod whose nodes are `nodes` reaches into any of
-/// `obstacles` (its surface `radius` off the backbone), at its nodes and
-/// along its chords.
-fn depth_into(obstacles: &[Obstacle], nodes: &[Vector3<f64>], radius: f64) -> Deepest {
-    let mut deepest = Deepest {
-        depth: f64::NEG_INFINITY,
-        normal: Vector3::zeros(),
-    };
-    for obstacle in obstacles {
-        for pair in nodes.windows(2) {
-            for k in 0..=CHORD_SAMPLES {
-                let t = k as f64 / CHORD_SAMPLES as f64;
-                let near = obstacle.proximity(&(pair[0] + t * (pair[1] - pair[0])));
-                if radius - near.gap > deepest.depth {
-                    deepest = Deepest {
-                        depth: radius - near.gap,
-                        normal: near.normal,
-                    };
+/// How deep the rod whose nodes are `nodes` reaches into the model's
+/// obstacles, at its nodes and at its chords' nearest points (the contact
+/// slots, located as a solve locates them).
+fn deepest_point(model: &RodModel, nodes: &[Vector3<f64>]) -> Deepest {
+    let mut sites = vec![Site::default(); contact::slot_count(model)];
+    contact::locate(model, nodes, &mut sites);
+    sites.iter().fold(
+        Deepest {
+            depth: f64::NEG_INFINITY,
+            normal: Vector3::zeros(),
+        },
+        |deepest, site| {
+            if -site.gap > deepest.depth {
+                Deepest {
+                    depth: -site.gap,
+                    normal: site.normal,
                 }
+            } else {
+                deepest
             }
-        }
-    }
-    deepest
+        },
+    )
 }
 
 /// Whether the nodes lie on the line through the first and the last (to

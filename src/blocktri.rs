@@ -223,6 +223,28 @@ impl BlockLu {
         }
     }
 
+    /// Solve `(A + shift I)^T x = b` in place: the adjoint of
+    /// [`BlockLu::solve_in_place`], a few rows of `A^{-1}` (a tip's
+    /// sensitivity to many parameters) for as many solves as rows. With
+    /// `A = L U`, `L` block lower bidiagonal (pivots `C_j`, the matrix's lower
+    /// blocks) and `U` unit upper (`C_j^{-1} U_j`): `U^T z = b` forward, then
+    /// `L^T x = z` backward.
+    pub fn solve_transposed_in_place(&self, b: &mut [Vector3<f64>]) {
+        let n = b.len();
+        for j in 1..n {
+            let r = self.coupling[j - 1].transpose() * b[j - 1];
+            b[j] -= r;
+        }
+        if n == 0 {
+            return;
+        }
+        b[n - 1] = self.inv_pivot[n - 1].transpose() * b[n - 1];
+        for j in (0..n - 1).rev() {
+            let r = b[j] - self.lower[j].transpose() * b[j + 1];
+            b[j] = self.inv_pivot[j].transpose() * r;
+        }
+    }
+
     /// Solve `(A + shift I) x = b` in place for each of `columns` (all of
     /// one length), block by block for all at once: each block of the
     /// factors is read once, and the columns' recurrences, independent,
@@ -412,6 +434,31 @@ mod tests {
             lu.solve_in_place(&mut one);
             assert_eq!(&one, both);
         }
+    }
+
+    #[test]
+    fn the_transposed_solve_solves_the_transpose() {
+        // x^T A y = (A^T x)^T y for the solves of A^T x = b and A y = c: b^T y = x^T c.
+        let n = 7;
+        let mut lu = BlockLu::new(n);
+        lu.factor(&sample(n), 0.2).unwrap();
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|j| Vector3::new(j as f64, 1.0, -0.5 * j as f64))
+            .collect();
+        let c: Vec<Vector3<f64>> = (0..n)
+            .map(|j| Vector3::new(1.0, (j * j) as f64 * 0.1, 2.0 - j as f64))
+            .collect();
+        let (mut x, mut y) = (b.clone(), c.clone());
+        lu.solve_transposed_in_place(&mut x);
+        lu.solve_in_place(&mut y);
+        let by: f64 = b.iter().zip(&y).map(|(p, q)| p.dot(q)).sum();
+        let xc: f64 = x.iter().zip(&c).map(|(p, q)| p.dot(q)).sum();
+        assert!((by - xc).abs() <= 1e-12 * by.abs().max(1.0), "{by} {xc}");
+        // And the plain solve is not its own transpose here (the test can fail).
+        let mut z = b.clone();
+        lu.solve_in_place(&mut z);
+        let zc: f64 = z.iter().zip(&c).map(|(p, q)| p.dot(q)).sum();
+        assert!((zc - xc).abs() > 1e-6 * xc.abs());
     }
 
     #[test]

@@ -242,11 +242,20 @@ impl ActiveSet<'_> {
                 }
             }
             let (alpha, blocking) = self.ratio_test(&self.x, &d, true);
+            let from_zero = self.x.iter().all(|v| *v == 0.0);
             self.x += d * alpha;
             if let Some(row) = blocking {
                 self.work.push(row);
             } else if self.work.is_empty() {
-                break; // the unconstrained minimiser is within range
+                // The unconstrained minimiser is within range; reached in one
+                // move from zero, the ratio test just made was `fit_within`'s.
+                if from_zero {
+                    return BoundedStep {
+                        step: std::mem::replace(&mut self.x, DVector::zeros(0)),
+                        blocking: 0,
+                    };
+                }
+                break;
             }
         }
         self.fit_within();

@@ -23,6 +23,7 @@ mod adaptive;
 mod constrained;
 mod contact;
 mod continuation;
+mod coupled;
 mod dense;
 mod friction;
 mod homotopy;
@@ -40,8 +41,9 @@ mod workspace;
 pub(crate) use crate::read::check_tolerance;
 pub use adaptive::{solve_to_accuracy, Accuracy};
 pub use contact::Contact;
+pub use coupled::CoupledLinearisation;
 pub use port::PortReaction;
-pub use sensitivity::{Sensitivity, TipSensitivity};
+pub use sensitivity::{DriveParameters, Sensitivity, TipSensitivity};
 pub use settings::{
     default_elements, Engine, Local, Method, Settings, DEFAULT_ELEMENTS, MAX_DENSE_ELEMENTS,
     MAX_ELEMENTS, MAX_PAPER_ELEMENTS, RESIDUAL_TOL_RANGE,
@@ -87,6 +89,8 @@ pub struct Solver {
     /// ([`Solver::predicted_state`]).
     state_tangents: Vec<Vector3<f64>>,
     state_tangents_at: Vec<Quat>,
+    /// The inverse kinematics' coupled iteration's buffers (`coupled.rs`).
+    coupled: coupled::CoupledWork,
     /// The workspace's Jacobian is the equations' at the workspace's state
     /// (a free rod's, at full load, of the model as it is), as a stable
     /// direct solve leaves it: the tip sensitivity then needs no assembly,
@@ -181,6 +185,7 @@ impl Solver {
             curvature_tangents: Vec::new(),
             state_tangents: Vec::new(),
             state_tangents_at: Vec::new(),
+            coupled: coupled::CoupledWork::default(),
             jacobian_at_solution: false,
             homotopies: Vec::new(),
             history_base: None,

@@ -18,6 +18,18 @@ use crate::quat::Quat;
 use crate::scene::Scene;
 use nalgebra::Vector3;
 
+/// The parameters a robot's drive moves, whose loading derivatives a solver
+/// keeps (they enter the equations linearly).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DriveParameters {
+    /// The rest curvature `[kappa_x, kappa_y]` of each of this many equal sections.
+    SectionCurvature(usize),
+    /// The tendons' tensions, one a tendon of the scene.
+    Tensions,
+    /// The uniform field's three components, world frame.
+    Field,
+}
+
 /// Derivatives of the tip of an equilibrium with respect to the actuation.
 #[derive(Debug, Clone)]
 pub struct TipSensitivity {
@@ -31,7 +43,7 @@ pub struct TipSensitivity {
 
 impl TipSensitivity {
     /// `columns` columns of zeros.
-    fn zeros(columns: usize) -> TipSensitivity {
+    pub(crate) fn zeros(columns: usize) -> TipSensitivity {
         TipSensitivity {
             position: nalgebra::Matrix3xX::zeros(columns),
             tangent: nalgebra::Matrix3xX::zeros(columns),
@@ -65,63 +77,90 @@ impl Solver {
     /// `2s + 1` are `d/d kappa_x` and `d/d kappa_y` of section `s`. Costs two
     /// O(n) back-substitutions a column with the Jacobian already factored.
     pub fn tip_sensitivity(&mut self, sections: usize) -> Result<TipSensitivity> {
-        let n = self.model.n();
-        if sections == 0 || n % sections != 0 {
-            return Err(Error::argument(
-                "sections",
-                format!("{sections} sections do not divide {n} elements"),
-            ));
-        }
-        let per = n / sections;
-        if self.curvature_tangents.len() != 2 * sections {
-            self.curvature_tangents = (0..2 * sections)
-                .map(|column| {
-                    // The rest curvature's component of one section's elements.
-                    let (s, c) = (column / 2, column % 2);
-                    let mut rest = vec![Vector3::zeros(); n];
-                    for k in &mut rest[s * per..(s + 1) * per] {
-                        k[c] = 1.0;
-                    }
-                    Loading {
-                        rest_curvature: rest,
-                        support: Some((s * per + 1, (s + 1) * per)),
-                        ..Loading::empty()
-                    }
-                })
-                .collect();
-        }
-        let tangents = std::mem::take(&mut self.curvature_tangents);
-        let out = self.tip_sensitivity_with(&tangents);
-        self.curvature_tangents = tangents;
-        out
+        self.drive_sensitivity(DriveParameters::SectionCurvature(sections))
     }
 
     /// Sensitivity of the tip of the last (converged, free-tip)
     /// equilibrium to the tendons' tensions, one column a tendon of the scene.
     pub fn tension_sensitivity(&mut self) -> Result<TipSensitivity> {
-        let tendons = self.scene.tendons.len();
-        if self.tension_tangents.len() != tendons {
-            let names = (0..tendons).map(|j| format!("tendons[{j}].tension"));
-            self.tension_tangents = term_tangents(&self.model, names)?;
-        }
-        let tangents = std::mem::take(&mut self.tension_tangents);
-        let out = self.tip_sensitivity_with(&tangents);
-        self.tension_tangents = tangents;
-        out
+        self.drive_sensitivity(DriveParameters::Tensions)
     }
 
     /// Sensitivity of the tip of the last (converged, free-tip) equilibrium
     /// to the uniform field's three components, world frame. The field
     /// enters the equations linearly, so its tangents are drawn once.
     pub fn field_sensitivity(&mut self) -> Result<TipSensitivity> {
-        if self.field_tangents.len() != 3 {
-            let names = (0..3).map(|j| format!("magnetic_field[{j}]"));
-            self.field_tangents = term_tangents(&self.model, names)?;
-        }
-        let tangents = std::mem::take(&mut self.field_tangents);
-        let out = self.tip_sensitivity_with(&tangents);
-        self.field_tangents = tangents;
-        out
+        self.drive_sensitivity(DriveParameters::Field)
+    }
+
+    /// The tip's sensitivity to `parameters`.
+    fn drive_sensitivity(&mut self, parameters: DriveParameters) -> Result<TipSensitivity> {
+        self.with_drive_tangents(parameters, |solver, tangents| {
+            solver.tip_sensitivity_with(tangents)
+        })?
+    }
+
+    /// `f` of the loading's derivatives in `parameters`, drawn once and
+    /// kept: the drives enter the equations linearly (a section's rest
+    /// curvature, a tension, the field), so they do not change with them.
+    pub(crate) fn with_drive_tangents<T>(
+        &mut self,
+        parameters: DriveParameters,
+        f: impl FnOnce(&mut Solver, &[Loading]) -> T,
+    ) -> Result<T> {
+        let kept = match parameters {
+            DriveParameters::SectionCurvature(sections) => {
+                let n = self.model.n();
+                if sections == 0 || n % sections != 0 {
+                    return Err(Error::argument(
+                        "sections",
+                        format!("{sections} sections do not divide {n} elements"),
+                    ));
+                }
+                let per = n / sections;
+                if self.curvature_tangents.len() != 2 * sections {
+                    self.curvature_tangents = (0..2 * sections)
+                        .map(|column| {
+                            // The rest curvature's component of one section's elements.
+                            let (s, c) = (column / 2, column % 2);
+                            let mut rest = vec![Vector3::zeros(); n];
+                            for k in &mut rest[s * per..(s + 1) * per] {
+                                k[c] = 1.0;
+                            }
+                            Loading {
+                                rest_curvature: rest,
+                                support: Some((s * per + 1, (s + 1) * per)),
+                                ..Loading::empty()
+                            }
+                        })
+                        .collect();
+                }
+                &mut self.curvature_tangents
+            }
+            DriveParameters::Tensions => {
+                let tendons = self.scene.tendons.len();
+                if self.tension_tangents.len() != tendons {
+                    let names = (0..tendons).map(|j| format!("tendons[{j}].tension"));
+                    self.tension_tangents = term_tangents(&self.model, names)?;
+                }
+                &mut self.tension_tangents
+            }
+            DriveParameters::Field => {
+                if self.field_tangents.len() != 3 {
+                    let names = (0..3).map(|j| format!("magnetic_field[{j}]"));
+                    self.field_tangents = term_tangents(&self.model, names)?;
+                }
+                &mut self.field_tangents
+            }
+        };
+        let tangents = std::mem::take(kept);
+        let out = f(self, &tangents);
+        *match parameters {
+            DriveParameters::SectionCurvature(_) => &mut self.curvature_tangents,
+            DriveParameters::Tensions => &mut self.tension_tangents,
+            DriveParameters::Field => &mut self.field_tangents,
+        } = tangents;
+        Ok(out)
     }
 
     /// The tip's sensitivity to the parameters of which `tangents` are the
@@ -312,14 +351,14 @@ const BASE_STEP: f64 = 1e-6;
 
 /// What the tip's outputs are of a state tangent `d theta / dp`: the tip's
 /// position Jacobian, `d T_n / d theta_n = -R [e3]x` and the tip's turn `R`.
-struct TipFrame {
+pub(crate) struct TipFrame {
     d_tip: Vec<nalgebra::Matrix3<f64>>,
     d_tangent: nalgebra::Matrix3<f64>,
     turn: nalgebra::Matrix3<f64>,
 }
 
 impl TipFrame {
-    fn new(model: &RodModel, w: &super::Workspace) -> TipFrame {
+    pub(crate) fn new(model: &RodModel, w: &super::Workspace) -> TipFrame {
         let n = model.n();
         let mut d_tip = vec![nalgebra::Matrix3::zeros(); n];
         model.position_jacobian(&w.q, n, &w.interior, &mut d_tip);
@@ -333,19 +372,40 @@ impl TipFrame {
 
     /// Column `column` of `out` from the state tangent `dtheta`, the tip
     /// also moved by `moved_tip` at fixed nodes (fe4's interior).
-    fn fill(
+    pub(crate) fn fill(
         &self,
         out: &mut TipSensitivity,
         column: usize,
         dtheta: &[Vector3<f64>],
         moved_tip: Vector3<f64>,
     ) {
+        let (position, rotation) = self.moves(dtheta, moved_tip);
+        out.position.set_column(column, &position);
         let last = dtheta[dtheta.len() - 1];
-        let dr: Vector3<f64> = self.d_tip.iter().zip(dtheta).map(|(b, x)| b * x).sum();
-        out.position.set_column(column, &(dr + moved_tip));
         out.tangent.set_column(column, &(self.d_tangent * last));
+        out.rotation.set_column(column, &rotation);
+    }
+
+    /// The tip's move and turn (a world rotation vector) for the state
+    /// tangent `dtheta`, the tip also moved by `moved_tip` at fixed nodes.
+    pub(crate) fn moves(
+        &self,
+        dtheta: &[Vector3<f64>],
+        moved_tip: Vector3<f64>,
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        let dr: Vector3<f64> = self.d_tip.iter().zip(dtheta).map(|(b, x)| b * x).sum();
         // The tip turns by R d theta_n (body to world).
-        out.rotation.set_column(column, &(self.turn * last));
+        (dr + moved_tip, self.turn * dtheta[dtheta.len() - 1])
+    }
+
+    /// The tip position's derivative in each node's turn (nodes 1 to n).
+    pub(crate) fn position_rows(&self) -> &[nalgebra::Matrix3<f64>] {
+        &self.d_tip
+    }
+
+    /// The tip's rotation, body to world: its turn's derivative in the last node's.
+    pub(crate) fn turn(&self) -> nalgebra::Matrix3<f64> {
+        self.turn
     }
 }
 

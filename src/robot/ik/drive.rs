@@ -13,7 +13,7 @@
 use super::super::bounds::{BoundedStep, Bounds};
 use super::super::{Drive, Muscles, Robot};
 use crate::error::{Error, Result};
-use crate::solver::Solver;
+use crate::solver::{CoupledLinearisation, DriveParameters, Solver};
 use nalgebra::{DMatrix, DVector, Matrix3xX, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
 
@@ -198,6 +198,11 @@ impl DriveSpace {
         self.space == ActuationSpace::Curvature
     }
 
+    /// Whether the last coordinate is an insertion (it moves the base).
+    pub fn has_insertion(&self) -> bool {
+        self.insertion.is_some()
+    }
+
     /// The magnitude of a change of `x` that counts: `|x|`, at least the floor.
     pub fn size(&self, x: &DVector<f64>) -> f64 {
         x.norm().max(self.floor)
@@ -238,6 +243,24 @@ impl DriveSpace {
             widen(position, moved.position.column(0).into()),
             widen(rotation, moved.rotation.column(0).into()),
         ))
+    }
+
+    /// The forward solver's equations and tip linearised at its state (not
+    /// necessarily an equilibrium) in the state and the drive: a coupled
+    /// iteration's step (`solver/coupled.rs`), the tip's turn only if `turn`.
+    /// `None` with an insertion (it
+    /// moves the base, no parameter of the loading) or where the solver
+    /// cannot (a singular Jacobian, a rod that is not free).
+    pub fn linearise(&self, solver: &mut Solver, turn: bool) -> Option<CoupledLinearisation> {
+        if self.has_insertion() {
+            return None;
+        }
+        let parameters = match self.space {
+            ActuationSpace::Curvature => DriveParameters::SectionCurvature(self.sections),
+            ActuationSpace::Tensions => DriveParameters::Tensions,
+            ActuationSpace::Field => DriveParameters::Field,
+        };
+        solver.linearise_coupled(parameters, turn).ok()
     }
 
     /// The drive's own columns of [`DriveSpace::tip_jacobian`].
@@ -345,6 +368,13 @@ impl DriveSpace {
         } else {
             self.clamp_drive(robot, x);
         }
+    }
+
+    /// Whether `x` is admissible: [`DriveSpace::clamp`] leaves it as it is.
+    pub fn within(&self, robot: &Robot, x: &DVector<f64>) -> bool {
+        let mut clamped = x.clone();
+        self.clamp(robot, &mut clamped);
+        clamped == *x
     }
 
     /// [`DriveSpace::clamp`] of the drive's own coordinates.

@@ -30,7 +30,7 @@ use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::robot::{Actuation, Load, Robot};
 use crate::solver::{Settings, Solution, Solver};
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3xX, Vector3};
 
 /// Relative accuracy to which the actuation is the one closest to the reference.
 const MIN_NORM_ACCURACY: f64 = 1e-6;
@@ -64,6 +64,12 @@ const NEAR: f64 = 1e-3;
 /// the merit as any step.
 const SLIDE_ALIGNED: f64 = 0.99;
 const SLIDE_RATIO: f64 = 0.8;
+
+/// Iterations of the coupled Newton (equilibrium and drive together) before
+/// it gives way to the descent that solves the equilibrium at every step.
+/// Near the target it settles in three to six (quadratically on the tip,
+/// and the slide toward the reference is short along a path).
+const COUPLED_ITERATIONS: usize = 10;
 
 /// Tip miss allowed while a restart's answer slides toward the reference [relative to L].
 const POLISH_SLACK: f64 = 1e-2;
@@ -353,7 +359,14 @@ impl InverseSolver {
             (Some(_), None) if goal.reference != self.last => goal.reference.clone(),
             _ => self.last.clone(),
         };
-        let first = self.reach(&goal, start, Pull::Reference, max_iterations)?;
+        let end = self.iterations + max_iterations;
+        let first = match self.coupled(&goal, &start, end)? {
+            Some(state) => Attempt {
+                state,
+                phase: PhaseEnd::Done,
+            },
+            None => self.reach(&goal, start, Pull::Reference, max_iterations)?,
+        };
         let (mut best, starts) =
             if first.reached(&goal) || goal.unreachable(self.base_toward(&goal.target).0) {
                 (first, 1)
@@ -507,6 +520,105 @@ impl InverseSolver {
             self.polish(goal, &mut st, end)?;
         }
         Ok(Attempt { state: st, phase })
+    }
+
+    /// Newton on the equilibrium and the drive together, from the last
+    /// answer's state with the drive at `start` (along a path, its
+    /// prediction): each iteration linearises the equations and the tip at
+    /// the state, which need not be an equilibrium (`solver/coupled.rs`),
+    /// and steps both, the drive by the minimum-norm rule toward where
+    /// Newton's step and the drive's columns put the aimed point. Once the
+    /// state is an equilibrium, on target, and the minimum-norm step below
+    /// `MIN_NORM_ACCURACY` of the drive, one solve from it gives the answer,
+    /// accepted if converged, stable and on target: what the descent's
+    /// answer is, at about one solve's cost instead of one a step. `None`
+    /// (the iterations spent counted) where it does not apply (friction,
+    /// contact, an insertion, no warm state) or does not settle within
+    /// `COUPLED_ITERATIONS`: the descent then starts from `start`.
+    fn coupled(&mut self, goal: &Goal, start: &DVector<f64>, end: usize) -> Result<Option<State>> {
+        let model = self.solver.model();
+        let applies = matches!(self.stance, Stance::Frictionless)
+            && !model.is_constrained()
+            && !model.has_contact()
+            && !self.drive.has_insertion();
+        let Some(q) = self.q.clone().filter(|_| applies) else {
+            return Ok(None);
+        };
+        let mut x = start.clone();
+        self.drive.clamp(&self.robot, &mut x);
+        self.drive.apply(&mut self.solver, &x)?;
+        self.solver.set_state(&q)?;
+        let begun = self.iterations;
+        let mut settled = false;
+        // The last full step, not extrapolated (see the loop).
+        let mut last_slide = None;
+        while self.iterations < end && self.iterations - begun < COUPLED_ITERATIONS {
+            self.iterations += 1;
+            let Some(lin) = self.drive.linearise(&mut self.solver, goal.turns()) else {
+                break;
+            };
+            let frame = lin.tip_quaternion;
+            let e = goal.error_at(lin.tip_position, frame);
+            let j = goal.jacobian_at(frame, &lin.position, &lin.rotation);
+            // The miss Newton's step leaves, to first order.
+            let newton = goal.jacobian_at(
+                frame,
+                &Matrix3xX::from_column_slice(lin.newton_position.as_slice()),
+                &Matrix3xX::from_column_slice(lin.newton_rotation.as_slice()),
+            );
+            let left = &e - newton.column(0);
+            let r = &goal.reference - &x;
+            let c = 1e-14 * j.norm_squared().max(f64::MIN_POSITIVE);
+            let Some(step) = self.drive.step(&x, &j, &left, &r, c).map(|s| s.step) else {
+                break;
+            };
+            // The slide toward the reference converges linearly (see
+            // SLIDE_ALIGNED): two full steps that agree give the rest of
+            // their series (the bounded step's own limits are kept by
+            // taking it only where it stays within range).
+            let norm = step.norm();
+            let series = last_slide.take().and_then(|last: DVector<f64>| {
+                let ratio = norm / last.norm();
+                let aligned = last.dot(&step) >= SLIDE_ALIGNED * last.norm() * norm;
+                (aligned && ratio < SLIDE_RATIO).then(|| (ratio, &step / (1.0 - ratio)))
+            });
+            let (step, to_go) = match series {
+                Some((ratio, whole)) if self.drive.within(&self.robot, &(&x + &whole)) => {
+                    (whole, norm * ratio / (1.0 - ratio))
+                }
+                _ => {
+                    last_slide = Some(step.clone());
+                    (step, norm)
+                }
+            };
+            // Settled: the last move (the tip's and the state's last
+            // quadratic step), then the solve from there certifies it.
+            settled = goal.reached(&e) && to_go <= MIN_NORM_ACCURACY * self.drive.size(&x);
+            if !self.solver.move_state(step.as_slice()) {
+                settled = false;
+                break;
+            }
+            x += step;
+            self.drive.apply(&mut self.solver, &x)?;
+            if settled {
+                break;
+            }
+        }
+        if !settled {
+            return Ok(None);
+        }
+        let q = self.solver.state().to_vec();
+        let sol = self.solver.solve(Some(&q))?;
+        let st = State {
+            e: goal.error(&sol),
+            x,
+            sol,
+        };
+        if !st.usable() || !goal.reached(&st.e) {
+            return Ok(None);
+        }
+        self.q = Some(st.sol.quaternions.clone());
+        Ok(Some(st))
     }
 
     /// The equilibrium at a starting actuation (brought within range), or

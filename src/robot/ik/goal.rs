@@ -90,11 +90,16 @@ impl Goal {
     /// The error of an equilibrium: the aimed point's miss, then the turn
     /// toward the direction across the tangent, times `L`.
     pub fn error(&self, sol: &Solution) -> DVector<f64> {
+        self.error_at(sol.tip_position(), sol.tip_quaternion())
+    }
+
+    /// [`Goal::error`] of a tip at `position` [m] in the frame `frame`.
+    pub fn error_at(&self, position: Vector3<f64>, frame: Quat) -> DVector<f64> {
         let mut e = DVector::zeros(self.rows());
         e.rows_mut(0, 3)
-            .copy_from(&(self.target - tool_point(sol, self.offset)));
+            .copy_from(&(self.target - position - frame.rotate(self.offset)));
         if let Some(d) = self.direction {
-            let t = sol.tip_quaternion().tangent();
+            let t = frame.tangent();
             let (u, v) = across(t);
             // The turn that takes t toward d, as a small rotation across t.
             let turn = t.cross(&d);
@@ -110,10 +115,16 @@ impl Goal {
         }
         if let Some(q) = self.orientation {
             // The turn that takes the tip's frame to the aimed one, world frame.
-            let turn = rotation_vector(q * sol.tip_quaternion().conj());
+            let turn = rotation_vector(q * frame.conj());
             e.rows_mut(3, 3).copy_from(&(turn * self.length));
         }
         e
+    }
+
+    /// Whether the error's rows depend on the tip's turn (a direction, an
+    /// orientation, or a tool's point off the tip).
+    pub fn turns(&self) -> bool {
+        self.rows() > 3 || self.offset != Vector3::zeros()
     }
 
     /// Within `tol` of the point and `tol / L` of the direction or orientation.
@@ -132,17 +143,27 @@ impl Goal {
         position: &Matrix3xX<f64>,
         rotation: &Matrix3xX<f64>,
     ) -> DMatrix<f64> {
+        self.jacobian_at(sol.tip_quaternion(), position, rotation)
+    }
+
+    /// [`Goal::jacobian`] of a tip in the frame `frame`.
+    pub fn jacobian_at(
+        &self,
+        frame: Quat,
+        position: &Matrix3xX<f64>,
+        rotation: &Matrix3xX<f64>,
+    ) -> DMatrix<f64> {
         let k = position.ncols();
         let mut jac = DMatrix::zeros(self.rows(), k);
         if self.offset == Vector3::zeros() {
             jac.rows_mut(0, 3).copy_from(position);
         } else {
-            let arm = sol.tip_quaternion().rotate(self.offset);
+            let arm = frame.rotate(self.offset);
             jac.rows_mut(0, 3)
                 .copy_from(&(position - skew(&arm) * rotation));
         }
         if self.direction.is_some() {
-            let (u, v) = across(sol.tip_quaternion().tangent());
+            let (u, v) = across(frame.tangent());
             for c in 0..k {
                 let phi: Vector3<f64> = rotation.column(c).into();
                 jac[(3, c)] = phi.dot(&u) * self.length;

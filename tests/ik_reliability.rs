@@ -191,3 +191,51 @@ fn running_out_of_iterations_says_so() {
     assert_eq!(r.ending, IkEnding::IterationLimit, "{}", r.message);
     assert!(r.message.contains("max_iterations"));
 }
+
+/// Along a path the inverse kinematics steps the equilibrium and the drive
+/// together (the coupled iteration, `engine.rs`): each tracked answer is the
+/// one the descent finds from scratch (a new solver, no warm state, so no
+/// coupled iteration) with the previous answer as its reference, to the
+/// minimum-norm accuracy, and costs a few coupled iterations a point.
+#[test]
+fn tracked_answers_are_the_descents_answers_with_the_same_reference() {
+    let robot = Robot::default();
+    let circle = trajectory::placed(&trajectory::circle(60), &robot);
+    let options = IkOptions {
+        load: 0.03.into(),
+        ..IkOptions::default()
+    };
+    let tracked = robot.track(&circle[..12], &options).unwrap();
+    for (k, pair) in tracked.windows(2).enumerate() {
+        let (before, answer) = (&pair[0], &pair[1]);
+        assert!(answer.reached, "point {}: {}", k + 1, answer.message);
+        assert!(
+            answer.iterations <= 6,
+            "point {}: {} iterations",
+            k + 1,
+            answer.iterations
+        );
+        let alone = robot
+            .inverse(
+                circle[k + 1],
+                &IkOptions {
+                    reference: Some(before.rest_curvature.clone()),
+                    ..options.clone()
+                },
+            )
+            .unwrap();
+        assert!(alone.reached, "{}", alone.message);
+        let flat = |r: &softspine::robot::IkResult| -> Vec<f64> {
+            r.rest_curvature.iter().flatten().copied().collect()
+        };
+        let (a, b) = (flat(answer), flat(&alone));
+        let gap: f64 = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let size: f64 = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!(gap <= 1e-5 * size, "point {}: {gap:e} of {size:e}", k + 1);
+    }
+}

@@ -373,3 +373,96 @@ fn what_sticks_is_let_go_at_the_same_equilibrium_for_every_drive() {
     let again = solver.sensitivity(&["tendons[0].tension"]).unwrap();
     assert_eq!(again.tip_position, held.tip_position);
 }
+
+/// The coupled iteration's linearisation (`solver/coupled.rs`): at an
+/// equilibrium its tip columns, by the adjoint (solves with `A^T`), are the
+/// tip sensitivity's, by one solve a column, and Newton's step is nil; off
+/// it, moving the state by Newton's step alone converges quadratically, and
+/// the columns predict where the tip goes when the drive moves with it.
+#[test]
+fn the_coupled_linearisation_is_the_tip_sensitivity_and_newtons_step() {
+    use softspine::solver::DriveParameters;
+    let mut scene = Scene::new(0.8, 0.9, 1.3, 0.7);
+    scene.rest_curvature = vec![[1.2, -0.4], [-0.6, 0.9]];
+    scene.distributed_force = Vector3::new(0.3, -1.1, -2.0);
+    scene.tip_force = Vector3::new(-0.7, 0.4, 0.5);
+    let settings = Settings {
+        n_elements: Some(20),
+        residual_tol: 1e-13,
+        ..Settings::default()
+    };
+    let exact_at = |rest_curvature: &[[f64; 2]]| {
+        let mut moved = scene.clone();
+        moved.rest_curvature = rest_curvature.to_vec();
+        let sol = softspine::solver::solve(&moved, settings.clone(), None).unwrap();
+        assert!(sol.converged(), "{}", sol.message);
+        sol.tip_position()
+    };
+    let mut solver = softspine::Solver::new(&scene, settings.clone()).unwrap();
+    let sol = solver.solve(None).unwrap();
+    assert!(sol.converged(), "{}", sol.message);
+    let sens = solver.tip_sensitivity(2).unwrap();
+    let lin = solver
+        .linearise_coupled(DriveParameters::SectionCurvature(2), true)
+        .unwrap();
+    assert!(lin.certified);
+    assert!(
+        lin.newton_position.norm() < 1e-12,
+        "{}",
+        lin.newton_position
+    );
+    let scale = sens.position.norm();
+    assert!((&lin.position - &sens.position).norm() < 1e-10 * scale);
+    assert!((&lin.rotation - &sens.rotation).norm() < 1e-10 * sens.rotation.norm());
+    assert!((lin.tip_position - sol.tip_position()).norm() < 1e-15);
+
+    // Off the equilibrium (the drive moved): Newton's step alone (dp = 0)
+    // takes the state to the new equilibrium quadratically.
+    let moved = [[1.25, -0.35], [-0.6, 0.9]];
+    solver.set_rest_curvature(&moved).unwrap();
+    solver.set_state(&sol.quaternions).unwrap();
+    let mut misses = Vec::new();
+    let exact = exact_at(&moved);
+    for _ in 0..4 {
+        let lin = solver
+            .linearise_coupled(DriveParameters::SectionCurvature(2), false)
+            .unwrap();
+        misses.push((lin.tip_position - exact).norm());
+        assert!(solver.move_state(&[0.0; 4]));
+    }
+    assert!(
+        misses[1] < 1e-2 * misses[0] && misses[2] < 1e-4 * misses[1],
+        "{misses:?}"
+    );
+
+    // From the first equilibrium, the drive moved by dp and the state by the
+    // coupled move: the tip lands where the linearisation says, to second order.
+    solver.set_rest_curvature(&scene.rest_curvature).unwrap();
+    solver.set_state(&sol.quaternions).unwrap();
+    let lin = solver
+        .linearise_coupled(DriveParameters::SectionCurvature(2), false)
+        .unwrap();
+    let dp = [1e-3, -2e-3, 0.5e-3, 1e-3];
+    let predicted = lin.tip_position
+        + lin.newton_position
+        + &lin.position * nalgebra::DVector::from_column_slice(&dp);
+    let moved: Vec<[f64; 2]> = scene
+        .rest_curvature
+        .iter()
+        .enumerate()
+        .map(|(s, k)| [k[0] + dp[2 * s], k[1] + dp[2 * s + 1]])
+        .collect();
+    let exact = exact_at(&moved);
+    let change = (exact - sol.tip_position()).norm();
+    assert!(
+        (predicted - exact).norm() < 1e-2 * change,
+        "{predicted} {exact}"
+    );
+    // And the state moved with it is that close to the new equilibrium.
+    assert!(solver.move_state(&dp));
+    solver.set_rest_curvature(&moved).unwrap();
+    let lin = solver
+        .linearise_coupled(DriveParameters::SectionCurvature(2), false)
+        .unwrap();
+    assert!((lin.tip_position - exact).norm() < 1e-2 * change);
+}

@@ -11,6 +11,13 @@
 //! choice. A stalled descent ends in Levenberg-Marquardt on the tip error
 //! alone, which finds the closest tip.
 //!
+//! Near the target (a warm solve without friction, contact or insertion)
+//! the descent is preceded by the coupled iteration (`coupled`): the
+//! equilibrium and the drive stepped together, the tip's Jacobian taken at
+//! states that are not equilibria (`solver/coupled.rs`), and one forward
+//! solve at the end that must confirm the answer; where it does not settle,
+//! the descent starts over from the same start.
+//!
 //! The first descent starts at the reference when one is given (along a
 //! path: the last answer), else at the last answer. When it misses, the
 //! target is tried again from starts that do not depend on the reference:

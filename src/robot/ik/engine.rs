@@ -557,8 +557,10 @@ impl InverseSolver {
         self.solver.set_state(&q)?;
         let begun = self.iterations;
         let mut settled = false;
-        // The last full step, not extrapolated (see the loop).
+        // The last full step, not extrapolated, and the slide's ratio once
+        // two full steps agreed (see the loop).
         let mut last_slide = None;
+        let mut rate: Option<f64> = None;
         while self.iterations < end && self.iterations - begun < COUPLED_ITERATIONS {
             self.iterations += 1;
             let Some(lin) = self.drive.linearise(&mut self.solver, goal.turns()) else {
@@ -581,21 +583,25 @@ impl InverseSolver {
             };
             // The slide toward the reference converges linearly (see
             // SLIDE_ALIGNED): two full steps that agree give the rest of
-            // their series (the bounded step's own limits are kept by
-            // taking it only where it stays within range).
+            // their series, where it stays within range. As in `min_norm`,
+            // what a full step leaves to go is the rest of its series once
+            // the ratio is known, else itself (an extrapolated one: itself).
             let norm = step.norm();
             let series = last_slide.take().and_then(|last: DVector<f64>| {
                 let ratio = norm / last.norm();
                 let aligned = last.dot(&step) >= SLIDE_ALIGNED * last.norm() * norm;
-                (aligned && ratio < SLIDE_RATIO).then(|| (ratio, &step / (1.0 - ratio)))
+                let whole = &step / (1.0 - ratio);
+                (aligned && ratio < SLIDE_RATIO && self.drive.within(&self.robot, &(&x + &whole)))
+                    .then_some((ratio, whole))
             });
             let (step, to_go) = match series {
-                Some((ratio, whole)) if self.drive.within(&self.robot, &(&x + &whole)) => {
-                    (whole, norm * ratio / (1.0 - ratio))
+                Some((ratio, whole)) => {
+                    rate = Some(ratio);
+                    (whole, norm)
                 }
-                _ => {
+                None => {
                     last_slide = Some(step.clone());
-                    (step, norm)
+                    (step, rate.map_or(norm, |r| norm * r / (1.0 - r)))
                 }
             };
             // Settled: the last move (the tip's and the state's last

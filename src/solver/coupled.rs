@@ -152,9 +152,21 @@ impl Solver {
                 model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
                 moved[n]
             };
+            // A section's or a tendon's column is nonzero on its elements only.
+            let zero = Vector3::zeros();
+            let lo = w.step.iter().position(|g| *g != zero).unwrap_or(n);
+            let hi = w
+                .step
+                .iter()
+                .rposition(|g| *g != zero)
+                .map_or(lo, |i| i + 1);
             for a in 0..3 {
                 let dot = |row: &[Vector3<f64>]| -> f64 {
-                    -row.iter().zip(&w.step).map(|(l, g)| l.dot(g)).sum::<f64>()
+                    -row[lo..hi]
+                        .iter()
+                        .zip(&w.step[lo..hi])
+                        .map(|(l, g)| l.dot(g))
+                        .sum::<f64>()
                 };
                 position[(a, k)] = dot(&c.adjoint[a]) + at_fixed_nodes[a];
                 if turn {

@@ -576,9 +576,22 @@ impl InverseSolver {
                 &Matrix3xX::from_column_slice(lin.newton_rotation.as_slice()),
             );
             let left = &e - newton.column(0);
-            let r = &goal.reference - &x;
-            let c = 1e-14 * j.norm_squared().max(f64::MIN_POSITIVE);
-            let Some(step) = self.drive.step(&x, &j, &left, &r, c).map(|s| s.step) else {
+            // Farther than NEAR, damped as the descent's first step (a
+            // nearly singular drive, a field along a magnet, throws an
+            // undamped step far), its pull toward the reference fading.
+            let squared = j.norm_squared().max(f64::MIN_POSITIVE);
+            let c = 1e-14 * squared;
+            let damping = if left.norm() > NEAR * goal.length {
+                LM_START * squared / j.ncols() as f64
+            } else {
+                0.0
+            };
+            let r = (&goal.reference - &x) * (c / (c + damping));
+            let Some(step) = self
+                .drive
+                .step(&x, &j, &left, &r, c + damping)
+                .map(|s| s.step)
+            else {
                 break;
             };
             // The slide toward the reference converges linearly (see
@@ -612,6 +625,9 @@ impl InverseSolver {
                 break;
             }
             x += step;
+            // Rounding only: the bounded step stays within range (a tension
+            // of -1e-32 N would be refused).
+            self.drive.clamp(&self.robot, &mut x);
             self.drive.apply(&mut self.solver, &x)?;
             if settled {
                 break;

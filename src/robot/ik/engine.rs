@@ -600,6 +600,10 @@ impl InverseSolver {
             // what a full step leaves to go is the rest of its series once
             // the ratio is known, else itself (an extrapolated one: itself).
             let norm = step.norm();
+            if damping > 0.0 {
+                // A damped step is no term of the slide's series.
+                last_slide = None;
+            }
             let series = last_slide.take().and_then(|last: DVector<f64>| {
                 let ratio = norm / last.norm();
                 let aligned = last.dot(&step) >= SLIDE_ALIGNED * last.norm() * norm;
@@ -613,7 +617,7 @@ impl InverseSolver {
                     (whole, norm)
                 }
                 None => {
-                    last_slide = Some(step.clone());
+                    last_slide = (damping == 0.0).then(|| step.clone());
                     (step, rate.map_or(norm, |r| norm * r / (1.0 - r)))
                 }
             };

@@ -540,11 +540,17 @@ impl InverseSolver {
     /// accepted if converged, stable and on target: what the descent's
     /// answer is, at about one solve's cost instead of one a step. `None`
     /// (the iterations spent counted) where it does not apply (friction,
-    /// contact, an insertion, no warm state) or does not settle within
+    /// contact, an insertion, no warm state, a start away from it) or does not settle within
     /// `COUPLED_ITERATIONS`: the descent then starts from `start`.
     fn coupled(&mut self, goal: &Goal, start: &DVector<f64>, end: usize) -> Result<Option<State>> {
         let model = self.solver.model();
-        let applies = matches!(self.stance, Stance::Frictionless)
+        // The warm state is the last answer's equilibrium: near it only from
+        // its own drive or the path's prediction (a start at a reference
+        // elsewhere is a jump the descent makes, 25 coupled iterations
+        // failing against its 15 steps, measured).
+        let near = self.start_on_path || *start == self.last;
+        let applies = near
+            && matches!(self.stance, Stance::Frictionless)
             && !model.is_constrained()
             && !model.has_contact()
             && !self.drive.has_insertion();

@@ -465,4 +465,10 @@ fn the_coupled_linearisation_is_the_tip_sensitivity_and_newtons_step() {
         .linearise_coupled(DriveParameters::SectionCurvature(2), false)
         .unwrap();
     assert!((lin.tip_position - exact).norm() < 1e-2 * change);
+    // A linearisation of the model before a change is not moved along.
+    solver.set_rest_curvature(&scene.rest_curvature).unwrap();
+    assert!(
+        !solver.move_state(&dp),
+        "a stale linearisation moved the state"
+    );
 }

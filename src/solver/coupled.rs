@@ -8,26 +8,20 @@
 //! `dq = delta - A^{-1} G dp`, `delta = -A^{-1} g` being Newton's step. The
 //! caller picks `dp` from the tip's linearisation: where `delta` takes the
 //! tip, and the tip's derivative in the drive, `-P A^{-1} G` (`P` the tip's
-//! derivative in the state). The latter comes by the adjoint: six solves with
-//! `A^T` (the tip's position and turn rows) instead of one solve a drive
+//! derivative in the state). The latter comes by the adjoint: three solves
+//! with `A^T` (the tip's position rows; six with its turn's) instead of one solve a drive
 //! coordinate (20 for the seed's robot), then a dot product a column of `G`.
 //! The drives enter the equations linearly ([`DriveParameters`]), so `G`'s
 //! columns are the loading's kept derivatives. A free rod only: nothing held,
 //! no contact.
 
-use super::newton::{certified, retract_along_chain};
+use super::newton::{certified, retract_along_chain, MAX_ELEMENT_TURN, MAX_NODE_TURN};
 use super::sensitivity::{DriveParameters, TipFrame};
 use super::{step_limit, Solver, Status};
 use crate::disc::Loading;
 use crate::error::{Error, Result};
 use crate::quat::Quat;
 use nalgebra::{Matrix3xX, Vector3};
-
-/// Largest node and element turn of one coupled move [rad]: Newton's own
-/// limits (`newton.rs`). A longer move is no step of a converging Newton
-/// iteration; the caller then solves the equilibrium at each step instead.
-const MAX_NODE_TURN: f64 = 1.0;
-const MAX_ELEMENT_TURN: f64 = 0.3;
 
 /// The equations and the tip linearised at a state, in the state and a drive.
 #[derive(Debug, Clone)]
@@ -191,12 +185,18 @@ impl Solver {
 
     /// Move the state by `delta - A^{-1} G dp` of the last
     /// [`Solver::linearise_coupled`]. False, the state unchanged, where that
-    /// was not at this state or for as many coordinates, or the move turns a
-    /// node or an element farther than a Newton step may.
+    /// was not at this state, of this model (a change of the drive, the
+    /// loads or the base since, a solve or a sensitivity in between) or for
+    /// as many coordinates, or where the move turns a node or an element
+    /// farther than a Newton step may (a longer move is no step of a
+    /// converging Newton iteration).
     pub fn move_state(&mut self, dp: &[f64]) -> bool {
         let (w, c) = (&mut self.work, &self.coupled);
         let n = self.model.n();
-        if c.at != w.q || c.columns.len() != dp.len() * n || c.newton.len() != n {
+        // Every change of the model and every solve clear the flag; the
+        // linearisation set it with its Jacobian and factors.
+        let current = self.jacobian_at_solution && w.lu.is_factor_of(&w.jac);
+        if !current || c.at != w.q || c.columns.len() != dp.len() * n || c.newton.len() != n {
             return false;
         }
         w.step.iter_mut().for_each(|s| *s = Vector3::zeros());

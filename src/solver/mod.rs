@@ -93,7 +93,8 @@ pub struct Solver {
     coupled: coupled::CoupledWork,
     /// The workspace's Jacobian is the equations' at the workspace's state
     /// (a free rod's, at full load, of the model as it is), as a stable
-    /// direct solve leaves it: the tip sensitivity then needs no assembly,
+    /// direct solve leaves it, or a coupled linearisation at a state that
+    /// need not be an equilibrium: the tip sensitivity then needs no assembly,
     /// nor a factorisation if the workspace's is still of it
     /// ([`crate::blocktri::BlockLu::is_factor_of`]). Cleared by every change
     /// of the model, at every solve's start and by the general sensitivity.

@@ -14,8 +14,8 @@ use nalgebra::Vector3;
 pub(crate) struct Newton;
 
 /// Largest node rotation and element rotation of one update [rad].
-const MAX_NODE_TURN: f64 = 1.0;
-const MAX_ELEMENT_TURN: f64 = 0.3;
+pub(crate) const MAX_NODE_TURN: f64 = 1.0;
+pub(crate) const MAX_ELEMENT_TURN: f64 = 0.3;
 
 /// Iterations over which a run must reduce its merit by `STALL_FACTOR`.
 const STALL_WINDOW: usize = 8;

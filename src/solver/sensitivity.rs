@@ -43,7 +43,7 @@ pub struct TipSensitivity {
 
 impl TipSensitivity {
     /// `columns` columns of zeros.
-    pub(crate) fn zeros(columns: usize) -> TipSensitivity {
+    fn zeros(columns: usize) -> TipSensitivity {
         TipSensitivity {
             position: nalgebra::Matrix3xX::zeros(columns),
             tangent: nalgebra::Matrix3xX::zeros(columns),

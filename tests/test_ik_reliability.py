@@ -105,7 +105,7 @@ def test_tracking_slides_to_the_least_tension_in_few_iterations():
     (5.15). Those were the descent's steps, each a forward solve and the tip's
     Jacobian; tracking now takes coupled iterations (the equilibrium and the
     tensions stepped together, one linearisation each, cheaper than a
-    descent step, then one solve): 5.45 a point (6.5 with the first step
+    descent step, then one solve): 5.35 a point (6.5 with the first step
     undamped, 8 without the extrapolation: the slide's ratio grows from 0.12
     to 0.24 a step while the state converges)."""
     example = Path(__file__).resolve().parent.parent / "examples" / "robots"

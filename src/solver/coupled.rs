@@ -53,6 +53,11 @@ pub(crate) struct CoupledWork {
     columns: Vec<Vector3<f64>>,
     /// The tip's rows through `A^{-T}`: its position's, then its turn's.
     adjoint: Vec<Vec<Vector3<f64>>>,
+    /// Scratch of each linearisation: the interior's shift along a column
+    /// (fe4), the positions it moves, the state's positions.
+    shift: Vec<Vector3<f64>>,
+    moved: Vec<Vector3<f64>>,
+    positions: Vec<Vector3<f64>>,
 }
 
 impl Solver {
@@ -135,16 +140,16 @@ impl Solver {
         let m = tangents.len();
         let (mut position, mut rotation) = (Matrix3xX::zeros(m), Matrix3xX::zeros(m));
         c.columns.clear();
-        let mut shift = Vec::new();
-        let mut moved = vec![Vector3::zeros(); n + 1];
+        c.moved.resize(n + 1, Vector3::zeros());
+        c.positions.resize(n + 1, Vector3::zeros());
         for (k, t) in tangents.iter().enumerate() {
-            model.residual_derivative(&w.q, &[], t, &mut w.interior, &mut w.step, &mut shift);
+            model.residual_derivative(&w.q, &[], t, &mut w.interior, &mut w.step, &mut c.shift);
             // fe4: the tip also moves with the interior at fixed nodes.
-            let at_fixed_nodes = if shift.is_empty() {
+            let at_fixed_nodes = if c.shift.is_empty() {
                 Vector3::zeros()
             } else {
-                model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
-                moved[n]
+                model.position_derivative(&w.q, &mut w.interior, &c.shift, &mut c.moved);
+                c.moved[n]
             };
             // A section's or a tendon's column is nonzero on its elements only.
             let zero = Vector3::zeros();
@@ -169,12 +174,11 @@ impl Solver {
             }
             c.columns.extend_from_slice(&w.step);
         }
-        let mut positions = vec![Vector3::zeros(); n + 1];
-        model.positions(&w.q, &mut w.interior, &mut positions);
+        model.positions(&w.q, &mut w.interior, &mut c.positions);
         let tol = model.effective_tol(self.settings.residual_tol);
         Ok(CoupledLinearisation {
             certified: certified(residual, &c.newton, tol),
-            tip_position: positions[n],
+            tip_position: c.positions[n],
             tip_quaternion: w.q[n],
             newton_position,
             newton_rotation,

@@ -637,6 +637,9 @@ pub(crate) trait Subproblem {
     /// `S x - b` for any multipliers `x` (the QP's gradient); the step of
     /// `x` becomes the last solve's.
     fn rows_at(&mut self, x: &DVector<f64>) -> Option<DVector<f64>>;
+    /// Whether `S` is symmetric positive definite: the QP strictly convex,
+    /// its minimum unique whatever path the active set takes to it.
+    fn is_convex(&self) -> bool;
 }
 
 /// The subproblem over the Schur complement: `S x = b` on the free rows.
@@ -695,6 +698,12 @@ impl Subproblem for Schur<'_> {
 
     fn rows_at(&mut self, x: &DVector<f64>) -> Option<DVector<f64>> {
         Some(self.s * x - self.b)
+    }
+
+    fn is_convex(&self) -> bool {
+        // The Cholesky factorisation reads one triangle: the other is the
+        // same to round-off where no sliding contact's friction is in `S`.
+        self.symmetric && self.s.clone().cholesky().is_some()
     }
 }
 
@@ -759,7 +768,14 @@ fn bounded_qp(
         return solve_held(sub, equalities, lower, held);
     }
     let scale = row_scale(sub, equalities + lower.len())?;
-    primal_active_set(sub, equalities, lower, held, scale)
+    // Freeing rows one at a time changes only the cost where the minimum is
+    // unique. Where it need not be (`S` singular: a clamped tip on a floor
+    // holds its height twice; indefinite: a rod curled into a wall, away
+    // from an equilibrium) or where `S` is unsymmetric (a sliding contact's
+    // friction), the path decides which answer the QP returns: the batches'
+    // is kept there, as it was.
+    let undo_failed_batches = sub.is_convex();
+    primal_active_set(sub, equalities, lower, held, scale, undo_failed_batches)
 }
 
 /// The scale of the QP's rows, for its round-off tolerance: the gaps of
@@ -834,12 +850,26 @@ fn primal_dual_active_set(
 
 /// [`bounded_qp`]'s primal active set, feasible throughout (`x = 0` is: the
 /// forces are `>= 0`), from the held set `held`.
+///
+/// It frees every zero force whose gap the step would close at once, which
+/// settles a rod onto a surface along a stretch in a solve or two. From a
+/// start deep in obstacles the step then leaves most of them again, each
+/// blocking row a solve of the subproblem (16 candidates freed on the
+/// seed's robot bent into a wall in front of a ball, one contact at the
+/// end). With `undo_failed_batches`, where a batch freed at once is
+/// followed by a blocked step, the QP goes back to where it freed them and
+/// from there frees one row a pass, the one whose gap the step closes
+/// most: one solve wasted at most. The subproblem's solves in a whole
+/// forward solve: 24 before, 6 after on that robot; 22 and 5 on a heavy
+/// rod clamped 5 cm above a table (n = 40); unchanged on a rod lying on
+/// it (3).
 fn primal_active_set(
     sub: &mut impl Subproblem,
     equalities: usize,
     lower: &[f64],
     held: &mut [bool],
     scale: f64,
+    undo_failed_batches: bool,
 ) -> Option<DVector<f64>> {
     let m = equalities + lower.len();
     let mut x: DVector<f64> = DVector::zeros(m);
@@ -847,6 +877,10 @@ fn primal_active_set(
     // choice (degenerate), never freed again in this QP, so that it ends.
     let mut freed = vec![false; m];
     let mut frozen = vec![false; m];
+    // The last pass's batch, freed at once: the multipliers and held set
+    // before it, and its row of the most negative gap.
+    let mut batch: Option<(DVector<f64>, Vec<bool>, usize)> = None;
+    let mut one_at_a_time = false;
     for _ in 0..4 * m + 8 {
         // The subproblem: the bounded rows at their bounds, the rest solved.
         let trial = solve_held(sub, equalities, lower, held)?;
@@ -864,6 +898,15 @@ fn primal_active_set(
             }
         }
         if let Some(i) = blocking {
+            if let Some((before, held_before, worst)) = batch.take() {
+                x = before;
+                held.copy_from_slice(&held_before);
+                held[worst - equalities] = true;
+                freed.iter_mut().for_each(|f| *f = false);
+                freed[worst] = true;
+                one_at_a_time = true;
+                continue;
+            }
             if freed[i] && step <= 1e-12 {
                 frozen[i] = true;
             }
@@ -873,20 +916,29 @@ fn primal_active_set(
             held[i - equalities] = false;
             continue;
         }
+        batch = None;
         x = trial;
-        // Every zero force whose gap would go negative is freed.
+        // Every zero force whose gap would go negative is freed (the most
+        // negative alone, once a batch has failed).
         let gap = sub.rows_after(&x);
-        freed.iter_mut().for_each(|f| *f = false);
-        let mut any = false;
-        for i in equalities..m {
-            if !held[i - equalities] && !frozen[i] && gap[i] < -1e-12 * scale {
-                held[i - equalities] = true;
-                freed[i] = true;
-                any = true;
-            }
-        }
-        if !any {
+        let closing: Vec<usize> = (equalities..m)
+            .filter(|&i| !held[i - equalities] && !frozen[i] && gap[i] < -1e-12 * scale)
+            .collect();
+        let Some(&worst) = closing.iter().min_by(|&&i, &&j| gap[i].total_cmp(&gap[j])) else {
             return Some(x);
+        };
+        freed.iter_mut().for_each(|f| *f = false);
+        if one_at_a_time || closing.len() == 1 {
+            held[worst - equalities] = true;
+            freed[worst] = true;
+            continue;
+        }
+        if undo_failed_batches {
+            batch = Some((x.clone(), held.to_vec(), worst));
+        }
+        for &i in &closing {
+            held[i - equalities] = true;
+            freed[i] = true;
         }
     }
     None
@@ -1844,5 +1896,76 @@ mod tests {
             x.amax()
         );
         x
+    }
+
+    /// [`Schur`] counting its solves.
+    struct Counted<'a>(Schur<'a>, usize);
+
+    impl Subproblem for Counted<'_> {
+        fn solve(&mut self, free: &[bool], x: &mut DVector<f64>) -> bool {
+            self.1 += 1;
+            self.0.solve(free, x)
+        }
+        fn rows_after(&self, x: &DVector<f64>) -> DVector<f64> {
+            self.0.rows_after(x)
+        }
+        fn rows_at(&mut self, x: &DVector<f64>) -> Option<DVector<f64>> {
+            self.0.rows_at(x)
+        }
+        fn is_convex(&self) -> bool {
+            self.0.is_convex()
+        }
+    }
+
+    #[test]
+    fn freeing_one_row_at_a_time_after_a_failed_batch_finds_the_same_minimum() {
+        // The compliance of 16 contacts along a stretch (the inverse of a
+        // chain of springs, each to the ground and to its neighbours:
+        // positive definite, every row coupled) and gaps that all close
+        // at first (`b > 0`), deepest at one end: a start deep in an
+        // obstacle that the step leaves along most of the stretch.
+        let m = 16;
+        let stiffness = DMatrix::from_fn(m, m, |i, j| match i.abs_diff(j) {
+            0 => 2.1,
+            1 => -1.0,
+            _ => 0.0,
+        });
+        let s = stiffness.try_inverse().unwrap();
+        let b = DVector::from_fn(m, |i, _| (0.5 * i as f64).exp());
+        let lower = vec![0.0; m];
+        let solve = |undo: bool| {
+            let mut sub = Counted(
+                Schur {
+                    s: &s,
+                    b: &b,
+                    symmetric: true,
+                    free_rows: vec![],
+                    fixed_rows: vec![],
+                },
+                0,
+            );
+            assert!(sub.is_convex());
+            let mut held = vec![false; m];
+            let scale = row_scale(&mut sub, m).unwrap();
+            let x = primal_active_set(&mut sub, 0, &lower, &mut held, scale, undo).unwrap();
+            (x, held, sub.1)
+        };
+        let (batch, batch_held, batch_solves) = solve(false);
+        let (single, single_held, single_solves) = solve(true);
+        // The minimum: forces >= 0, gaps >= 0, one or the other zero.
+        let gaps = &s * &single - &b;
+        let (force, gap) = (single.amax(), b.amax());
+        for i in 0..m {
+            assert!(single[i] >= 0.0 && gaps[i] >= -1e-12 * gap, "row {i}");
+            assert!(single[i] * gaps[i] <= 1e-12 * force * gap, "row {i}");
+        }
+        assert_eq!(batch_held, single_held);
+        assert!((&batch - &single).amax() <= 1e-10 * batch.amax());
+        // One contact left of 16 freed: 3 solves against 17.
+        assert_eq!(single_held.iter().filter(|h| **h).count(), 1);
+        assert!(
+            single_solves < batch_solves / 4,
+            "{single_solves} solves against {batch_solves}"
+        );
     }
 }

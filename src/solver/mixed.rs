@@ -289,6 +289,12 @@ impl Subproblem for Mixed<'_> {
         solved.then(|| self.rows_after(x))
     }
 
+    fn is_convex(&self) -> bool {
+        // Not known without the Schur complement this form avoids; its QP
+        // is the primal-dual active set's, which needs no such choice.
+        false
+    }
+
     fn rows_after(&self, _x: &DVector<f64>) -> DVector<f64> {
         let w = &*self.work;
         DVector::from_fn(w.rows.len(), |row, _| {

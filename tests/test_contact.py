@@ -341,6 +341,33 @@ def test_a_straight_robot_pressed_along_its_axis_into_a_floor_says_why_it_fails(
     assert "free equilibrium is straight" in sol.message and "buckles" in sol.message
 
 
+def test_a_robot_hanging_through_a_slab_is_refused_with_the_side_missing_and_rests_on_it_from_one():
+    # The robot's rest shape and its free equilibrium pass through a slab 4 cm
+    # thick under its base from side to side: which side it rests on is its
+    # history's. Moving the slab in from its middle pushes the rod out of
+    # both faces at once: the solve fails, and says so (before, only that the
+    # approach ran out of iterations). Started on the top face it rests on it.
+    bend = np.zeros((10, 2))
+    bend[:, 1] = 0.6
+    slab = {"shape": "box", "centre": [0.0, 0.0, -0.5], "half_extents": [0.3, 0.3, 0.02]}
+    robot = softspine.Robot({"obstacles": [slab]})
+    sol = robot.forward(bend, load=0.03)
+    assert not sol.converged
+    assert "passes through obstacles[0] from side to side" in sol.message, sol.message
+    assert "initial=" in sol.message
+    top = {"shape": "half_space", "point": [0.0, 0.0, -0.48], "normal": [0.0, 0.0, 1.0]}
+    on_top = softspine.Robot({"obstacles": [top]}).forward(bend, load=0.03)
+    sol = robot.forward(bend, load=0.03, initial=on_top)
+    assert sol.converged and sol.stable, sol.message
+    assert len(sol.contacts["force"]) >= 1 and np.all(sol.contacts["force"] > 0)
+    assert sol.contacts["normal"][:, 2].min() > 0.5  # on the top face or its edge
+    radius = 0.02
+    x, y, z = sol.positions.T
+    inside = ((np.abs(x) < 0.3 + radius) & (np.abs(y) < 0.3 + radius)
+              & (np.abs(z + 0.5) < 0.02 + radius - 1e-9))
+    assert not inside.any()
+
+
 def test_a_rod_whose_rest_shape_runs_into_a_thin_edge_is_not_dropped_through_it():
     # A rod at rest 1 mm above the axis of a knife edge 5 mm thick: deep in
     # a curved obstacle, so the solve would start from the free

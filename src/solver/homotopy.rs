@@ -180,6 +180,7 @@ impl Solver {
             let mut solver =
                 Solver::new(&self.scene, settings.clone()).map_err(|e| e.to_string())?;
             let pressed = pressed_along_its_axis(&free.positions, &deepest.normal);
+            let through = passed_through(&self.model, &free.positions);
             self.ramp(free.quaternions, &mut homotopy, |alpha, q, h| {
                 solver
                     .model
@@ -195,6 +196,12 @@ impl Solver {
                         "{why} (its free equilibrium is straight: pressed along it, the rod \
                          buckles to a side that nothing in the scene chooses; a rest curvature \
                          or a load across it does)"
+                    )
+                } else if let Some(o) = through {
+                    format!(
+                        "{why} (its free equilibrium passes through obstacles[{o}] from side \
+                         to side: which side the rod rests on is its history's, which the \
+                         scene does not give; start it from a shape on that side, initial=)"
                     )
                 } else {
                     why
@@ -278,6 +285,23 @@ fn deepest_point(model: &RodModel, nodes: &[Vector3<f64>]) -> Deepest {
             }
         },
     )
+}
+
+/// The first obstacle that the rod whose nodes are `nodes` passes through
+/// from side to side: inside it along a stretch that it leaves again toward
+/// its tip. The approach grows such an obstacle back from its middle, which
+/// pushes the stretch to both its sides at once (a robot hanging through a
+/// slab): no start there, and the message says which side is missing.
+fn passed_through(model: &RodModel, nodes: &[Vector3<f64>]) -> Option<usize> {
+    let mut sites = vec![Site::default(); contact::slot_count(model)];
+    contact::locate(model, nodes, &mut sites);
+    let n = model.n();
+    (0..model.obstacles().len()).find(|&o| {
+        // The obstacle's slots along the rod: element k's, then node k's.
+        let first = 2 * n * o;
+        let mut gaps = (1..=n).flat_map(|k| [sites[first + n + k - 1].gap, sites[first + k - 1].gap]);
+        gaps.any(|gap| gap < 0.0) && gaps.any(|gap| gap > 0.0)
+    })
 }
 
 /// Whether the nodes lie on the line through the first and the last (to

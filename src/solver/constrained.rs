@@ -637,8 +637,9 @@ pub(crate) trait Subproblem {
     /// `S x - b` for any multipliers `x` (the QP's gradient); the step of
     /// `x` becomes the last solve's.
     fn rows_at(&mut self, x: &DVector<f64>) -> Option<DVector<f64>>;
-    /// Whether `S` is symmetric positive definite: the QP strictly convex,
-    /// its minimum unique whatever path the active set takes to it.
+    /// Whether `S` is known to be symmetric positive definite (false where
+    /// that is not known): the QP strictly convex, its minimum unique
+    /// whatever path the active set takes to it.
     fn is_convex(&self) -> bool;
 }
 
@@ -703,6 +704,12 @@ impl Subproblem for Schur<'_> {
     fn is_convex(&self) -> bool {
         // The Cholesky factorisation reads one triangle: the other is the
         // same to round-off where no sliding contact's friction is in `S`.
+        // It also passes where rows repeat to round-off (a contact on a
+        // node and on the element beside it: the 16 adjacent candidates of
+        // the robot bent into a wall give a squared pivot below 1e-11 of
+        // the largest diagonal entry).
+        // There the minimisers differ only in how the force splits between
+        // the repeated rows, `D^T x` the same: so does the rod's step.
         self.symmetric && self.s.clone().cholesky().is_some()
     }
 }
@@ -768,14 +775,7 @@ fn bounded_qp(
         return solve_held(sub, equalities, lower, held);
     }
     let scale = row_scale(sub, equalities + lower.len())?;
-    // Freeing rows one at a time changes only the cost where the minimum is
-    // unique. Where it need not be (`S` singular: a clamped tip on a floor
-    // holds its height twice; indefinite: a rod curled into a wall, away
-    // from an equilibrium) or where `S` is unsymmetric (a sliding contact's
-    // friction), the path decides which answer the QP returns: the batches'
-    // is kept there, as it was.
-    let undo_failed_batches = sub.is_convex();
-    primal_active_set(sub, equalities, lower, held, scale, undo_failed_batches)
+    primal_active_set(sub, equalities, lower, held, scale, true)
 }
 
 /// The scale of the QP's rows, for its round-off tolerance: the gaps of
@@ -848,6 +848,15 @@ fn primal_dual_active_set(
     None
 }
 
+/// A batch of rows [`primal_active_set`] freed at once: the multipliers and
+/// held set before it, its rows, and its row of the most negative gap.
+struct Batch {
+    before: DVector<f64>,
+    held_before: Vec<bool>,
+    rows: Vec<usize>,
+    worst: usize,
+}
+
 /// [`bounded_qp`]'s primal active set, feasible throughout (`x = 0` is: the
 /// forces are `>= 0`), from the held set `held`.
 ///
@@ -856,13 +865,20 @@ fn primal_dual_active_set(
 /// start deep in obstacles the step then leaves most of them again, each
 /// blocking row a solve of the subproblem (16 candidates freed on the
 /// seed's robot bent into a wall in front of a ball, one contact at the
-/// end). With `undo_failed_batches`, where a batch freed at once is
-/// followed by a blocked step, the QP goes back to where it freed them and
-/// from there frees one row a pass, the one whose gap the step closes
-/// most: one solve wasted at most. The subproblem's solves in a whole
-/// forward solve: 24 before, 6 after on that robot; 22 and 5 on a heavy
-/// rod clamped 5 cm above a table (n = 40); unchanged on a rod lying on
-/// it (3).
+/// end). With `undo_failed_batches`, where the solve after a batch freed
+/// at once takes half the batch or more below its bounds, the QP goes back to
+/// where it freed them and from there frees one row a pass, the one whose
+/// gap the step closes most: one solve wasted. A batch that the step
+/// leaves by a row or two (a stretch's edge) drops them as before. That
+/// changes only the cost where the QP's minimum is unique, `S` positive
+/// definite ([`Subproblem::is_convex`], asked at the first such batch);
+/// where it need not be (`S` singular: a clamped tip on a floor holds its
+/// height twice; indefinite: a rod curled into a wall, away from an
+/// equilibrium) or `S` is unsymmetric (a sliding contact's friction), the
+/// path decides which answer the QP returns, and the batches' is kept.
+/// The subproblem's solves in a whole forward solve: 24 before, 6 after on
+/// that robot; 22 and 5 on a heavy rod clamped 5 cm above a table (n =
+/// 40); unchanged on a rod lying on it (3).
 fn primal_active_set(
     sub: &mut impl Subproblem,
     equalities: usize,
@@ -877,10 +893,9 @@ fn primal_active_set(
     // choice (degenerate), never freed again in this QP, so that it ends.
     let mut freed = vec![false; m];
     let mut frozen = vec![false; m];
-    // The last pass's batch, freed at once: the multipliers and held set
-    // before it, and its row of the most negative gap.
-    let mut batch: Option<(DVector<f64>, Vec<bool>, usize)> = None;
+    let mut batch: Option<Batch> = None;
     let mut one_at_a_time = false;
+    let mut convex = None;
     for _ in 0..4 * m + 8 {
         // The subproblem: the bounded rows at their bounds, the rest solved.
         let trial = solve_held(sub, equalities, lower, held)?;
@@ -898,12 +913,16 @@ fn primal_active_set(
             }
         }
         if let Some(i) = blocking {
-            if let Some((before, held_before, worst)) = batch.take() {
-                x = before;
-                held.copy_from_slice(&held_before);
-                held[worst - equalities] = true;
+            let undone = batch.take().filter(|b| {
+                let below = b.rows.iter().filter(|&&r| trial[r] < lower[r - equalities]);
+                2 * below.count() >= b.rows.len() && *convex.get_or_insert_with(|| sub.is_convex())
+            });
+            if let Some(b) = undone {
+                x = b.before;
+                held.copy_from_slice(&b.held_before);
+                held[b.worst - equalities] = true;
                 freed.iter_mut().for_each(|f| *f = false);
-                freed[worst] = true;
+                freed[b.worst] = true;
                 one_at_a_time = true;
                 continue;
             }
@@ -933,13 +952,17 @@ fn primal_active_set(
             freed[worst] = true;
             continue;
         }
-        if undo_failed_batches {
-            batch = Some((x.clone(), held.to_vec(), worst));
-        }
+        let saved = undo_failed_batches.then(|| (x.clone(), held.to_vec()));
         for &i in &closing {
             held[i - equalities] = true;
             freed[i] = true;
         }
+        batch = saved.map(|(before, held_before)| Batch {
+            before,
+            held_before,
+            rows: closing,
+            worst,
+        });
     }
     None
 }
@@ -1917,41 +1940,55 @@ mod tests {
         }
     }
 
-    #[test]
-    fn freeing_one_row_at_a_time_after_a_failed_batch_finds_the_same_minimum() {
-        // The compliance of 16 contacts along a stretch (the inverse of a
-        // chain of springs, each to the ground and to its neighbours:
-        // positive definite, every row coupled) and gaps that all close
-        // at first (`b > 0`), deepest at one end: a start deep in an
-        // obstacle that the step leaves along most of the stretch.
-        let m = 16;
+    /// The compliance of `m` contacts along a stretch: the inverse of a
+    /// chain of springs, each to the ground and to its neighbours (positive
+    /// definite, every row coupled).
+    fn chain_compliance(m: usize) -> DMatrix<f64> {
         let stiffness = DMatrix::from_fn(m, m, |i, j| match i.abs_diff(j) {
             0 => 2.1,
             1 => -1.0,
             _ => 0.0,
         });
-        let s = stiffness.try_inverse().unwrap();
+        stiffness.try_inverse().unwrap()
+    }
+
+    /// [`primal_active_set`] on `S x = b` (`equalities` rows unbounded, the
+    /// rest at least `lower`) from no row held: its answer, held set and
+    /// subproblem solves.
+    fn run_qp(
+        s: &DMatrix<f64>,
+        b: &DVector<f64>,
+        (equalities, lower): (usize, &[f64]),
+        symmetric: bool,
+        undo: bool,
+    ) -> (DVector<f64>, Vec<bool>, usize) {
+        let mut sub = Counted(
+            Schur {
+                s,
+                b,
+                symmetric,
+                free_rows: vec![],
+                fixed_rows: vec![],
+            },
+            0,
+        );
+        let mut held = vec![false; lower.len()];
+        let scale = row_scale(&mut sub, s.nrows()).unwrap();
+        let x = primal_active_set(&mut sub, equalities, lower, &mut held, scale, undo).unwrap();
+        (x, held, sub.1)
+    }
+
+    #[test]
+    fn freeing_one_row_at_a_time_after_a_failed_batch_finds_the_same_minimum() {
+        // 16 contacts whose gaps all close at first (`b > 0`), deepest at
+        // one end: a start deep in an obstacle that the step leaves along
+        // most of the stretch.
+        let m = 16;
+        let s = chain_compliance(m);
         let b = DVector::from_fn(m, |i, _| (0.5 * i as f64).exp());
         let lower = vec![0.0; m];
-        let solve = |undo: bool| {
-            let mut sub = Counted(
-                Schur {
-                    s: &s,
-                    b: &b,
-                    symmetric: true,
-                    free_rows: vec![],
-                    fixed_rows: vec![],
-                },
-                0,
-            );
-            assert!(sub.is_convex());
-            let mut held = vec![false; m];
-            let scale = row_scale(&mut sub, m).unwrap();
-            let x = primal_active_set(&mut sub, 0, &lower, &mut held, scale, undo).unwrap();
-            (x, held, sub.1)
-        };
-        let (batch, batch_held, batch_solves) = solve(false);
-        let (single, single_held, single_solves) = solve(true);
+        let (batch, batch_held, batch_solves) = run_qp(&s, &b, (0, &lower), true, false);
+        let (single, single_held, single_solves) = run_qp(&s, &b, (0, &lower), true, true);
         // The minimum: forces >= 0, gaps >= 0, one or the other zero.
         let gaps = &s * &single - &b;
         let (force, gap) = (single.amax(), b.amax());
@@ -1967,5 +2004,79 @@ mod tests {
             single_solves < batch_solves / 4,
             "{single_solves} solves against {batch_solves}"
         );
+    }
+
+    #[test]
+    fn with_a_held_row_and_forces_at_hand_the_minimum_is_the_batches() {
+        // A held point's row (unbounded) beside 16 contacts with forces
+        // (their steps bounded below by minus them), two deep places: one
+        // at a time frees several rows, and steps are blocked on the way.
+        let m = 17;
+        let mut s = chain_compliance(m);
+        s[(0, 0)] += 1.0;
+        let b = DVector::from_fn(m, |i, _| {
+            let (a, c) = (i as f64 - 5.0, i as f64 - 14.0);
+            3.0 * (-0.5 * a * a).exp() + 4.0 * (-0.5 * c * c).exp() - 0.5
+        });
+        let lower: Vec<f64> = (1..m).map(|i| -0.02 * (i % 3) as f64).collect();
+        let (batch, batch_held, _) = run_qp(&s, &b, (1, &lower), true, false);
+        let (single, single_held, solves) = run_qp(&s, &b, (1, &lower), true, true);
+        assert_eq!(batch_held, single_held);
+        assert!((&batch - &single).amax() <= 1e-10 * batch.amax());
+        let gaps = &s * &single - &b;
+        assert!(gaps[0].abs() <= 1e-12 * b.amax());
+        for (c, lo) in lower.iter().enumerate() {
+            let i = c + 1;
+            assert!(
+                single[i] >= *lo - 1e-12 && gaps[i] >= -1e-12 * b.amax(),
+                "row {i}"
+            );
+        }
+        assert!(
+            solves > 3,
+            "{solves} solves: the case frees more than one row"
+        );
+    }
+
+    #[test]
+    fn a_batch_left_by_a_row_or_a_singular_or_unsymmetric_qp_keep_the_batches_path() {
+        let m = 16;
+        let lower = vec![0.0; m];
+        // A stretch settling whole but for its first row: dropped as before.
+        let b = DVector::from_fn(m, |i, _| if i == 0 { 0.3 } else { 1.0 });
+        let s = chain_compliance(m);
+        let same = |s: &DMatrix<f64>, b: &DVector<f64>, symmetric: bool| {
+            let (x, held, solves) = run_qp(s, b, (0, &lower), symmetric, false);
+            let (y, held_y, solves_y) = run_qp(s, b, (0, &lower), symmetric, true);
+            assert_eq!((held, solves), (held_y, solves_y));
+            assert_eq!(x, y);
+            solves
+        };
+        assert_eq!(same(&s, &b, true), 3);
+        // Deep at one end, which the first test undoes, on an `S` whose rows
+        // repeat (singular) or that is not symmetric: the batches' path.
+        let deep = DVector::from_fn(m, |i, _| (0.5 * i as f64).exp());
+        let mut repeated = s.clone();
+        for j in 0..m {
+            repeated[(1, j)] = repeated[(0, j)];
+        }
+        for i in 0..m {
+            repeated[(i, 1)] = repeated[(i, 0)];
+        }
+        assert!(!Schur {
+            s: &repeated,
+            b: &deep,
+            symmetric: true,
+            free_rows: vec![],
+            fixed_rows: vec![],
+        }
+        .is_convex());
+        same(&repeated, &deep, true);
+        same(&s, &deep, false);
+        // (Where it is definite after all, the same batch is undone.)
+        let definite = &repeated + DMatrix::identity(m, m) * 1e-3;
+        let (_, _, batch_solves) = run_qp(&definite, &deep, (0, &lower), true, false);
+        let (_, _, solves) = run_qp(&definite, &deep, (0, &lower), true, true);
+        assert!(solves < batch_solves, "{solves} against {batch_solves}");
     }
 }

@@ -288,19 +288,26 @@ fn deepest_point(model: &RodModel, nodes: &[Vector3<f64>]) -> Deepest {
 }
 
 /// The first obstacle that the rod whose nodes are `nodes` passes through
-/// from side to side: inside it along a stretch that it leaves again toward
-/// its tip. The approach grows such an obstacle back from its middle, which
-/// pushes the stretch to both its sides at once (a robot hanging through a
-/// slab): no start there, and the message says which side is missing.
+/// from side to side: inside it at places whose nearest faces point to
+/// opposite sides (normals more than a right angle apart: the two faces of
+/// a slab the rod hangs through). The approach grows such an obstacle back
+/// from its middle, which pushes the rod out of both faces at once: no
+/// start there, and the message says which side is missing. A rod in a
+/// half-space, or on one side of an obstacle's middle, is not.
 fn passed_through(model: &RodModel, nodes: &[Vector3<f64>]) -> Option<usize> {
     let mut sites = vec![Site::default(); contact::slot_count(model)];
     contact::locate(model, nodes, &mut sites);
     let n = model.n();
     (0..model.obstacles().len()).find(|&o| {
-        // The obstacle's slots along the rod: element k's, then node k's.
-        let first = 2 * n * o;
-        let mut gaps = (1..=n).flat_map(|k| [sites[first + n + k - 1].gap, sites[first + k - 1].gap]);
-        gaps.any(|gap| gap < 0.0) && gaps.any(|gap| gap > 0.0)
+        let inside: Vec<Vector3<f64>> = sites[2 * n * o..2 * n * (o + 1)]
+            .iter()
+            .filter(|site| site.gap < 0.0)
+            .map(|site| site.normal)
+            .collect();
+        inside
+            .iter()
+            .enumerate()
+            .any(|(a, u)| inside[a + 1..].iter().any(|v| u.dot(v) < 0.0))
     })
 }
 

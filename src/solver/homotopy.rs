@@ -288,26 +288,34 @@ fn deepest_point(model: &RodModel, nodes: &[Vector3<f64>]) -> Deepest {
 }
 
 /// The first obstacle that the rod whose nodes are `nodes` passes through
-/// from side to side: inside it at places whose nearest faces point to
-/// opposite sides (normals more than a right angle apart: the two faces of
-/// a slab the rod hangs through). The approach grows such an obstacle back
-/// from its middle, which pushes the rod out of both faces at once: no
-/// start there, and the message says which side is missing. A rod in a
-/// half-space, or on one side of an obstacle's middle, is not.
+/// from side to side: it enters the obstacle and leaves it again toward its
+/// tip on the opposite side (the clear places just before and just after
+/// the stretch inside face it from directions more than a right angle
+/// apart: the two faces of a slab the rod hangs through). The approach
+/// grows such an obstacle back from its middle, which pushes the rod out of
+/// both its faces at once: no start there, and the message says which side
+/// is missing. A rod that dips into an obstacle and out on the side it came
+/// from (a half-space, a lumen's wall at a bend) is not.
 fn passed_through(model: &RodModel, nodes: &[Vector3<f64>]) -> Option<usize> {
     let mut sites = vec![Site::default(); contact::slot_count(model)];
     contact::locate(model, nodes, &mut sites);
     let n = model.n();
     (0..model.obstacles().len()).find(|&o| {
-        let inside: Vec<Vector3<f64>> = sites[2 * n * o..2 * n * (o + 1)]
-            .iter()
-            .filter(|site| site.gap < 0.0)
-            .map(|site| site.normal)
-            .collect();
-        inside
-            .iter()
-            .enumerate()
-            .any(|(a, u)| inside[a + 1..].iter().any(|v| u.dot(v) < 0.0))
+        // The obstacle's slots along the rod: element k's, then node k's.
+        let first = 2 * n * o;
+        let along = (1..=n).flat_map(|k| [&sites[first + n + k - 1], &sites[first + k - 1]]);
+        let (mut before, mut inside) = (None::<Vector3<f64>>, false);
+        for site in along {
+            if site.gap < 0.0 {
+                inside = true;
+                continue;
+            }
+            if inside && before.is_some_and(|b| b.dot(&site.normal) < 0.0) {
+                return true;
+            }
+            (before, inside) = (Some(site.normal), false);
+        }
+        false
     })
 }
 

@@ -267,9 +267,7 @@ struct Deepest {
 /// obstacles, at its nodes and at its chords' nearest points (the contact
 /// slots, located as a solve locates them).
 fn deepest_point(model: &RodModel, nodes: &[Vector3<f64>]) -> Deepest {
-    let mut sites = vec![Site::default(); contact::slot_count(model)];
-    contact::locate(model, nodes, &mut sites);
-    sites.iter().fold(
+    located(model, nodes).iter().fold(
         Deepest {
             depth: f64::NEG_INFINITY,
             normal: Vector3::zeros(),
@@ -287,6 +285,14 @@ fn deepest_point(model: &RodModel, nodes: &[Vector3<f64>]) -> Deepest {
     )
 }
 
+/// Every contact slot of the rod whose nodes are `nodes`, located as a
+/// solve locates them (see `contact::slot`).
+fn located(model: &RodModel, nodes: &[Vector3<f64>]) -> Vec<Site> {
+    let mut sites = vec![Site::default(); contact::slot_count(model)];
+    contact::locate(model, nodes, &mut sites);
+    sites
+}
+
 /// The first obstacle that the rod whose nodes are `nodes` passes through
 /// from side to side: it enters the obstacle and leaves it again toward its
 /// tip on the opposite side (the clear places just before and just after
@@ -297,8 +303,7 @@ fn deepest_point(model: &RodModel, nodes: &[Vector3<f64>]) -> Deepest {
 /// is missing. A rod that dips into an obstacle and out on the side it came
 /// from (a half-space, a lumen's wall at a bend) is not.
 fn passed_through(model: &RodModel, nodes: &[Vector3<f64>]) -> Option<usize> {
-    let mut sites = vec![Site::default(); contact::slot_count(model)];
-    contact::locate(model, nodes, &mut sites);
+    let sites = located(model, nodes);
     let n = model.n();
     (0..model.obstacles().len()).find(|&o| {
         // The obstacle's slots along the rod: element k's, then node k's.

@@ -671,20 +671,66 @@ impl Discretisation for Fd2 {
 /// q_i)`: the blocks of its start node and its end node. Row c is the gradient
 /// of `e_c . chord`: `T(q)` counts `h_i / 3` at each node, the bilinear term
 /// `h_i / 3` shared between them.
+#[inline(always)]
 pub(crate) fn chord_jacobian(rod: &Rod, q: &[Quat], i: usize) -> (Matrix3<f64>, Matrix3<f64>) {
     let third = rod.h(i) / 3.0;
-    let block = |at: Quat, other: Quat| {
-        let mut block = Matrix3::zeros();
-        for c in 0..3 {
-            let e = Vector3::ith(c, 1.0);
-            let f = at.inverse_rotate(e);
-            let row = third * Vector3::new(-f.y, f.x, 0.0)
-                + (0.5 * third) * (at.conj() * tangent_form_apply(&e, other)).v;
-            block.set_row(c, &row.transpose());
-        }
-        block
-    };
-    (block(q[i - 1], q[i]), block(q[i], q[i - 1]))
+    (
+        chord_block(q[i - 1], q[i], third),
+        chord_block(q[i], q[i - 1], third),
+    )
+}
+
+/// One node's block of [`chord_jacobian`], `at` the node and `other` the
+/// element's other node. Row c is `third (-f_y, f_x, 0) + (third / 2) (at^*
+/// S_(e_c) other)_v` with `f = R(at)^T e_c`, row c of `R(at)`. Spelt out per
+/// axis because this runs for every chord at every contact step: `S_(e_c)
+/// other` is a signed permutation of `other` ([`tangent_form_apply`] with a
+/// unit axis), and only the first two columns of `R(at)` are needed.
+#[inline(always)]
+fn chord_block(at: Quat, other: Quat, third: f64) -> Matrix3<f64> {
+    let (w, x, y, z) = (at.w, at.v.x, at.v.y, at.v.z);
+    // Columns 0 and 1 of R(at): entry c of each is f_x, f_y of row c.
+    let first = Vector3::new(
+        w * w + x * x - y * y - z * z,
+        2.0 * (x * y + w * z),
+        2.0 * (x * z - w * y),
+    );
+    let second = Vector3::new(
+        2.0 * (x * y - w * z),
+        w * w - x * x + y * y - z * z,
+        2.0 * (y * z + w * x),
+    );
+    let (ow, ox, oy, oz) = (other.w, other.v.x, other.v.y, other.v.z);
+    let forms = [
+        (oy, Vector3::new(oz, ow, ox)),
+        (-ox, Vector3::new(-ow, oz, oy)),
+        (ow, Vector3::new(-ox, -oy, oz)),
+    ];
+    let half = 0.5 * third;
+    let mut block = Matrix3::zeros();
+    for (c, (sw, sv)) in forms.into_iter().enumerate() {
+        // The vector part of at^* (sw, sv).
+        let turned = w * sv - sw * at.v - at.v.cross(&sv);
+        block[(c, 0)] = -third * second[c] + half * turned.x;
+        block[(c, 1)] = third * first[c] + half * turned.y;
+        block[(c, 2)] = half * turned.z;
+    }
+    block
+}
+
+/// The block of [`chord_jacobian`] as the formula reads, axis by axis: the
+/// reference its spelt-out form is tested against.
+#[cfg(test)]
+fn chord_block_as_written(at: Quat, other: Quat, third: f64) -> Matrix3<f64> {
+    let mut block = Matrix3::zeros();
+    for c in 0..3 {
+        let e = Vector3::ith(c, 1.0);
+        let f = at.inverse_rotate(e);
+        let row = third * Vector3::new(-f.y, f.x, 0.0)
+            + (0.5 * third) * (at.conj() * tangent_form_apply(&e, other)).v;
+        block.set_row(c, &row.transpose());
+    }
+    block
 }
 
 /// Mean tangent of an element: the exact mean of `T` under linear interpolation of `q`.
@@ -706,4 +752,29 @@ pub(crate) fn evaluate_in_chunks(
 ) {
     let source = Source::<false>::new(rod, &rod.loading, load, held);
     source.assemble(q, g, jac, chunk);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The spelt-out chord block is the formula's, to round-off of the
+    /// rotation's entries, at unit quaternions of every kind of turn.
+    #[test]
+    fn the_spelt_out_chord_block_is_the_formulas() {
+        let mut at = Quat::IDENTITY;
+        let mut other = Quat::new(0.5, -0.5, 0.5, 0.5);
+        for k in 0..200 {
+            let t = k as f64;
+            at = at.perturbed(Vector3::new(0.7 * t.sin(), 0.3 + 0.2 * t.cos(), -0.4));
+            other = other.perturbed(Vector3::new(-0.2, 0.5 * (1.3 * t).cos(), 0.9 * t.sin()));
+            let third = 0.01 + 0.001 * t;
+            let fast = chord_block(at, other, third);
+            let slow = chord_block_as_written(at, other, third);
+            assert!(
+                (fast - slow).amax() <= 8.0 * f64::EPSILON * third,
+                "{k}: {fast} against {slow}"
+            );
+        }
+    }
 }

@@ -641,7 +641,26 @@ pub(crate) trait Subproblem {
     /// that is not known): the QP strictly convex, its minimum unique
     /// whatever path the active set takes to it.
     fn is_convex(&self) -> bool;
+    /// Whether `x`, the last solve's multiplier of row `r`, is round-off of
+    /// a singular subproblem (dependent rows freed together): its row's own
+    /// action `|x| S_rr` beyond [`ROUND_OFF_FORCE`] times `scale`, the
+    /// rows' (no gap the step closes asks for a force near it). False where
+    /// the form cannot tell.
+    fn is_round_off_force(&self, _r: usize, _x: f64, _scale: f64) -> bool {
+        false
+    }
 }
+
+/// See [`Subproblem::is_round_off_force`]: about `1 / sqrt(eps)`. The seed's
+/// robot bent into a wall in front of a ball frees 16 rows at once, five of
+/// them on four coordinates, and the solve gives forces of 1e5 to 2.5e15 N
+/// (`|x| S_rr` up to 4e15 against gaps of 0.16 m); a rod's stretch settling
+/// on a floor, 1e2 to 6e2 N of both signs at its edge.
+const ROUND_OFF_FORCE: f64 = 1e8;
+
+/// The shift of [`Subproblem::is_convex`]'s factorisation, relative to the
+/// largest diagonal entry of `S`: round-off of its entries.
+const CONVEX_SHIFT: f64 = 1e-10;
 
 /// The subproblem over the Schur complement: `S x = b` on the free rows.
 struct Schur<'a> {
@@ -704,13 +723,28 @@ impl Subproblem for Schur<'_> {
     fn is_convex(&self) -> bool {
         // The Cholesky factorisation reads one triangle: the other is the
         // same to round-off where no sliding contact's friction is in `S`.
-        // It also passes where rows repeat to round-off (a contact on a
-        // node and on the element beside it: the 16 adjacent candidates of
-        // the robot bent into a wall give a squared pivot below 1e-11 of
-        // the largest diagonal entry).
-        // There the minimisers differ only in how the force splits between
-        // the repeated rows, `D^T x` the same: so does the rod's step.
-        self.symmetric && self.s.clone().cholesky().is_some()
+        // Shifted by round-off of its largest entry, it passes where `S` is
+        // semidefinite, singular to round-off or exactly: where rows repeat
+        // (a contact on a node and on the element beside it) or are
+        // dependent (the seed's robot bent into a wall in front of a ball:
+        // nodes 15 and 16 held by the wall and the ball, five rows on their
+        // four in-plane coordinates, the least eigenvalue 2e-18 of the
+        // largest). There the minimisers differ only in how the forces
+        // split between the dependent rows, `D^T x` the same (`S = R A^-1
+        // R^T`, `A` definite): so does the rod's step. An indefinite `S`
+        // (a rod curled into a wall away from an equilibrium) fails.
+        if !self.symmetric {
+            return false;
+        }
+        let m = self.s.nrows();
+        let shift = CONVEX_SHIFT * self.s.diagonal().amax();
+        (self.s + DMatrix::identity(m, m) * shift)
+            .cholesky()
+            .is_some()
+    }
+
+    fn is_round_off_force(&self, r: usize, x: f64, scale: f64) -> bool {
+        x.abs() * self.s[(r, r)] > ROUND_OFF_FORCE * scale
     }
 }
 
@@ -915,7 +949,11 @@ fn primal_active_set(
         if let Some(i) = blocking {
             let undone = batch.take().filter(|b| {
                 let below = b.rows.iter().filter(|&&r| trial[r] < lower[r - equalities]);
-                2 * below.count() >= b.rows.len() && *convex.get_or_insert_with(|| sub.is_convex())
+                let failed = 2 * below.count() >= b.rows.len()
+                    || b.rows
+                        .iter()
+                        .any(|&r| sub.is_round_off_force(r, trial[r], scale));
+                failed && *convex.get_or_insert_with(|| sub.is_convex())
             });
             if let Some(b) = undone {
                 x = b.before;
@@ -1938,6 +1976,9 @@ mod tests {
         fn is_convex(&self) -> bool {
             self.0.is_convex()
         }
+        fn is_round_off_force(&self, r: usize, x: f64, scale: f64) -> bool {
+            self.0.is_round_off_force(r, x, scale)
+        }
     }
 
     /// The compliance of `m` contacts along a stretch: the inverse of a
@@ -2039,7 +2080,7 @@ mod tests {
     }
 
     #[test]
-    fn a_batch_left_by_a_row_or_a_singular_or_unsymmetric_qp_keep_the_batches_path() {
+    fn a_batch_left_by_a_row_or_an_indefinite_or_unsymmetric_qp_keep_the_batches_path() {
         let m = 16;
         let lower = vec![0.0; m];
         // A stretch settling whole but for its first row: dropped as before.
@@ -2053,17 +2094,47 @@ mod tests {
             solves
         };
         assert_eq!(same(&s, &b, true), 3);
-        // Deep at one end, which the first test undoes, on an `S` whose rows
-        // repeat (singular) or that is not symmetric: the batches' path.
+        // Deep at one end, which the first test undoes, on an `S` that is
+        // indefinite or not symmetric: the batches' path.
         let deep = DVector::from_fn(m, |i, _| (0.5 * i as f64).exp());
-        let mut repeated = s.clone();
+        let schur = |s| Schur {
+            s,
+            b: &deep,
+            symmetric: true,
+            free_rows: vec![],
+            fixed_rows: vec![],
+        };
+        let mut indefinite = s.clone();
+        indefinite[(3, 3)] = -indefinite[(3, 3)];
+        assert!(!schur(&indefinite).is_convex());
+        same(&indefinite, &deep, true);
+        same(&s, &deep, false);
+    }
+
+    /// `S` whose first two rows repeat exactly (a contact on a node and on
+    /// the element beside it).
+    fn repeated_rows(m: usize) -> DMatrix<f64> {
+        let mut repeated = chain_compliance(m);
         for j in 0..m {
             repeated[(1, j)] = repeated[(0, j)];
         }
         for i in 0..m {
             repeated[(i, 1)] = repeated[(i, 0)];
         }
-        assert!(!Schur {
+        repeated
+    }
+
+    #[test]
+    fn a_semidefinite_qp_is_convex_and_its_failed_batch_undone_to_the_same_gaps() {
+        // Rows that repeat make `S` singular, semidefinite: its minimisers
+        // differ only in how a force splits between them, the gaps (and
+        // the rod's step) the same. One at a time puts it on one row.
+        let m = 16;
+        let lower = vec![0.0; m];
+        // (The repeated rows' gaps are the same: `b` repeats too.)
+        let deep = DVector::from_fn(m, |i, _| (0.5 * (m - 1 - i.max(1)) as f64).exp());
+        let repeated = repeated_rows(m);
+        assert!(Schur {
             s: &repeated,
             b: &deep,
             symmetric: true,
@@ -2071,12 +2142,18 @@ mod tests {
             fixed_rows: vec![],
         }
         .is_convex());
-        same(&repeated, &deep, true);
-        same(&s, &deep, false);
-        // (Where it is definite after all, the same batch is undone.)
-        let definite = &repeated + DMatrix::identity(m, m) * 1e-3;
-        let (_, _, batch_solves) = run_qp(&definite, &deep, (0, &lower), true, false);
-        let (_, _, solves) = run_qp(&definite, &deep, (0, &lower), true, true);
+        let (batch, _, batch_solves) = run_qp(&repeated, &deep, (0, &lower), true, false);
+        let (single, _, solves) = run_qp(&repeated, &deep, (0, &lower), true, true);
         assert!(solves < batch_solves, "{solves} against {batch_solves}");
+        let (gaps, batch_gaps) = (&repeated * &single - &deep, &repeated * &batch - &deep);
+        assert!((&gaps - &batch_gaps).amax() <= 1e-9 * deep.amax());
+        assert!((single[0] + single[1] - batch[0] - batch[1]).abs() <= 1e-9 * batch.amax());
+        assert!(single[0] == 0.0 || single[1] == 0.0, "{single}");
+        for i in 0..m {
+            assert!(
+                single[i] >= 0.0 && gaps[i] >= -1e-12 * deep.amax(),
+                "row {i}"
+            );
+        }
     }
 }

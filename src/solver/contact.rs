@@ -809,23 +809,33 @@ pub(crate) fn curvature(model: &RodModel, w: &mut Workspace, with_columns: bool)
         // dF/dr, rows the nodes' shares and columns their coordinates (3
         // each); a base node's share goes into the clamp: keep the moving
         // nodes' rows and columns.
-        let kept: Vec<usize> = match place {
-            Place::Node(_) => vec![0],
-            Place::Element(_) => [(a, 0), (b, 1)]
-                .into_iter()
-                .filter(|(k, _)| moving.contains(k))
-                .map(|(_, share)| share)
-                .collect(),
+        let mut kept = [0; 2];
+        let mut count = 0;
+        for (k, share) in [(a, 0), (b, 1)] {
+            if matches!(place, Place::Element(_)) && moving.contains(&k) {
+                kept[count] = share;
+                count += 1;
+            }
+        }
+        let kept = if matches!(place, Place::Node(_)) {
+            &[0][..]
+        } else {
+            &kept[..count]
         };
+        // `-lambda` times the symmetric part, filled in place (this runs
+        // for every contact at every step).
         let mut block = nalgebra::DMatrix::zeros(3 * kept.len(), 3 * kept.len());
         for (row, &r) in kept.iter().enumerate() {
             for (column, &c) in kept.iter().enumerate() {
-                block
-                    .fixed_view_mut::<3, 3>(3 * row, 3 * column)
-                    .copy_from(&jac.fixed_view::<3, 3>(3 * r, 3 * c));
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let (u, v) = (3 * r + i, 3 * c + j);
+                        block[(3 * row + i, 3 * column + j)] =
+                            -lambda * 0.5 * (jac[(u, v)] + jac[(v, u)]);
+                    }
+                }
             }
         }
-        let block = -lambda * 0.5 * (&block + block.transpose());
         if block.amax() == 0.0 {
             continue;
         }

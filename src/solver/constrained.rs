@@ -2156,4 +2156,45 @@ mod tests {
             );
         }
     }
+    #[test]
+    fn a_batch_of_dependent_rows_takes_one_path_whatever_the_round_off() {
+        // 17 contacts on 16 coordinates (`S = R C R^T`, row 16 of `R` rows
+        // 13 + 14 - 15: a point held by two obstacles at once), deepest at
+        // one end. Freed together their subproblem is singular, its solve
+        // round-off: whether the factorisations pass and which forces come
+        // out below their bounds is chance. Perturbed by round-off, the QP
+        // must take the same path to the same answer.
+        let m = 17;
+        let mut r = DMatrix::identity(m, m);
+        r[(16, 13)] = 1.0;
+        r[(16, 14)] = 1.0;
+        r[(16, 15)] = -1.0;
+        r[(16, 16)] = 0.0;
+        let exact = &r * chain_compliance(m) * r.transpose();
+        let b = DVector::from_fn(m, |i, _| (0.5 * i.min(15) as f64).exp());
+        let lower = vec![0.0; m];
+        let mut seen = Vec::new();
+        for k in 0..24 {
+            // A symmetric perturbation of a few ulps, different each time.
+            let mut s = exact.clone();
+            for i in 0..m {
+                for j in 0..=i {
+                    let t = ((k * 31 + i * 7 + j * 13) % 17) as f64 / 17.0 - 0.5;
+                    let v = s[(i, j)] * (1.0 + 8.0 * f64::EPSILON * t);
+                    s[(i, j)] = v;
+                    s[(j, i)] = v;
+                }
+            }
+            let (x, held, solves) = run_qp(&s, &b, (0, &lower), true, true);
+            let gaps = &s * &x - &b;
+            for i in 0..m {
+                assert!(
+                    x[i] >= 0.0 && gaps[i] >= -1e-9 * b.amax(),
+                    "{k}, row {i}: {x}"
+                );
+            }
+            seen.push((held, solves));
+        }
+        assert!(seen.iter().all(|v| *v == seen[0]), "{seen:?}");
+    }
 }

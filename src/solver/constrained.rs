@@ -1224,11 +1224,17 @@ fn newton_at(
     // chosen its candidates, Jacobian and all: the start and the end of
     // the pass before need not.
     let reevaluated = model.has_obstacles() || model.has_friction();
+    // From the free start (no contact force yet, full load, nothing held)
+    // the free solve's last Jacobian is this evaluation's.
+    let free_start = std::mem::take(&mut w.kkt.contact.free_evaluation);
+    let mut evaluated_with_jacobian = lambda == 1.0
+        && !model.has_friction()
+        && free_start == w.q
+        && w.kkt.reactions.iter().all(|r| *r == Vector3::zeros());
     let mut merit_now = evaluate(model, w, lambda, !reevaluated);
     // Whether `w` holds the evaluation of its state, Jacobian and all (a
     // step's first trial, accepted): where the candidates then chosen move
     // no force (no friction to update), it stands.
-    let mut evaluated_with_jacobian = false;
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
         // The contact candidates of this step (see `contact.rs`); a step

@@ -130,6 +130,11 @@ pub(crate) struct ContactWork {
     /// The contacts' friction: anchors, sticking or sliding, the sticking
     /// ones' rows (see `friction.rs`).
     pub friction: FrictionWork,
+    /// The state at which the workspace's residual and Jacobian are the
+    /// free rod's at full load, no contact force on it: the free start's
+    /// last evaluation (see [`start_from_free_equilibrium`]), which the
+    /// contact Newton's first step then uses. Empty where there is none.
+    pub free_evaluation: Vec<Quat>,
 }
 
 impl ContactWork {
@@ -261,7 +266,10 @@ pub(crate) fn start_from_free_equilibrium(
     let kept = free.converged
         && curved_depth(model, w) < at_rest
         && !passed_through(&rest_sites, &w.kkt.contact.sites);
-    if !kept {
+    if kept {
+        // `iterate_free` leaves `w.g` and `w.jac` at its answer.
+        w.kkt.contact.free_evaluation.clone_from(&w.q);
+    } else {
         w.q.copy_from_slice(&rest);
     }
     free.iterations

@@ -85,6 +85,7 @@ impl KktWorkspace {
         self.contact.active.clear();
         self.contact.held.clear();
         self.contact.friction.clear();
+        self.contact.free_evaluation.clear();
     }
 
     /// Keep the multipliers and the contact set as the last equilibrium
@@ -637,9 +638,10 @@ pub(crate) trait Subproblem {
     /// `S x - b` for any multipliers `x` (the QP's gradient); the step of
     /// `x` becomes the last solve's.
     fn rows_at(&mut self, x: &DVector<f64>) -> Option<DVector<f64>>;
-    /// Whether `S` is known to be symmetric positive definite (false where
-    /// that is not known): the QP strictly convex, its minimum unique
-    /// whatever path the active set takes to it.
+    /// Whether `S` is known to be symmetric and positive semidefinite, to
+    /// round-off (false where that is not known): the QP convex, its gaps
+    /// `S x - b` at the minimum unique whatever path the active set takes
+    /// to it (only the split of a force between dependent rows is not).
     fn is_convex(&self) -> bool;
     /// Whether `x`, the last solve's multiplier of row `r`, is round-off of
     /// a singular subproblem (dependent rows freed together): its row's own
@@ -730,9 +732,11 @@ impl Subproblem for Schur<'_> {
         // nodes 15 and 16 held by the wall and the ball, five rows on their
         // four in-plane coordinates, the least eigenvalue 2e-18 of the
         // largest). There the minimisers differ only in how the forces
-        // split between the dependent rows, `D^T x` the same (`S = R A^-1
-        // R^T`, `A` definite): so does the rod's step. An indefinite `S`
-        // (a rod curled into a wall away from an equilibrium) fails.
+        // split between the dependent rows: `S x`, the gaps, the same (and
+        // `D^T x`, the rod's step, where `A^-1` is definite on the range of
+        // `D^T`, as near a stable equilibrium). An indefinite `S` (a rod
+        // curled into a wall away from an equilibrium) fails, unless its
+        // negative eigenvalues are within the shift (round-off).
         if !self.symmetric {
             return false;
         }
@@ -903,13 +907,17 @@ struct Batch {
 /// at once takes half the batch or more below its bounds, the QP goes back to
 /// where it freed them and from there frees one row a pass, the one whose
 /// gap the step closes most: one solve wasted. A batch that the step
-/// leaves by a row or two (a stretch's edge) drops them as before. That
-/// changes only the cost where the QP's minimum is unique, `S` positive
-/// definite ([`Subproblem::is_convex`], asked at the first such batch);
-/// where it need not be (`S` singular: a clamped tip on a floor holds its
-/// height twice; indefinite: a rod curled into a wall, away from an
-/// equilibrium) or `S` is unsymmetric (a sliding contact's friction), the
-/// path decides which answer the QP returns, and the batches' is kept.
+/// leaves by a row or two (a stretch's edge) drops them as before. So is a
+/// batch whose solve gives any force of round-off
+/// ([`Subproblem::is_round_off_force`]: dependent rows freed together,
+/// whose count below the bounds is chance). That changes the cost and at
+/// most the split of a force between dependent rows where `S` is
+/// semidefinite ([`Subproblem::is_convex`], asked at the first such
+/// batch): the gaps at the minimum are unique (a split changes the
+/// reported forces and so the next step's start, not this step's gaps).
+/// Where `S` is indefinite (a rod curled into a wall, away from an
+/// equilibrium) or unsymmetric (a sliding contact's friction) the path
+/// decides which answer the QP returns, and the batches' is kept.
 /// The subproblem's solves in a whole forward solve: 24 before, 6 after on
 /// that robot; 22 and 5 on a heavy rod clamped 5 cm above a table (n =
 /// 40); unchanged on a rod lying on it (3).
@@ -1224,17 +1232,18 @@ fn newton_at(
     // chosen its candidates, Jacobian and all: the start and the end of
     // the pass before need not.
     let reevaluated = model.has_obstacles() || model.has_friction();
-    // From the free start (no contact force yet, full load, nothing held)
-    // the free solve's last Jacobian is this evaluation's.
+    // Whether `w` holds the evaluation of its state, Jacobian and all (a
+    // step's first trial, accepted): where the candidates then chosen move
+    // no force (no friction to update), it stands. So does the free start's
+    // last evaluation (`contact::start_from_free_equilibrium`, made only
+    // where nothing is held, no port, no friction): at full load, with no
+    // contact force yet, the free solve's Jacobian is this one's.
     let free_start = std::mem::take(&mut w.kkt.contact.free_evaluation);
     let mut evaluated_with_jacobian = lambda == 1.0
         && !model.has_friction()
         && free_start == w.q
         && w.kkt.reactions.iter().all(|r| *r == Vector3::zeros());
     let mut merit_now = evaluate(model, w, lambda, !reevaluated);
-    // Whether `w` holds the evaluation of its state, Jacobian and all (a
-    // step's first trial, accepted): where the candidates then chosen move
-    // no force (no friction to update), it stands.
     // One pass more than the budget: the last one only certifies.
     for it in 0..=max_iter {
         // The contact candidates of this step (see `contact.rs`); a step

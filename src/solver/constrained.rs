@@ -72,6 +72,40 @@ pub(crate) struct KktWorkspace {
     pub contact: ContactWork,
     /// The step in mixed form, for many rows (see `mixed.rs`).
     pub mixed: MixedWork,
+    /// Where the rows (and the contacts' curvature) stand loaded at a
+    /// converged Newton's answer, so that the stability verdict there
+    /// needs no second load; cleared by every load.
+    pub rows_at_answer: Option<RowsAt>,
+}
+
+/// The state a load of the constraint rows was made at (see
+/// [`KktWorkspace::rows_at_answer`]): the model, rotations, multipliers
+/// and candidates, on which the rows and the curvature depend.
+#[derive(Debug, Clone)]
+pub(crate) struct RowsAt {
+    /// The model's address (a workspace serves a released model too).
+    model: usize,
+    q: Vec<Quat>,
+    reactions: Vec<Vector3<f64>>,
+    active: Vec<usize>,
+}
+
+impl RowsAt {
+    fn of(model: &RodModel, w: &Workspace) -> Self {
+        RowsAt {
+            model: std::ptr::from_ref(model) as usize,
+            q: w.q.clone(),
+            reactions: w.kkt.reactions.clone(),
+            active: w.kkt.contact.active.clone(),
+        }
+    }
+
+    fn is_of(&self, model: &RodModel, w: &Workspace) -> bool {
+        self.model == std::ptr::from_ref(model) as usize
+            && self.q == w.q
+            && self.reactions == w.kkt.reactions
+            && self.active == w.kkt.contact.active
+    }
 }
 
 impl KktWorkspace {
@@ -142,6 +176,7 @@ impl KktWorkspace {
             force_extra: Vec::new(),
             contact: ContactWork::new(model),
             mixed: MixedWork::default(),
+            rows_at_answer: None,
         }
     }
 }
@@ -328,6 +363,7 @@ pub(crate) fn residual_norm(model: &RodModel, w: &Workspace) -> f64 {
 /// mixed form where there are many (see `mixed.rs`; the dense rows then
 /// come from it on demand, [`mixed::densify`]).
 pub(crate) fn load_constraint_jacobian(model: &RodModel, w: &mut Workspace) {
+    w.kkt.rows_at_answer = None;
     w.kkt.compliance = model.held_point_compliance(&w.q, &w.interior);
     let held = model.constraints().len();
     let ports = port::row_count(model);
@@ -1295,6 +1331,11 @@ fn newton_at(
             // direction is not against their move turn, and the solve goes
             // on (see `friction.rs`).
             if it == max_iter || !friction::settle(model, w) {
+                // The rows stand loaded at the answer (without friction,
+                // whose verdict loads them sticking).
+                if !model.has_friction() {
+                    w.kkt.rows_at_answer = Some(RowsAt::of(model, w));
+                }
                 return (true, it);
             }
             if !reevaluated {
@@ -1648,7 +1689,10 @@ pub(crate) fn is_stable(model: &RodModel, w: &mut Workspace) -> bool {
 }
 
 fn reduced_hessian_is_positive(model: &RodModel, w: &mut Workspace) -> bool {
-    load_constraint_jacobian(model, w);
+    let loaded = (w.kkt.rows_at_answer.take()).is_some_and(|at| at.is_of(model, w));
+    if !loaded {
+        load_constraint_jacobian(model, w);
+    }
     mixed::densify(w);
     // The workspace's factorisation is free (every use refactors first) and
     // takes that of the symmetric part; `w.scratch` holds the columns.
@@ -2211,5 +2255,32 @@ mod tests {
             seen.push((held, solves));
         }
         assert!(seen.iter().all(|v| *v == seen[0]), "{seen:?}");
+    }
+
+    #[test]
+    fn the_verdict_at_a_newton_answer_reuses_its_rows_as_a_fresh_load_gives_them() {
+        // A rod pressed onto a floor and a ball, solved: the verdict takes
+        // the rows the last step loaded, the same to the bit as loading
+        // them again; a moved state or another load drops them.
+        let (model, mut w) = pressed_rod(false);
+        let (converged, _) = newton(&model, &mut w, 1.0, (200, 1e-10));
+        assert!(converged && !w.kkt.contact.held.iter().all(|h| !h));
+        assert!(w.kkt.rows_at_answer.is_some());
+        let loaded = |w: &Workspace| {
+            let rows = w.kkt.rows[..w.kkt.row_count].to_vec();
+            (rows, w.kkt.contact.curvature_blocks.clone())
+        };
+        let reused = reduced_hessian_is_positive(&model, &mut w);
+        assert!(w.kkt.rows_at_answer.is_none());
+        let kept = loaded(&w);
+        let fresh = reduced_hessian_is_positive(&model, &mut w);
+        assert_eq!(reused, fresh);
+        assert_eq!(kept, loaded(&w));
+        let record = RowsAt::of(&model, &w);
+        w.q[5] = w.q[5].perturbed(Vector3::new(1e-9, 0.0, 0.0));
+        assert!(!record.is_of(&model, &w));
+        w.kkt.rows_at_answer = Some(record);
+        load_constraint_jacobian(&model, &mut w);
+        assert!(w.kkt.rows_at_answer.is_none());
     }
 }

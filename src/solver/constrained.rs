@@ -776,11 +776,12 @@ impl Subproblem for Schur<'_> {
         if !self.symmetric {
             return false;
         }
-        let m = self.s.nrows();
         let shift = CONVEX_SHIFT * self.s.diagonal().amax();
-        (self.s + DMatrix::identity(m, m) * shift)
-            .cholesky()
-            .is_some()
+        let mut shifted = self.s.clone();
+        for i in 0..shifted.nrows() {
+            shifted[(i, i)] += shift;
+        }
+        shifted.cholesky().is_some()
     }
 
     fn is_round_off_force(&self, r: usize, x: f64, scale: f64) -> bool {

@@ -180,7 +180,7 @@ def test_the_default_n_puts_located_inputs_on_nodes():
 
 
 @pytest.mark.parametrize("alpha", [3.0, 10.0])
-@pytest.mark.parametrize("tol", [1e-4, 1e-8])
+@pytest.mark.parametrize("tol", [1e-5, 1e-8])
 def test_a_finer_shot_from_the_coarser_ones_wrench_is_the_cold_shot(alpha, tol):
     # Each finer pass of accuracy on demand starts from the coarser pass's
     # base wrench and steps with its Jacobian (chord steps): it must end on
@@ -191,3 +191,21 @@ def test_a_finer_shot_from_the_coarser_ones_wrench_is_the_cold_shot(alpha, tol):
     cold = softspine.solve(cantilever(alpha), method="shooting", n_elements=sol.n_elements)
     assert cold.converged and sol.n_elements > 4
     np.testing.assert_allclose(sol.positions, cold.positions, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize(("alpha", "tol", "n"), [(3.0, 1e-4, 4), (10.0, 1e-3, 4), (10.0, 1e-4, 8)])
+def test_a_shot_whose_own_error_meets_the_tolerance_is_the_answer(alpha, tol, n):
+    # The finer shot at 2n from the first shot's wrench estimates the first
+    # shot's own error (the difference over 1 - 2^-4), honest where an
+    # element turns by up to a radian (0.82 rad at alpha = 10, n = 4, where
+    # the finer shot's estimate is 25 % over): where it meets the tolerance
+    # the first shot is the answer, without a finer pass.
+    reference = softspine.solve(cantilever(alpha), scheme="fe4", n_elements=640,
+                                residual_tol=1e-13)
+    sol = softspine.solve(cantilever(alpha), tol=tol, check=True)
+    assert sol.scheme == "rk4" and sol.n_elements == n and sol.converged
+    plain = softspine.solve(cantilever(alpha), method="shooting", n_elements=n)
+    np.testing.assert_allclose(sol.positions, plain.positions, rtol=0, atol=1e-10)
+    backbone = np.linalg.norm(sol.positions - reference.positions[::640 // n], axis=1).max()
+    assert backbone <= tol
+    assert sol.error_estimate == pytest.approx(backbone, rel=0.03)

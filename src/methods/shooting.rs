@@ -379,22 +379,24 @@ impl Newton<'_, '_> {
     /// Iterate from `x` until the largest scaled mismatch is below `tol`;
     /// returns whether it converged and the iterations spent.
     fn run(&self, x: &mut Vector6, budget: usize, tol: f64) -> (bool, usize) {
-        let (converged, spent, _) = self.run_from(x, budget, tol, None);
+        let (converged, spent, _) = self.run_from(x, budget, (tol, 0.0), None);
         (converged, spent)
     }
 
     /// [`Newton::run`], with chord steps on `chord` (a Jacobian of the same
     /// equations, e.g. a coarser solve's) while each shrinks the mismatch by
-    /// [`CHORD_CONTRACTION`]; also returns the last Jacobian used.
+    /// [`CHORD_CONTRACTION`]; also returns the last Jacobian used. It stops
+    /// at `tol` or at `relative` times the first mismatch, if larger.
     fn run_from(
         &self,
         x: &mut Vector6,
         budget: usize,
-        tol: f64,
+        (tol, relative): (f64, f64),
         chord: Option<Matrix6>,
     ) -> (bool, usize, Option<Matrix6>) {
         let k = self.unknowns();
         let mut res = self.residual(x);
+        let tol = tol.max(relative * res.amax());
         let mut chord = chord;
         let mut last = chord;
         for iteration in 0..budget {
@@ -607,20 +609,13 @@ pub fn shoot(
     let tol = limits.tol;
     let budget = limits.max_iterations;
     let held = !model.constraints().is_empty();
-    let moment_scale = model.stiffness().max() / model.length();
-    let mut scale = Vector6::repeat(moment_scale);
-    scale
-        .fixed_rows_mut::<3>(3)
-        .fill(moment_scale / model.length());
+    let scale = unknowns_scale(model);
     let full = Rod::new(model, scene, 1.0);
     let free_target = TipTarget {
         position: None,
         orientation: None,
     };
-    let held_target = TipTarget {
-        position: model.constraints().last().map(|c| c.target),
-        orientation: model.clamped_tip(),
-    };
+    let held_target = held_tip_target(model);
     let mut x = Vector6::zeros();
     x.fixed_rows_mut::<3>(0)
         .copy_from(&start_moment(model, &full, initial));
@@ -638,7 +633,7 @@ pub fn shoot(
     let (mut converged, mut iterations, jacobian) = direct.run_from(
         &mut x,
         budget.min(DIRECT_ITERATIONS),
-        tol,
+        (tol, 0.0),
         warm.map(|w| w.jacobian),
     );
     let direct_x = x;
@@ -766,6 +761,143 @@ pub fn shoot(
         warm,
         stable: direct_stable.filter(|_| direct_answer),
     }
+}
+
+/// The scales of the unknowns: moments `k / L`, forces `k / L^2`.
+fn unknowns_scale(model: &RodModel) -> Vector6 {
+    let moment_scale = model.stiffness().max() / model.length();
+    let mut scale = Vector6::repeat(moment_scale);
+    scale
+        .fixed_rows_mut::<3>(3)
+        .fill(moment_scale / model.length());
+    scale
+}
+
+/// What a held tip must meet: its position and, clamped, its orientation.
+fn held_tip_target(model: &RodModel) -> TipTarget {
+    TipTarget {
+        position: model.constraints().last().map(|c| c.target),
+        orientation: model.clamped_tip(),
+    }
+}
+
+/// How far [`finer_shot`] shrinks the tip mismatch the coarser wrench leaves
+/// at the finer n (the coarser shot's error): what remains moves the finer
+/// nodes by about this part of their difference from the coarser ones.
+const ESTIMATE_CONTRACTION: f64 = 1e-3;
+
+/// A finer shot for an error estimate ([`finer_shot`]): its node positions.
+pub struct FinerShot {
+    /// The node positions, `n + 1` of them [m].
+    pub positions: Vec<Vector3<f64>>,
+    /// Newton's iterations (chord steps count as one each).
+    pub iterations: usize,
+    /// Where a solve at this n or a finer one starts.
+    pub warm: WarmShot,
+}
+
+/// The shot of `model` (a finer n of the scene a coarser solve solved
+/// directly) from that solve's [`WarmShot`], for the coarser answer's error
+/// estimate: the chord steps of a finer pass (Newton where they stall) and
+/// one integration into the node positions, without the shape, reactions,
+/// stability or solution of a pass. `None` where it does not converge
+/// within the budget (the caller then solves the finer pass in full).
+pub fn finer_shot(
+    model: &RodModel,
+    scene: &Scene,
+    limits: Limits,
+    warm: &WarmShot,
+) -> Option<FinerShot> {
+    let held = !model.constraints().is_empty();
+    if warm.held != held {
+        return None;
+    }
+    let rod = Rod::new(model, scene, 1.0);
+    let newton = Newton {
+        rod: &rod,
+        target: if held {
+            held_tip_target(model)
+        } else {
+            TipTarget {
+                position: None,
+                orientation: None,
+            }
+        },
+        held,
+        scale: unknowns_scale(model),
+    };
+    // Chord steps on the coarser Jacobian, each integration keeping the
+    // nodes (the estimate needs the finer shot's nodes to a small part of
+    // their difference from the coarser ones, not to the solve's
+    // tolerance); Newton where a step does not contract.
+    let mut x = warm.x;
+    let nodes = model.n() + 1;
+    let (mut positions, mut trial_positions) =
+        (vec![Vector3::zeros(); nodes], vec![Vector3::zeros(); nodes]);
+    let shot = |x: &Vector6, positions: &mut [Vector3<f64>]| {
+        let (m0, n0) = newton.split(x);
+        rod.mismatch(
+            &rod.integrate(m0, n0, None, Some(positions)),
+            &newton.target,
+        )
+    };
+    let mut res = shot(&x, &mut positions);
+    let tol = limits.tol.max(ESTIMATE_CONTRACTION * res.amax());
+    let lu = warm.jacobian.lu();
+    let mut iterations = 0;
+    while res.amax() > tol {
+        let step = (iterations < MAX_ESTIMATE_CHORDS)
+            .then(|| lu.solve(&(-res)))
+            .flatten();
+        let Some(dx) = step else {
+            return finer_shot_by_newton(&newton, &mut x, limits, warm, iterations);
+        };
+        let trial = x + dx;
+        let r = shot(&trial, &mut trial_positions);
+        iterations += 1;
+        if !(r.iter().all(|v| v.is_finite()) && r.norm() <= CHORD_CONTRACTION * res.norm()) {
+            return finer_shot_by_newton(&newton, &mut x, limits, warm, iterations);
+        }
+        (x, res) = (trial, r);
+        std::mem::swap(&mut positions, &mut trial_positions);
+    }
+    Some(FinerShot {
+        positions,
+        iterations,
+        warm: WarmShot { x, ..*warm },
+    })
+}
+
+/// Chord steps [`finer_shot`] takes before it gives way to Newton.
+const MAX_ESTIMATE_CHORDS: usize = 3;
+
+/// [`finer_shot`] where the chord steps stall: Newton from `x` (iterations
+/// `spent` already) to the estimate's tolerance, then the nodes.
+fn finer_shot_by_newton(
+    newton: &Newton,
+    x: &mut Vector6,
+    limits: Limits,
+    warm: &WarmShot,
+    spent: usize,
+) -> Option<FinerShot> {
+    let budget = limits.max_iterations.min(DIRECT_ITERATIONS);
+    let (converged, iterations, jacobian) =
+        newton.run_from(x, budget, (limits.tol, ESTIMATE_CONTRACTION), None);
+    if !converged {
+        return None;
+    }
+    let mut positions = vec![Vector3::zeros(); newton.rod.model.n() + 1];
+    let (m0, n0) = newton.split(x);
+    newton.rod.integrate(m0, n0, None, Some(&mut positions));
+    Some(FinerShot {
+        positions,
+        iterations: spent + iterations,
+        warm: WarmShot {
+            x: *x,
+            jacobian: jacobian.unwrap_or(warm.jacobian),
+            held: warm.held,
+        },
+    })
 }
 
 /// Whether the rod shot with the base wrench `x` (the base force too when

@@ -379,8 +379,8 @@ impl Newton<'_, '_> {
     /// Iterate from `x` until the largest scaled mismatch is below `tol`;
     /// returns whether it converged and the iterations spent.
     fn run(&self, x: &mut Vector6, budget: usize, tol: f64) -> (bool, usize) {
-        let (converged, spent, _) = self.run_from(x, budget, (tol, 0.0), None);
-        (converged, spent)
+        let ran = self.run_from(x, budget, (tol, 0.0), None);
+        (ran.converged, ran.iterations)
     }
 
     /// [`Newton::run`], with chord steps on `chord` (a Jacobian of the same
@@ -393,7 +393,7 @@ impl Newton<'_, '_> {
         budget: usize,
         (tol, relative): (f64, f64),
         chord: Option<Matrix6>,
-    ) -> (bool, usize, Option<Matrix6>) {
+    ) -> Ran {
         let k = self.unknowns();
         let mut res = self.residual(x);
         let tol = tol.max(relative * res.amax());
@@ -401,20 +401,22 @@ impl Newton<'_, '_> {
         let mut last = chord;
         for iteration in 0..budget {
             if !res.iter().all(|v| v.is_finite()) || interrupt::requested() {
-                return (false, iteration, last);
+                return Ran::ended(false, iteration, last, &res);
             }
             if res.amax() <= tol {
-                return (true, iteration, last);
+                return Ran::ended(true, iteration, last, &res);
             }
-            if let Some(jac) = chord.take() {
+            if let Some(mut jac) = chord.take() {
                 if let Some(dx) = jac.lu().solve(&(-res)) {
                     let trial = *x + dx;
                     let r = self.residual(&trial);
                     if r.iter().all(|v| v.is_finite()) && r.norm() <= CHORD_CONTRACTION * res.norm()
                     {
+                        broyden_update(&mut jac, &dx, &(r - res));
                         *x = trial;
                         res = r;
                         chord = Some(jac);
+                        last = chord;
                         continue;
                     }
                 }
@@ -430,10 +432,10 @@ impl Newton<'_, '_> {
             }
             last = Some(jac);
             let Some(lu) = Some(jac.lu()).filter(|lu| lu.is_invertible()) else {
-                return (false, iteration + 1, last);
+                return Ran::ended(false, iteration + 1, last, &res);
             };
             let Some(dx) = lu.solve(&(-res)) else {
-                return (false, iteration + 1, last);
+                return Ran::ended(false, iteration + 1, last, &res);
             };
             // Backtrack on the squared mismatch (Armijo, halving).
             let merit = res.norm_squared();
@@ -452,13 +454,52 @@ impl Newton<'_, '_> {
             }
             match accepted {
                 Some((trial, r)) => {
+                    // A full step is near the answer: the next steps try the
+                    // Jacobian with Broyden's update first (one integration,
+                    // not one a column).
+                    if alpha == 1.0 {
+                        broyden_update(&mut jac, &dx, &(r - res));
+                        chord = Some(jac);
+                        last = chord;
+                    }
                     *x = trial;
                     res = r;
                 }
-                None => return (false, iteration + 1, last),
+                None => return Ran::ended(false, iteration + 1, last, &res),
             }
         }
-        (res.amax() <= tol, budget, last)
+        Ran::ended(res.amax() <= tol, budget, last, &res)
+    }
+}
+
+/// How [`Newton::run_from`] ended.
+struct Ran {
+    converged: bool,
+    iterations: usize,
+    /// The last Jacobian used.
+    jacobian: Option<Matrix6>,
+    /// The largest scaled mismatch at the end.
+    mismatch: f64,
+}
+
+impl Ran {
+    fn ended(converged: bool, iterations: usize, jacobian: Option<Matrix6>, res: &Vector6) -> Ran {
+        Ran {
+            converged,
+            iterations,
+            jacobian,
+            mismatch: res.amax(),
+        }
+    }
+}
+
+/// Broyden's rank-one update of `jac` to the secant of the step `dx` that
+/// changed the mismatch by `dr`. (A free tip's unused rows and columns stay
+/// the identity's: its steps and mismatch are nil there.)
+fn broyden_update(jac: &mut Matrix6, dx: &Vector6, dr: &Vector6) {
+    let length = dx.norm_squared();
+    if length > 0.0 {
+        *jac += (dr - *jac * dx) * (dx.transpose() / length);
     }
 }
 
@@ -479,6 +520,15 @@ pub struct Shot {
     /// Whether the answer is stable, where it was judged already (the
     /// direct attempt's answer).
     pub stable: Option<bool>,
+    /// The answer's nodes and tip, where judging it drew them.
+    drawn: Option<Drawn>,
+}
+
+/// An integrated shot: its node quaternions and positions and its tip.
+struct Drawn {
+    quaternions: Vec<Quat>,
+    positions: Vec<Vector3<f64>>,
+    tip: TipState,
 }
 
 /// The tip of an integrated shot: a held tip's reactions.
@@ -509,7 +559,14 @@ impl Shot {
         } else {
             full.free_base_force
         };
-        let tip = full.integrate(m0, n0, Some(quaternions), Some(positions));
+        let tip = match &self.drawn {
+            Some(drawn) => {
+                quaternions.copy_from_slice(&drawn.quaternions);
+                positions.copy_from_slice(&drawn.positions);
+                drawn.tip
+            }
+            None => full.integrate(m0, n0, Some(quaternions), Some(positions)),
+        };
         if !held {
             return ShotTip {
                 reaction_force: None,
@@ -616,10 +673,6 @@ pub fn shoot(
         orientation: None,
     };
     let held_target = held_tip_target(model);
-    let mut x = Vector6::zeros();
-    x.fixed_rows_mut::<3>(0)
-        .copy_from(&start_moment(model, &full, initial));
-    x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
     let direct = Newton {
         rod: &full,
         target: if held { held_target } else { free_target },
@@ -627,10 +680,22 @@ pub fn shoot(
         scale,
     };
     let warm = warm.filter(|w| w.held == held);
-    if let Some(w) = warm {
-        x = w.x;
-    }
-    let (mut converged, mut iterations, jacobian) = direct.run_from(
+    let mut x = match warm {
+        Some(w) => w.x,
+        None => {
+            let mut x = Vector6::zeros();
+            x.fixed_rows_mut::<3>(0)
+                .copy_from(&start_moment(model, &full, initial));
+            x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
+            x
+        }
+    };
+    let Ran {
+        mut converged,
+        mut iterations,
+        jacobian,
+        mismatch: direct_mismatch,
+    } = direct.run_from(
         &mut x,
         budget.min(DIRECT_ITERATIONS),
         (tol, 0.0),
@@ -644,7 +709,10 @@ pub fn shoot(
     // stable branch, as in the finite-element driver.
     // The shape a candidate is judged at, drawn once for the whole solve.
     let mut shape = vec![Quat::IDENTITY; model.n() + 1];
-    let direct_stable = converged.then(|| shot_is_stable(&full, &x, held, &mut shape, stable));
+    let mut positions = vec![Vector3::zeros(); model.n() + 1];
+    let direct_judged =
+        converged.then(|| shot_is_stable(&full, &x, held, (&mut shape, &mut positions), stable));
+    let direct_stable = direct_judged.map(|(stable, _)| stable);
     let direct_unstable = direct_stable == Some(false);
     let mut note = None;
     if !converged || direct_unstable {
@@ -670,7 +738,7 @@ pub fn shoot(
             // where the loading itself changes it.
             |lambda, x| {
                 let rod = Rod::new(model, scene, lambda);
-                free_rod_is_stable(&rod, x, lambda, &mut shape, stable)
+                free_rod_is_stable(&rod, x, lambda, (&mut shape, None), stable).0
             },
             model.n() + 1,
             &mut free,
@@ -746,11 +814,23 @@ pub fn shoot(
         // rest shape leads to the equilibrium the finite-element driver
         // finds, and when shooting cannot follow it, it says so.
     }
-    let residual = direct.residual(&x).amax();
     let direct_answer = converged && steps == 0 && x == direct_x;
+    let residual = if x == direct_x {
+        direct_mismatch
+    } else {
+        direct.residual(&x).amax()
+    };
     let warm = jacobian
         .filter(|_| direct_answer)
         .map(|jacobian| WarmShot { x, jacobian, held });
+    // The direct answer's nodes, drawn where it was judged.
+    let drawn = direct_judged
+        .filter(|_| direct_answer)
+        .map(|(_, tip)| Drawn {
+            quaternions: shape,
+            positions,
+            tip,
+        });
     Shot {
         x,
         converged,
@@ -760,6 +840,7 @@ pub fn shoot(
         note,
         warm,
         stable: direct_stable.filter(|_| direct_answer),
+        drawn,
     }
 }
 
@@ -881,8 +962,12 @@ fn finer_shot_by_newton(
     spent: usize,
 ) -> Option<FinerShot> {
     let budget = limits.max_iterations.min(DIRECT_ITERATIONS);
-    let (converged, iterations, jacobian) =
-        newton.run_from(x, budget, (limits.tol, ESTIMATE_CONTRACTION), None);
+    let Ran {
+        converged,
+        iterations,
+        jacobian,
+        ..
+    } = newton.run_from(x, budget, (limits.tol, ESTIMATE_CONTRACTION), None);
     if !converged {
         return None;
     }
@@ -902,49 +987,52 @@ fn finer_shot_by_newton(
 
 /// Whether the rod shot with the base wrench `x` (the base force too when
 /// `held`) is a stable equilibrium at full load, the held tip's reaction
-/// included (its nodes drawn into `shape`).
+/// included; its nodes drawn into `shape` and its tip returned.
 fn shot_is_stable(
     rod: &Rod,
     x: &Vector6,
     held: bool,
-    shape: &mut [Quat],
+    (shape, positions): (&mut [Quat], &mut [Vector3<f64>]),
     stable: &mut dyn FnMut(&Candidate) -> bool,
-) -> bool {
+) -> (bool, TipState) {
     if !held {
-        return free_rod_is_stable(rod, x, 1.0, shape, stable);
+        return free_rod_is_stable(rod, x, 1.0, (shape, Some(positions)), stable);
     }
     let (m0, n0) = (
         x.fixed_rows::<3>(0).into_owned(),
         x.fixed_rows::<3>(3).into_owned(),
     );
-    let tip = rod.integrate(m0, n0, Some(&mut *shape), None);
-    stable(&Candidate {
+    let tip = rod.integrate(m0, n0, Some(&mut *shape), Some(positions));
+    let verdict = stable(&Candidate {
         quaternions: shape,
         load_scale: 1.0,
         held_tip: Some(rod.held_tip_reaction(&tip)),
-    })
+    });
+    (verdict, tip)
 }
 
 /// Whether the free rod shot with the base wrench `x` at load scale
-/// `lambda` is a stable equilibrium (its nodes drawn into `shape`).
+/// `lambda` is a stable equilibrium (its nodes drawn into `shape` and,
+/// given, `positions`), and its tip.
 fn free_rod_is_stable(
     rod: &Rod,
     x: &Vector6,
     lambda: f64,
-    shape: &mut [Quat],
+    (shape, positions): (&mut [Quat], Option<&mut [Vector3<f64>]>),
     stable: &mut dyn FnMut(&Candidate) -> bool,
-) -> bool {
-    rod.integrate(
+) -> (bool, TipState) {
+    let tip = rod.integrate(
         x.fixed_rows::<3>(0).into_owned(),
         rod.free_base_force,
         Some(&mut *shape),
-        None,
+        positions,
     );
-    stable(&Candidate {
+    let verdict = stable(&Candidate {
         quaternions: shape,
         load_scale: lambda,
         held_tip: None,
-    })
+    });
+    (verdict, tip)
 }
 
 /// The base moment to start from: the loads' moment about the base on the

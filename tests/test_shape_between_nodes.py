@@ -83,6 +83,26 @@ def test_stations_off_the_rod_are_refused_by_name(s, name):
         sol.rotations_at(s)
 
 
+def test_another_n_s_arc_lengths_of_the_same_rod_are_on_it():
+    # L is a sum of section lengths, which rounds differently at another n: a
+    # campaign's 1 m rod of three sections had L = 0.9999999999999999 at
+    # n = 960 and its n = 18 solution's last arc length 1.0, refused as off
+    # the rod.
+    scene = {"length": 1.0, "stiffness": {"kx": 3.9, "ky": 2.0, "kz": 3.1},
+             "rest_curvature": [[2.28, -1.53], [-0.32, 2.21], [-1.61, -1.50]],
+             "sections": [{"length": 0.19680520214782107}, {"length": 0.353907749548695},
+                          {"length": 0.4492870483034838}]}
+    coarse = softspine.solve(scene, n_elements=18, method="shooting")
+    fine = softspine.solve(scene, n_elements=960, method="shooting")
+    assert coarse.arc_length[-1] > fine.length  # by round-off
+    np.testing.assert_allclose(fine.positions_at(coarse.arc_length)[-1], fine.positions[-1],
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(fine.rotations_at(coarse.arc_length[-1:])[0],
+                               fine.quaternions[-1], rtol=0, atol=1e-15)
+    with pytest.raises(ValueError, match=r"s\[0\]"):
+        fine.positions_at([fine.length * (1 + 1e-12)])
+
+
 def test_a_stored_fourth_order_solution_without_internal_nodes_says_so():
     data = softspine.solve(SCENE, n_elements=8, scheme="fe4").to_dict()
     del data["internal_quaternions"]

@@ -114,7 +114,8 @@ pub struct Limits {
 #[derive(Debug, Clone, Copy)]
 pub struct WarmShot {
     x: Vector6,
-    jacobian: Matrix6,
+    /// `None` where the start was the answer (no Jacobian drawn).
+    jacobian: Option<Matrix6>,
     held: bool,
 }
 
@@ -699,7 +700,7 @@ pub fn shoot(
         &mut x,
         budget.min(DIRECT_ITERATIONS),
         (tol, 0.0),
-        warm.map(|w| w.jacobian),
+        warm.and_then(|w| w.jacobian),
     );
     let direct_x = x;
     let mut steps = 0;
@@ -820,9 +821,7 @@ pub fn shoot(
     } else {
         direct.residual(&x).amax()
     };
-    let warm = jacobian
-        .filter(|_| direct_answer)
-        .map(|jacobian| WarmShot { x, jacobian, held });
+    let warm = direct_answer.then_some(WarmShot { x, jacobian, held });
     // The direct answer's nodes, drawn where it was judged.
     let drawn = direct_judged
         .filter(|_| direct_answer)
@@ -924,12 +923,13 @@ pub fn finer_shot(
     };
     let mut res = shot(&x, &mut positions);
     let tol = limits.tol.max(ESTIMATE_CONTRACTION * res.amax());
-    let lu = warm.jacobian.lu();
+    let lu = warm.jacobian.map(|jacobian| jacobian.lu());
     let mut iterations = 0;
     while res.amax() > tol {
-        let step = (iterations < MAX_ESTIMATE_CHORDS)
-            .then(|| lu.solve(&(-res)))
-            .flatten();
+        let step = lu
+            .as_ref()
+            .filter(|_| iterations < MAX_ESTIMATE_CHORDS)
+            .and_then(|lu| lu.solve(&(-res)));
         let Some(dx) = step else {
             return finer_shot_by_newton(&newton, &mut x, limits, warm, iterations);
         };
@@ -979,7 +979,7 @@ fn finer_shot_by_newton(
         iterations: spent + iterations,
         warm: WarmShot {
             x: *x,
-            jacobian: jacobian.unwrap_or(warm.jacobian),
+            jacobian: jacobian.or(warm.jacobian),
             held: warm.held,
         },
     })

@@ -375,11 +375,9 @@ fn refine_with(
             Ok(shooting::finer_shot(&model, &scene, limits, &warm))
         })
     };
-    // The backbone difference of the base and a finer shot at twice its n,
-    // where that shot is at hand (it stands for the first finer pass).
-    let mut finer_difference = None;
     // Pre-asymptotic bases (an element turning by more than ASYMPTOTIC_TURN)
-    // only lead to finer ones.
+    // only lead to finer ones; a shot estimated by its own finer shot leads
+    // to the n its estimate predicts.
     loop {
         if !usable(&base) {
             base.iterations = iterations;
@@ -403,23 +401,40 @@ fn refine_with(
                 let ratio = 2f64.powi(order) - 1.0;
                 // The base's own error: the difference over 1 - 2^-p.
                 let own = difference * (ratio + 1.0) / ratio;
+                base.error_estimate = Some(own);
+                if accuracy.richardson {
+                    let (r_n, r_kn) = (base.tip_position(), finer.positions[n]);
+                    base.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
+                }
                 if own <= target {
-                    base.error_estimate = Some(own);
-                    if accuracy.richardson {
-                        let (r_n, r_kn) = (base.tip_position(), finer.positions[n]);
-                        base.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
-                    }
                     base.iterations = iterations;
                     return Ok(Refined::Done(base));
                 }
-                finer_difference = Some(difference);
-                base_shot = Some(finer.warm);
+                // The n whose own error meets the tolerance with a margin,
+                // if the error falls as n^-p: a multiple of this one.
+                let m = base.n_elements;
+                let needed = m as f64 * (PREDICTION_MARGIN * own / target).powf(1.0 / order as f64);
+                let k = ((needed / m as f64).ceil() as usize)
+                    .max(2)
+                    .min(accuracy.max_elements / m);
+                if k < 2 {
+                    let why = format!(
+                        "tolerance not met: {} elements would be needed, beyond max_elements {}, error estimate {own:.2e} m > tol * L = {target:.2e} m",
+                        needed.ceil(),
+                        accuracy.max_elements,
+                    );
+                    return Ok(Refined::Done(not_met(base, iterations, why)));
+                }
+                crate::interrupt::check()?;
+                (base, base_shot) =
+                    solve_at(k * m, refine(&base.quaternions, k), Some(finer.warm))?;
+                iterations += base.iterations;
+                continue;
             }
         }
         if base_turn <= turn {
             break;
         }
-        finer_difference = None;
         if n > accuracy.max_elements {
             let why = format!(
                 "tolerance not met: no error estimate, the first resolving n = {} leaves no finer n within max_elements {}",
@@ -444,36 +459,24 @@ fn refine_with(
         }
         crate::interrupt::check()?;
         let ratio = (k as f64).powi(order) - 1.0;
-        // A finer shot at k = 2 estimated the pair already: its pass is
-        // solved only where it meets the target.
-        let known = finer_difference
-            .take()
-            .map(|difference| difference / ratio)
-            .filter(|estimate| *estimate > target);
-        let (estimate, fine) = match known {
-            Some(estimate) => (estimate, None),
-            None => {
-                let (mut fine, _) = solve_at(k * n_base, refine(&base.quaternions, k), base_shot)?;
-                iterations += fine.iterations;
-                if !usable(&fine) {
-                    fine.iterations = iterations;
-                    return Ok(Refined::Done(fine));
-                }
-                // The whole backbone: a held tip never moves, so the tip
-                // alone would estimate the error of a pinned rod as zero.
-                let estimate = node_difference(&base.positions, &fine.positions, k) / ratio;
-                fine.error_estimate = Some(estimate);
-                if accuracy.richardson {
-                    let (r_n, r_kn) = (base.tip_position(), fine.tip_position());
-                    fine.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
-                }
-                if estimate <= target {
-                    fine.iterations = iterations;
-                    return Ok(Refined::Done(fine));
-                }
-                (estimate, Some(fine))
-            }
-        };
+        let (mut fine, _) = solve_at(k * n_base, refine(&base.quaternions, k), base_shot)?;
+        iterations += fine.iterations;
+        if !usable(&fine) {
+            fine.iterations = iterations;
+            return Ok(Refined::Done(fine));
+        }
+        // The whole backbone: a held tip never moves, so the tip alone
+        // would estimate the error of a pinned rod as zero.
+        let estimate = node_difference(&base.positions, &fine.positions, k) / ratio;
+        fine.error_estimate = Some(estimate);
+        if accuracy.richardson {
+            let (r_n, r_kn) = (base.tip_position(), fine.tip_position());
+            fine.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
+        }
+        if estimate <= target {
+            fine.iterations = iterations;
+            return Ok(Refined::Done(fine));
+        }
         // The n that meets the tolerance with a margin, if the error falls
         // as n^-p: a multiple of the base, finer than this one.
         let needed =
@@ -491,8 +494,7 @@ fn refine_with(
                 accuracy.max_elements,
                 target
             );
-            let last = fine.unwrap_or(base);
-            return Ok(Refined::Done(not_met(last, iterations, why)));
+            return Ok(Refined::Done(not_met(fine, iterations, why)));
         }
         k = next;
     }

@@ -152,7 +152,15 @@ impl Tendon {
     /// The routing offset `rho(s)` and its derivative `rho'(s)`, material
     /// frame (at a change of routing, the one that starts there).
     pub fn routing(&self, s: f64) -> (Vector3<f64>, Vector3<f64>) {
-        let ([x, y], twist, from) = match self.reroutes.iter().rev().find(|(a, _)| *a <= s) {
+        self.routing_on(s, s)
+    }
+
+    /// [`Tendon::routing`] at `s` of the stretch that runs at `stretch_at`
+    /// (an element's end evaluated with the element's own routing where a
+    /// change starts at that end).
+    pub fn routing_on(&self, s: f64, stretch_at: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let stretch = self.reroutes.iter().rev().find(|(a, _)| *a <= stretch_at);
+        let ([x, y], twist, from) = match stretch {
             None => (self.offset, self.twist, 0.0),
             Some((start, r)) => (r.offset, r.twist, *start),
         };
@@ -453,7 +461,7 @@ impl Scene {
     fn not_modelled(&self, shooting: bool) -> Option<String> {
         let magnetic = !self.magnetization.is_empty() || self.tip_magnet != Vector3::zeros();
         let present = [
-            (!self.tendons.is_empty(), "tendons"),
+            (!shooting && !self.tendons.is_empty(), "tendons"),
             (!shooting && magnetic, "magnetic actuation"),
             (
                 !shooting && !self.sections.is_empty(),

@@ -208,9 +208,14 @@ def test_bad_sections_are_refused_by_name():
     assert "gravity" in message(no_gravity)
     assert "sections[1].length: missing" in message(
         {**SCENE, "sections": [{"length": 0.2}, {}, {}]})
-    # Shooting models sections of their own, not tendons.
-    with pytest.raises(ValueError, match="tendons"):
-        softspine.solve(SCENE, method="shooting")
+
+
+def test_shooting_models_sections_of_their_own_with_a_tendon():
+    # (It refused tendons before.) The same rod as fe4's.
+    shot = softspine.solve(SCENE, method="shooting", n_elements=48)
+    fine = softspine.solve(SCENE, scheme="fe4", n_elements=48, residual_tol=1e-13)
+    assert shot.converged and shot.stable
+    assert np.abs(shot.positions - fine.positions).max() < 1e-8
 
 
 def test_a_robots_sections_carry_their_own_stiffness_density_and_disks():

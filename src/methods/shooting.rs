@@ -3,7 +3,8 @@
 //! fourth-order Runge-Kutta, one step an element (so the nodes are the step
 //! points, point loads and section ends fall on them, and the rest curvature
 //! is constant within a step), and Newton with a finite-difference Jacobian
-//! finds the unknown base wrench that meets the tip's conditions.
+//! finds the unknown base wrench that meets the tip's conditions (Broyden's
+//! update of that Jacobian after a full step).
 //!
 //! ```text
 //! r' = R e3        q' = q (0, u) / 2      u = u0 + K^-1 R^T m
@@ -16,7 +17,12 @@
 //! frame, `(R c) x F`. A magnetised rod in a uniform field `B` carries the
 //! moment `(R mu) x B` per length of its magnetisation `mu` (material
 //! frame, constant along a section), a tip magnet `(R mu_tip) x B` at the
-//! tip: moments that turn with the rod, evaluated at each stage.
+//! tip: moments that turn with the rod, evaluated at each stage. A tendon
+//! is part of the constitutive law, as in the discrete potential: its
+//! potential `tension |e3 + u x rho + rho'|` is a function of the curvature,
+//! so each stage solves `K (u - u0) + sum tension rho x v / |v| = R^T m` for
+//! `u`; its anchor's and kinks' forces stay inside the internal wrench `n`,
+//! `m` (the rod's with its tendons').
 //!
 //! For dead loads the internal force is explicit, `n(s) = n(0) - f s - (point
 //! loads passed)`, so only `r`, `q` and `m` are integrated. A free tip's base
@@ -38,8 +44,10 @@ use crate::interrupt::POLL_STRIDE;
 use crate::model::{element_turn, slerp, RodModel};
 use crate::quat::Quat;
 use crate::scene::Scene;
+use crate::scene::Tendon;
 use crate::terms::section_of;
-use nalgebra::{SMatrix, SVector, Vector3};
+use crate::terms::tendons::density_on;
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 type Vector6 = SVector<f64, 6>;
 type Matrix6 = SMatrix<f64, 6, 6>;
@@ -80,6 +88,11 @@ struct Rod<'a> {
     field: Vector3<f64>,
     magnetization: Vec<Vector3<f64>>,
     tip_magnet: Vector3<f64>,
+    /// The pulled tendons, longest first, their tensions times `tendon_scale`
+    /// (the load scale), and how many of them run through each element.
+    tendons: Vec<Tendon>,
+    tendon_scale: f64,
+    through: Vec<usize>,
 }
 
 /// A shape shooting asks its caller to judge: is it a stable equilibrium of
@@ -160,6 +173,16 @@ impl<'a> Rod<'a> {
             .collect();
         let lengths = mesh.element_lengths();
         let total: Vector3<f64> = distributed.iter().zip(lengths).map(|(f, h)| f * *h).sum();
+        // A tendon is part of the rod's constitutive law (its potential, a
+        // function of the curvature): no load of its own, its anchor's force
+        // and moment inside the internal wrench.
+        let mut tendons: Vec<Tendon> = scene
+            .tendons
+            .iter()
+            .filter(|t| t.tension != 0.0)
+            .cloned()
+            .collect();
+        tendons.sort_by(|a, b| b.end.total_cmp(&a.end));
         Rod {
             model,
             inverse_stiffness: model
@@ -180,6 +203,14 @@ impl<'a> Rod<'a> {
             field: lambda * scene.magnetic_field,
             magnetization: scene.magnetization.clone(),
             tip_magnet: scene.tip_magnet,
+            through: (1..=n)
+                .map(|i| {
+                    let middle = mesh.arcs()[i - 1] + 0.5 * lengths[i - 1];
+                    tendons.iter().take_while(|t| t.end > middle).count()
+                })
+                .collect(),
+            tendons,
+            tendon_scale: lambda,
         }
     }
 
@@ -204,12 +235,13 @@ impl<'a> Rod<'a> {
             + q.rotate(self.tip_magnet).cross(&self.field)
     }
 
-    /// `(q', r', m')` at a state of element `i`, with the internal force
-    /// `force` and rest curvature `u0`.
+    /// `(q', r', m')` at a state of element `i` at arc length `s` (its
+    /// routings those of the element's middle `stretch_at`), with the
+    /// internal force `force` and rest curvature `u0`.
     #[inline]
     fn derivative(
         &self,
-        i: usize,
+        (i, s, stretch_at): (usize, f64, f64),
         q: Quat,
         m: Vector3<f64>,
         force: Vector3<f64>,
@@ -219,7 +251,17 @@ impl<'a> Rod<'a> {
             [one] => one,
             each => &each[i],
         };
-        let u = u0 + compliance.component_mul(&q.inverse_rotate(m));
+        let moment = q.inverse_rotate(m);
+        let u = match self.through[i] {
+            0 => u0 + compliance.component_mul(&moment),
+            k => self.curvature_with_tendons(
+                &self.tendons[..k],
+                (s, stretch_at),
+                u0,
+                compliance,
+                moment,
+            ),
+        };
         let dq = q * Quat::pure(0.5 * u);
         let t = q.tangent();
         let mut l = self.distributed_moment[i];
@@ -227,6 +269,36 @@ impl<'a> Rod<'a> {
             l += self.magnetic_moment(i, q);
         }
         (dq, t, force.cross(&t) - l)
+    }
+
+    /// The curvature whose moment, the elastic one and the tendons'
+    /// `sum tension rho x v / |v|` (`v = e3 + u x rho + rho'`), is `moment`
+    /// (material frame): Newton on a convex potential's gradient, from the
+    /// tendon-free curvature.
+    fn curvature_with_tendons(
+        &self,
+        tendons: &[Tendon],
+        at: (f64, f64),
+        u0: Vector3<f64>,
+        compliance: &Vector3<f64>,
+        moment: Vector3<f64>,
+    ) -> Vector3<f64> {
+        let stiffness = compliance.map(|c| 1.0 / c);
+        let mut u = u0 + compliance.component_mul(&moment);
+        let scale = u0.amax() + 1.0 / self.model.length();
+        for _ in 0..CURVATURE_ITERATIONS {
+            let (_, pulled, hessian) = density_on(tendons, self.tendon_scale, at, &u);
+            let residual = stiffness.component_mul(&(u - u0)) + pulled - moment;
+            let jacobian = Matrix3::from_diagonal(&stiffness) + hessian;
+            let Some(du) = jacobian.cholesky().map(|c| c.solve(&residual)) else {
+                break;
+            };
+            u -= du;
+            if du.amax() <= 4.0 * f64::EPSILON * (u.amax() + scale) {
+                break;
+            }
+        }
+        u
     }
 
     /// Integrate from the base with base moment `m0` and force `n0`; with
@@ -257,14 +329,27 @@ impl<'a> Rod<'a> {
             }
             let u0 = model.rod().loading.rest_curvature[i];
             let h = model.h(i + 1);
+            let s0 = model.arc(i);
+            let middle = s0 + 0.5 * h;
             let f_mid = force - 0.5 * h * self.distributed[i];
             let f_end = force - h * self.distributed[i];
-            let (dq1, dr1, dm1) = self.derivative(i, q, m, force, u0);
-            let (dq2, dr2, dm2) =
-                self.derivative(i, add(q, dq1, 0.5 * h), m + 0.5 * h * dm1, f_mid, u0);
-            let (dq3, dr3, dm3) =
-                self.derivative(i, add(q, dq2, 0.5 * h), m + 0.5 * h * dm2, f_mid, u0);
-            let (dq4, dr4, dm4) = self.derivative(i, add(q, dq3, h), m + h * dm3, f_end, u0);
+            let (dq1, dr1, dm1) = self.derivative((i, s0, middle), q, m, force, u0);
+            let (dq2, dr2, dm2) = self.derivative(
+                (i, middle, middle),
+                add(q, dq1, 0.5 * h),
+                m + 0.5 * h * dm1,
+                f_mid,
+                u0,
+            );
+            let (dq3, dr3, dm3) = self.derivative(
+                (i, middle, middle),
+                add(q, dq2, 0.5 * h),
+                m + 0.5 * h * dm2,
+                f_mid,
+                u0,
+            );
+            let (dq4, dr4, dm4) =
+                self.derivative((i, s0 + h, middle), add(q, dq3, h), m + h * dm3, f_end, u0);
             let sixth = h / 6.0;
             let dq = Quat {
                 w: dq1.w + 2.0 * (dq2.w + dq3.w) + dq4.w,
@@ -642,6 +727,9 @@ fn continuation(
     }
     (t >= 1.0, spent, steps, t)
 }
+
+/// Newton iterations of a curvature under tendons (it converges in a few).
+const CURVATURE_ITERATIONS: usize = 30;
 
 /// Largest turn of a node's frame in one continuation step [rad].
 const MAX_FRAME_TURN: f64 = 0.5;

@@ -20,7 +20,7 @@ mod elastic;
 mod forces;
 mod magnets;
 mod moments;
-mod tendons;
+pub(crate) mod tendons;
 mod tip_force;
 
 pub use elastic::Elastic;

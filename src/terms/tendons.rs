@@ -338,10 +338,30 @@ pub fn density(
     s: f64,
     omega: &Vector3<f64>,
 ) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    density_of(paths(tendons, scale, s, s, omega))
+}
+
+/// [`density`] at `s` with the routings of the stretch at `stretch_at`
+/// ([`Tendon::routing_on`]): shooting's stages at an element's end.
+#[inline]
+pub fn density_on(
+    tendons: &[Tendon],
+    scale: f64,
+    (s, stretch_at): (f64, f64),
+    omega: &Vector3<f64>,
+) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    density_of(paths(tendons, scale, s, stretch_at, omega))
+}
+
+/// The value, moment and stiffness of the `(tension, rho, v)` paths.
+#[inline]
+fn density_of(
+    paths: impl Iterator<Item = (f64, Vector3<f64>, Vector3<f64>)>,
+) -> (f64, Vector3<f64>, Matrix3<f64>) {
     let mut value = 0.0;
     let mut moment = Vector3::zeros();
     let mut hessian = Matrix3::zeros();
-    for (tension, rho, v) in paths(tendons, scale, s, omega) {
+    for (tension, rho, v) in paths {
         let length = v.norm();
         // One division (this loop is the tendon robot's hottest).
         let inverse = 1.0 / length;
@@ -364,19 +384,21 @@ pub fn density(
 /// [`density`]'s moment alone: `sum tension rho x v / |v|`.
 #[inline]
 pub fn moment(tendons: &[Tendon], scale: f64, s: f64, omega: &Vector3<f64>) -> Vector3<f64> {
-    paths(tendons, scale, s, omega).fold(Vector3::zeros(), |moment, (tension, rho, v)| {
+    paths(tendons, scale, s, s, omega).fold(Vector3::zeros(), |moment, (tension, rho, v)| {
         // As [`density`] computes it, to the last bit.
         moment + tension * rho.cross(&(v * (1.0 / v.norm())))
     })
 }
 
 /// Each pulled tendon's tension, offset `rho` and path tangent
-/// `v = e3 + omega x rho + rho'` at `s` (the slack ones skipped).
+/// `v = e3 + omega x rho + rho'` at `s` with the routing of the stretch at
+/// `stretch_at` (the slack ones skipped).
 #[inline]
 fn paths<'a>(
     tendons: &'a [Tendon],
     scale: f64,
     s: f64,
+    stretch_at: f64,
     omega: &'a Vector3<f64>,
 ) -> impl Iterator<Item = (f64, Vector3<f64>, Vector3<f64>)> + 'a {
     tendons.iter().filter_map(move |t| {
@@ -384,7 +406,7 @@ fn paths<'a>(
         if tension == 0.0 {
             return None;
         }
-        let (rho, drho) = t.routing(s);
+        let (rho, drho) = t.routing_on(s, stretch_at);
         Some((tension, rho, Vector3::z() + omega.cross(&rho) + drho))
     })
 }

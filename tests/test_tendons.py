@@ -53,7 +53,7 @@ def test_both_schemes_converge_to_the_rucker_webster_rod_at_their_orders(referen
 
 
 @pytest.mark.slow
-def test_shooting_models_tendons_at_fourth_order_and_the_default_shoots_them(reference):
+def test_shooting_models_tendons_at_fourth_order(reference):
     # Shooting takes a tendon as part of the rod's constitutive law (its
     # potential, a function of the curvature: each stage solves for the
     # curvature whose moment is the internal one), the reference as Rucker
@@ -65,14 +65,12 @@ def test_shooting_models_tendons_at_fourth_order_and_the_default_shoots_them(ref
         errs.append(np.abs(sol.positions - reference[:: 32 // n]).max() / L)
     assert all(3.6 < p < 4.4 for p in observed_orders(errs)), errs
     assert errs[-1] < 5e-7, errs
-    # Accuracy on demand shoots a tendon scene, its estimate its own.
+    # Accuracy on demand keeps tendons on the discrete potential (a shot
+    # solves for the curvature at every stage: 5 times fe4's time on the
+    # tendon robot); shooting is there to be asked for.
     sol = softspine.solve(SCENE, tol=1e-6, check=True)
-    assert sol.scheme == "rk4" and 96 % sol.n_elements == 0
-    fine = softspine.solve(SCENE, method="shooting", n_elements=96)
-    assert np.abs(fine.positions[::3] - reference).max() < 1e-8  # the reference's nodes
-    error = np.linalg.norm(sol.positions - fine.positions[:: 96 // sol.n_elements], axis=1).max() / L
-    assert error <= 1e-6
-    assert sol.error_estimate / L == pytest.approx(error, rel=0.05)
+    assert sol.scheme == "fe4"
+    assert softspine.solve(SCENE, tol=1e-6, method="shooting").scheme == "rk4"
 
 
 def test_tendon_sensitivities_match_differences_of_solves():

@@ -294,7 +294,9 @@ impl<'a> Rod<'a> {
                 break;
             };
             u -= du;
-            if du.amax() <= 4.0 * f64::EPSILON * (u.amax() + scale) {
+            // Quadratic convergence: after a step of 1e-8 what remains is
+            // at round-off.
+            if du.amax() <= CURVATURE_STEP_TOL * (u.amax() + scale) {
                 break;
             }
         }
@@ -728,8 +730,10 @@ fn continuation(
     (t >= 1.0, spent, steps, t)
 }
 
-/// Newton iterations of a curvature under tendons (it converges in a few).
+/// Newton iterations of a curvature under tendons (it converges in a few),
+/// and the relative step after which it stops.
 const CURVATURE_ITERATIONS: usize = 30;
+const CURVATURE_STEP_TOL: f64 = 1e-8;
 
 /// Largest turn of a node's frame in one continuation step [rad].
 const MAX_FRAME_TURN: f64 = 0.5;

@@ -288,10 +288,15 @@ impl Settings {
     /// each: the fastest setting of the crate at 13 of 15 of the race's
     /// points. With a held tip its Newton on the six base unknowns rarely
     /// converges from the rigid estimate, and its load path took 4 to 6
-    /// times Newton's time on a pinned cantilever, measured.)
+    /// times Newton's time on a pinned cantilever, measured. Tendons too stay
+    /// on Newton: each RK4 stage under tendons solves for its curvature, and
+    /// on the tendon robot (9 tendons) a shot took 5 times the fourth-order
+    /// scheme's time for the same accuracy.)
     pub fn method_for(&self, scene: &Scene, accuracy: Option<f64>) -> Method {
-        let shooting_fits =
-            self.scheme.is_none() && scene.tip == TipCondition::Free && shooting_models(scene);
+        let shooting_fits = self.scheme.is_none()
+            && scene.tip == TipCondition::Free
+            && scene.tendons.is_empty()
+            && shooting_models(scene);
         match self.method {
             Method::Auto if accuracy.is_some() && shooting_fits => Method::Shooting,
             Method::Auto => Method::Newton,

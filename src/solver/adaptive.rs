@@ -296,13 +296,7 @@ fn refine_with(
     // A pass starts from the last one's shape refined and, by shooting, from
     // its base wrench and Jacobian (`WarmShot`: a few chord steps).
     let solve_at = |n: usize, initial: Vec<Quat>, warm: Option<WarmShot>| -> Result<Pass> {
-        let settings = Settings {
-            n_elements: Some(n),
-            ..settings.clone()
-        };
-        let long = settings.has_long_passes();
-        let scene = scene.clone();
-        crate::interrupt::on_worker_if(long, move || {
+        at_elements(scene, &settings, n, move |scene, settings| {
             let mut solver = Solver::new(&scene, settings)?;
             solver.warm_shot = warm;
             let solution = solver.solve(Some(&initial))?;
@@ -359,13 +353,7 @@ fn refine_with(
         turn
     };
     let finer_shot_at = |n: usize, warm: WarmShot| -> Result<Option<FinerShot>> {
-        let settings = Settings {
-            n_elements: Some(n),
-            ..settings.clone()
-        };
-        let long = settings.has_long_passes();
-        let scene = scene.clone();
-        crate::interrupt::on_worker_if(long, move || {
+        at_elements(scene, &settings, n, move |scene, settings| {
             let model = RodModel::new(&scene, n);
             let limits = shooting::Limits {
                 tol: model.effective_tol(settings.residual_tol),
@@ -508,6 +496,23 @@ fn refine_with(
 /// The coarse error is nearly the whole difference, the fine one only its
 /// remainder.
 pub const SHOT_OWN_ESTIMATE_TURN: f64 = 1.0;
+
+/// `work` on the scene with `settings` at `n` elements, on a worker thread
+/// only where the pass may outlast the interrupt poll.
+fn at_elements<R: Send + 'static>(
+    scene: &Scene,
+    settings: &Settings,
+    n: usize,
+    work: impl FnOnce(Scene, Settings) -> Result<R> + Send + 'static,
+) -> Result<R> {
+    let settings = Settings {
+        n_elements: Some(n),
+        ..settings.clone()
+    };
+    let long = settings.has_long_passes();
+    let scene = scene.clone();
+    crate::interrupt::on_worker_if(long, move || work(scene, settings))
+}
 
 /// A pass's solution and, by shooting, where a finer pass starts.
 type Pass = (Solution, Option<WarmShot>);

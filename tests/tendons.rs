@@ -169,14 +169,49 @@ fn a_tendon_anchored_halfway_leaves_the_rest_straight() {
 }
 
 #[test]
-fn methods_without_tendons_refuse_them_by_name() {
-    for method in [Method::Shooting, Method::Paper] {
+fn the_papers_method_refuses_tendons_by_name() {
+    let settings = Settings {
+        method: Method::Paper,
+        ..Settings::default()
+    };
+    let e = Solver::new(&arc_scene(1.0).0, settings).err().unwrap();
+    assert!(e.to_string().contains("tendons"), "{e}");
+}
+
+#[test]
+fn shooting_bends_a_rod_under_a_straight_tendon_into_the_exact_arc() {
+    // Each stage solves for the curvature whose elastic and tendon moments
+    // are the internal one (nil here): exactly tension x offset / EI, so
+    // the nodes are RK4's of the exact arc, fourth order.
+    let (scene, kappa) = arc_scene(1.0);
+    let arc = |s: f64| {
+        Vector3::new(
+            (1.0 - (kappa * s).cos()) / kappa,
+            0.0,
+            (kappa * s).sin() / kappa,
+        )
+    };
+    let mut errors = Vec::new();
+    for n in [4, 8, 16] {
         let settings = Settings {
-            method,
+            n_elements: Some(n),
+            method: Method::Shooting,
             ..Settings::default()
         };
-        let e = Solver::new(&arc_scene(1.0).0, settings).err().unwrap();
-        assert!(e.to_string().contains("tendons"), "{e}");
+        let sol = softspine::solve(&scene, settings, None).unwrap();
+        assert!(sol.converged() && sol.stable, "{}", sol.message);
+        let err = sol
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (r - arc(i as f64 / n as f64)).norm())
+            .fold(0.0, f64::max);
+        errors.push(err);
+    }
+    assert!(errors[0] < 1e-4, "{errors:?}");
+    for w in errors.windows(2) {
+        let order = (w[0] / w[1]).log2();
+        assert!((3.8..4.2).contains(&order), "{errors:?}");
     }
 }
 

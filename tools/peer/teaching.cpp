@@ -14,22 +14,25 @@ using namespace ContinuumRobotLibrary;
 
 static double ALPHA = 3.0;
 const double L = 1.0;
-const DiagonalMatrix<double, 3> Kse(1e10, 1e10, 1e10);  // stiff: inextensible, unshearable
-const DiagonalMatrix<double, 3> Kbt(1.0, 1.0, 1.0);
+// A stiff extension and shear (1e10 N against EI = 1 N m^2): the
+// inextensible, unshearable rod softspine models.
+const double SHEAR_COMPLIANCE = 1e-10;
 
-VectorXd ode(VectorXd y){
-    Matrix3d R = Map<Matrix3d>(y.segment<9>(3).data());
-    Vector3d n = y.segment<3>(12);
-    Vector3d m = y.segment<3>(15);
-    Vector3d v = Kse.inverse()*R.transpose()*n + Vector3d::UnitZ();
-    Vector3d u = Kbt.inverse()*R.transpose()*m;
-    Vector3d p_s = R*v;
-    Matrix3d R_s = R*hat(u);
-    Vector3d n_s = Vector3d::Zero();
-    Vector3d m_s = -p_s.cross(n);
-    VectorXd y_s(18);
-    y_s << p_s, Map<VectorXd>(R_s.data(), 9), n_s, m_s;
-    return y_s;
+// The state the peer's ode4 carries: position (3), rotation matrix column by
+// column (9), internal force (3) and moment (3), world frame; no distributed
+// load, so the force is constant; bending and torsion stiffness 1.
+VectorXd ode(VectorXd state){
+    const Matrix3d rotation = Map<Matrix3d>(state.data() + 3);
+    const Vector3d force = state.segment<3>(12), moment = state.segment<3>(15);
+    const Vector3d strain = SHEAR_COMPLIANCE * rotation.transpose() * force + Vector3d::UnitZ();
+    const Vector3d curvature = rotation.transpose() * moment;
+    const Vector3d tangent = rotation * strain;
+    const Matrix3d turning = rotation * hat(curvature);
+    VectorXd rate = VectorXd::Zero(18);
+    rate.segment<3>(0) = tangent;
+    rate.segment<9>(3) = Map<const VectorXd>(turning.data(), 9);
+    rate.segment<3>(15) = force.cross(tangent);
+    return rate;
 }
 
 template<int N>

@@ -237,3 +237,24 @@ def test_a_shot_returned_by_accuracy_on_demand_carries_its_own_estimate(scene):
     backbone = np.linalg.norm(sol.positions - reference.positions[::64], axis=1).max()
     assert backbone <= 1e-6 * length
     assert sol.error_estimate == pytest.approx(backbone, rel=0.03)
+
+
+@pytest.mark.parametrize(("max_elements", "n", "met"), [(100, 72, True), (64, 64, True),
+                                                      (40, 40, False)])
+def test_a_shot_at_the_element_limit_is_estimated_by_its_pair(max_elements, n, met):
+    # Where no finer shot fits within max_elements, the solve at the limit
+    # is estimated from the pair of solves (it came back without an estimate
+    # and "tolerance not met" though it met tol: a review's finding). The
+    # pair's coarser solve is the first shot, n = 4, an element turning by
+    # 0.82 rad: the pair's estimate is then a third over the true error.
+    reference = softspine.solve(cantilever(10.0), scheme="fe4", n_elements=2560,
+                                residual_tol=1e-13)
+    sol = softspine.solve(cantilever(10.0),
+                          accuracy={"tol": 1e-8, "max_elements": max_elements})
+    assert sol.scheme == "rk4" and sol.n_elements == n
+    backbone = np.linalg.norm(sol.positions - reference.positions_at(sol.arc_length),
+                              axis=1).max()
+    assert backbone <= sol.error_estimate <= 1.4 * backbone
+    assert sol.converged == met and (backbone <= 1e-8) == met
+    if not met:
+        assert sol.status == "tolerance_not_met" and "reached the limit" in sol.message

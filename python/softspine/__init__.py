@@ -144,8 +144,11 @@ def solve(
         ``n`` and ``2n``, the estimated error of the whole backbone (the largest
         over the nodes, the difference of two solves over ``k^p - 1`` for the
         scheme's order ``p``) predicts the ``n`` that meets ``tol * L``, which is
-        solved and checked in turn; the Solution carries ``error_estimate`` (m),
-        the ``n_elements`` and the ``scheme`` used.
+        solved and checked in turn; by shooting each shot is estimated by a
+        finer shot at ``2n`` (their difference over ``1 - 2^-p``: its own
+        error) and is the answer where that meets the tolerance. The Solution
+        carries ``error_estimate`` (m), the ``n_elements`` and the ``scheme``
+        used.
     tol : float, optional
         Accuracy on demand with this ``tol`` (over ``accuracy``'s).
     refine : {"richardson"}, optional

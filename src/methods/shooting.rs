@@ -297,10 +297,13 @@ impl<'a> Rod<'a> {
             // Quadratic convergence: after a step of 1e-8 what remains is
             // at round-off.
             if du.amax() <= CURVATURE_STEP_TOL * (u.amax() + scale) {
-                break;
+                return u;
             }
         }
-        u
+        // Not solved (a tendon path folded back on itself, |v| near 0): the
+        // shot fails on its mismatch rather than going on with a curvature
+        // that does not balance the moment.
+        Vector3::repeat(f64::NAN)
     }
 
     /// Integrate from the base with base moment `m0` and force `n0`; with
@@ -473,8 +476,9 @@ impl Newton<'_, '_> {
 
     /// [`Newton::run`], with chord steps on `chord` (a Jacobian of the same
     /// equations, e.g. a coarser solve's) while each shrinks the mismatch by
-    /// [`CHORD_CONTRACTION`]; also returns the last Jacobian used. It stops
-    /// at `tol` or at `relative` times the first mismatch, if larger.
+    /// [`CHORD_CONTRACTION`]; also returns the last Jacobian (the one used
+    /// last, with Broyden's update of its step). It stops at `tol` or at
+    /// `relative` times the first mismatch, if larger.
     fn run_from(
         &self,
         x: &mut Vector6,
@@ -972,17 +976,17 @@ pub struct FinerShot {
 /// directly) from that solve's [`WarmShot`], for the coarser answer's error
 /// estimate: the chord steps of a finer pass (Newton where they stall) and
 /// one integration into the node positions, without the shape, reactions,
-/// stability or solution of a pass. `None` where it does not converge
-/// within the budget (the caller then solves the finer pass in full).
+/// stability or solution of a pass. `Err` with the iterations spent where it
+/// does not converge within the budget or is interrupted.
 pub fn finer_shot(
     model: &RodModel,
     scene: &Scene,
     limits: Limits,
     warm: &WarmShot,
-) -> Option<FinerShot> {
+) -> Result<FinerShot, usize> {
     let held = !model.constraints().is_empty();
     if warm.held != held {
-        return None;
+        return Err(0);
     }
     let rod = Rod::new(model, scene, 1.0);
     let newton = Newton {
@@ -1018,23 +1022,26 @@ pub fn finer_shot(
     let lu = warm.jacobian.map(|jacobian| jacobian.lu());
     let mut iterations = 0;
     while res.amax() > tol {
+        if interrupt::requested() {
+            return Err(iterations);
+        }
         let step = lu
             .as_ref()
             .filter(|_| iterations < MAX_ESTIMATE_CHORDS)
             .and_then(|lu| lu.solve(&(-res)));
         let Some(dx) = step else {
-            return finer_shot_by_newton(&newton, &mut x, limits, warm, iterations);
+            return finer_shot_by_newton(&newton, &mut x, (limits, tol), warm, iterations);
         };
         let trial = x + dx;
         let r = shot(&trial, &mut trial_positions);
         iterations += 1;
         if !(r.iter().all(|v| v.is_finite()) && r.norm() <= CHORD_CONTRACTION * res.norm()) {
-            return finer_shot_by_newton(&newton, &mut x, limits, warm, iterations);
+            return finer_shot_by_newton(&newton, &mut x, (limits, tol), warm, iterations);
         }
         (x, res) = (trial, r);
         std::mem::swap(&mut positions, &mut trial_positions);
     }
-    Some(FinerShot {
+    Ok(FinerShot {
         positions,
         iterations,
         warm: WarmShot { x, ..*warm },
@@ -1045,28 +1052,31 @@ pub fn finer_shot(
 const MAX_ESTIMATE_CHORDS: usize = 3;
 
 /// [`finer_shot`] where the chord steps stall: Newton from `x` (iterations
-/// `spent` already) to the estimate's tolerance, then the nodes.
+/// `spent` already) to the estimate's tolerance `tol`, then the nodes.
 fn finer_shot_by_newton(
     newton: &Newton,
     x: &mut Vector6,
-    limits: Limits,
+    (limits, tol): (Limits, f64),
     warm: &WarmShot,
     spent: usize,
-) -> Option<FinerShot> {
-    let budget = limits.max_iterations.min(DIRECT_ITERATIONS);
+) -> Result<FinerShot, usize> {
+    let budget = limits
+        .max_iterations
+        .min(DIRECT_ITERATIONS)
+        .saturating_sub(spent);
     let Ran {
         converged,
         iterations,
         jacobian,
         ..
-    } = newton.run_from(x, budget, (limits.tol, ESTIMATE_CONTRACTION), None);
+    } = newton.run_from(x, budget, (tol, 0.0), None);
     if !converged {
-        return None;
+        return Err(spent + iterations);
     }
     let mut positions = vec![Vector3::zeros(); newton.rod.model.n() + 1];
     let (m0, n0) = newton.split(x);
     newton.rod.integrate(m0, n0, None, Some(&mut positions));
-    Some(FinerShot {
+    Ok(FinerShot {
         positions,
         iterations: spent + iterations,
         warm: WarmShot {

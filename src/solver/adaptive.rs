@@ -8,13 +8,16 @@
 //! the backbone is below the tolerance. Richardson extrapolation `r_kn +
 //! (r_kn - r_n) / (k^p - 1)` of the tip removes its leading error term.
 //!
-//! By shooting the finer solve at `2 n` is first only a finer shot from the
-//! base's wrench (chord steps and the nodes, no pass: [`shooting::finer_shot`]),
-//! which estimates the base's own error, the difference over `1 - 2^-p`:
-//! nearly the whole difference is the base's, so this estimate holds up to a
-//! larger element turn ([`SHOT_OWN_ESTIMATE_TURN`]) than the finer one's.
-//! Where it meets the tolerance the base is the answer; else the finer pass
-//! is solved only where its own estimate meets it.
+//! By shooting a solve is estimated by a finer shot at `2 n` from its base
+//! wrench (chord steps and the nodes, no pass: [`shooting::finer_shot`]):
+//! their difference over `1 - 2^-p` is the solve's own error (nearly the
+//! whole difference is the coarser one's, so this estimate holds up to a
+//! larger element turn, [`SHOT_OWN_ESTIMATE_TURN`], than the finer one's).
+//! Where it meets the tolerance the solve is the answer; else the n it
+//! predicts is solved and estimated in turn. Where no finer shot fits within
+//! `max_elements`, or a finer shot does not converge directly, or the solve
+//! needed its load path (no warm start), the pair of solves estimates the
+//! finer one as above.
 
 use super::{check_tolerance, Engine, Method, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
@@ -352,17 +355,18 @@ fn refine_with(
     } else {
         turn
     };
-    let finer_shot_at = |n: usize, warm: WarmShot| -> Result<Option<FinerShot>> {
-        at_elements(scene, &settings, n, move |scene, settings| {
-            let model = RodModel::new(&scene, n);
-            let limits = shooting::Limits {
-                tol: model.effective_tol(settings.residual_tol),
-                max_iterations: settings.max_iterations,
-                min_continuation_step: settings.min_continuation_step,
-            };
-            Ok(shooting::finer_shot(&model, &scene, limits, &warm))
-        })
-    };
+    let finer_shot_at =
+        |n: usize, warm: WarmShot| -> Result<std::result::Result<FinerShot, usize>> {
+            at_elements(scene, &settings, n, move |scene, settings| {
+                let model = RodModel::new(&scene, n);
+                let limits = shooting::Limits {
+                    tol: model.effective_tol(settings.residual_tol),
+                    max_iterations: settings.max_iterations,
+                    min_continuation_step: settings.min_continuation_step,
+                };
+                Ok(shooting::finer_shot(&model, &scene, limits, &warm))
+            })
+        };
     // Pre-asymptotic bases (an element turning by more than ASYMPTOTIC_TURN)
     // only lead to finer ones; a shot estimated by its own finer shot leads
     // to the n its estimate predicts.
@@ -379,11 +383,15 @@ fn refine_with(
         let n = 2 * base.n_elements;
         if shooting && base_turn <= own_turn && n <= accuracy.max_elements {
             crate::interrupt::check()?;
-            if let Some(finer) = base_shot
-                .map(|warm| finer_shot_at(n, warm))
-                .transpose()?
-                .flatten()
-            {
+            let finer = match base_shot.map(|warm| finer_shot_at(n, warm)).transpose()? {
+                Some(Ok(finer)) => Some(finer),
+                Some(Err(spent)) => {
+                    iterations += spent;
+                    None
+                }
+                None => None,
+            };
+            if let Some(finer) = finer {
                 iterations += finer.iterations;
                 let difference = node_difference(&base.positions, &finer.positions, 2);
                 let ratio = 2f64.powi(order) - 1.0;
@@ -399,24 +407,39 @@ fn refine_with(
                     return Ok(Refined::Done(base));
                 }
                 // The n whose own error meets the tolerance with a margin,
-                // if the error falls as n^-p: a multiple of this one.
+                // if the error falls as n^-p: a multiple of this one, at
+                // most the largest allowed (2 m is: the finer shot was).
                 let m = base.n_elements;
                 let needed = m as f64 * (PREDICTION_MARGIN * own / target).powf(1.0 / order as f64);
                 let k = ((needed / m as f64).ceil() as usize)
                     .max(2)
                     .min(accuracy.max_elements / m);
-                if k < 2 {
+                crate::interrupt::check()?;
+                let (mut fine, fine_shot) =
+                    solve_at(k * m, refine(&base.quaternions, k), Some(finer.warm))?;
+                iterations += fine.iterations;
+                if fine.converged() && 2 * k * m > accuracy.max_elements {
+                    // No finer shot fits within max_elements: the pair's
+                    // estimate of the finer solve, as the passes' loop's.
+                    let ratio = (k as f64).powi(order) - 1.0;
+                    let estimate = node_difference(&base.positions, &fine.positions, k) / ratio;
+                    fine.error_estimate = Some(estimate);
+                    if accuracy.richardson {
+                        let (r_n, r_kn) = (base.tip_position(), fine.tip_position());
+                        fine.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
+                    }
+                    if estimate <= target {
+                        fine.iterations = iterations;
+                        return Ok(Refined::Done(fine));
+                    }
                     let why = format!(
-                        "tolerance not met: {} elements would be needed, beyond max_elements {}, error estimate {own:.2e} m > tol * L = {target:.2e} m",
-                        needed.ceil(),
+                        "tolerance not met: {} elements reached the limit (max_elements {}), error estimate {estimate:.2e} m > tol * L = {target:.2e} m",
+                        k * m,
                         accuracy.max_elements,
                     );
-                    return Ok(Refined::Done(not_met(base, iterations, why)));
+                    return Ok(Refined::Done(not_met(fine, iterations, why)));
                 }
-                crate::interrupt::check()?;
-                (base, base_shot) =
-                    solve_at(k * m, refine(&base.quaternions, k), Some(finer.warm))?;
-                iterations += base.iterations;
+                (base, base_shot) = (fine, fine_shot);
                 continue;
             }
         }
@@ -490,12 +513,12 @@ fn refine_with(
 
 /// Largest element turn [rad] at which a shot's own error is estimated from
 /// a finer shot at twice its n (the difference over `1 - 2^-4`): within 1.5 %
-/// of the true error up to 0.94 rad on cantilevers (alpha = 1 to 30, in and
-/// out of plane), a tip moment, precurved and coiled rods, where the finer
-/// shot's estimate (the difference over `2^4 - 1`) is 27 % off at 0.94 rad.
-/// The coarse error is nearly the whole difference, the fine one only its
-/// remainder.
-pub const SHOT_OWN_ESTIMATE_TURN: f64 = 1.0;
+/// of the true error up to 0.94 rad (the largest turn measured) on free
+/// cantilevers (alpha = 1 to 30, in and out of plane), a tip moment,
+/// precurved and coiled rods, where the finer shot's estimate (the
+/// difference over `2^4 - 1`) is 27 % off at 0.94 rad. The coarse error is
+/// nearly the whole difference, the fine one only its remainder.
+pub const SHOT_OWN_ESTIMATE_TURN: f64 = 0.95;
 
 /// `work` on the scene with `settings` at `n` elements, on a worker thread
 /// only where the pass may outlast the interrupt poll.

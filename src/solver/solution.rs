@@ -95,12 +95,14 @@ pub struct Solution {
     /// A short human-readable account of how the solve ended.
     pub message: String,
     /// Accuracy on demand: the estimated largest distance of a node from
-    /// the continuous rod's [m], over the whole backbone (from the solves at
-    /// n/k and n: their difference over `k^p - 1`, `p` the scheme's order).
+    /// the continuous rod's [m], over the whole backbone: from the solves at
+    /// n/k and n, their difference over `k^p - 1` (`p` the scheme's order);
+    /// by shooting, from this shot and a finer one at 2n, their difference
+    /// over `1 - 2^-p` (the shot's own error).
     pub error_estimate: Option<f64>,
-    /// Accuracy on demand with Richardson extrapolation: `r_n + (r_n -
-    /// r_{n/k}) / (k^p - 1)`, returned by [`Solution::tip_position`] in place
-    /// of the last node.
+    /// Accuracy on demand with Richardson extrapolation: the finer of the
+    /// pair's tip `r_f + (r_f - r_c) / (k^p - 1)` (`k` the pair's ratio of n),
+    /// returned by [`Solution::tip_position`] in place of the last node.
     pub extrapolated_tip: Option<Vector3<f64>>,
     /// Wall-clock time of the solve [s], the set-up of the discretisation
     /// included (every n of accuracy on demand).

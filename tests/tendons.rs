@@ -96,6 +96,16 @@ fn arc_scene(end: f64) -> (Scene, f64) {
     (s, tension * d / ei)
 }
 
+/// The point at arc length `s` of the arc of curvature `kappa` in the x-z
+/// plane from the base along z.
+fn exact_arc(kappa: f64, s: f64) -> Vector3<f64> {
+    Vector3::new(
+        (1.0 - (kappa * s).cos()) / kappa,
+        0.0,
+        (kappa * s).sin() / kappa,
+    )
+}
+
 fn solve(scene: &Scene, n: usize, scheme: Scheme) -> softspine::Solution {
     let settings = Settings {
         n_elements: Some(n),
@@ -124,13 +134,7 @@ fn a_straight_tendon_bends_its_rod_into_the_exact_arc() {
     // The fourth-order scheme: its Gauss points reach that curvature, which
     // puts the nodes on the exact arc to fourth order (the interpolated arc's
     // curvature there is kappa (1 + (h kappa / 4)^4 / 45)).
-    let arc = |s: f64| {
-        Vector3::new(
-            (1.0 - (kappa * s).cos()) / kappa,
-            0.0,
-            (kappa * s).sin() / kappa,
-        )
-    };
+    let arc = |s: f64| exact_arc(kappa, s);
     let mut errors = Vec::new();
     for n in [10, 20, 40] {
         let sol = solve(&scene, n, Scheme::Fe4);
@@ -184,13 +188,7 @@ fn shooting_bends_a_rod_under_a_straight_tendon_into_the_exact_arc() {
     // are the internal one (nil here): exactly tension x offset / EI, so
     // the nodes are RK4's of the exact arc, fourth order.
     let (scene, kappa) = arc_scene(1.0);
-    let arc = |s: f64| {
-        Vector3::new(
-            (1.0 - (kappa * s).cos()) / kappa,
-            0.0,
-            (kappa * s).sin() / kappa,
-        )
-    };
+    let arc = |s: f64| exact_arc(kappa, s);
     let mut errors = Vec::new();
     for n in [4, 8, 16] {
         let settings = Settings {

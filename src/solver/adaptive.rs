@@ -421,13 +421,8 @@ fn refine_with(
                 if fine.converged() && 2 * k * m > accuracy.max_elements {
                     // No finer shot fits within max_elements: the pair's
                     // estimate of the finer solve, as the passes' loop's.
-                    let ratio = (k as f64).powi(order) - 1.0;
-                    let estimate = node_difference(&base.positions, &fine.positions, k) / ratio;
-                    fine.error_estimate = Some(estimate);
-                    if accuracy.richardson {
-                        let (r_n, r_kn) = (base.tip_position(), fine.tip_position());
-                        fine.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
-                    }
+                    let estimate =
+                        estimate_by_pair(&base, &mut fine, k, order, accuracy.richardson);
                     if estimate <= target {
                         fine.iterations = iterations;
                         return Ok(Refined::Done(fine));
@@ -469,21 +464,13 @@ fn refine_with(
             return Ok(Refined::Done(not_met(base, iterations, why)));
         }
         crate::interrupt::check()?;
-        let ratio = (k as f64).powi(order) - 1.0;
         let (mut fine, _) = solve_at(k * n_base, refine(&base.quaternions, k), base_shot)?;
         iterations += fine.iterations;
         if !usable(&fine) {
             fine.iterations = iterations;
             return Ok(Refined::Done(fine));
         }
-        // The whole backbone: a held tip never moves, so the tip alone
-        // would estimate the error of a pinned rod as zero.
-        let estimate = node_difference(&base.positions, &fine.positions, k) / ratio;
-        fine.error_estimate = Some(estimate);
-        if accuracy.richardson {
-            let (r_n, r_kn) = (base.tip_position(), fine.tip_position());
-            fine.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
-        }
+        let estimate = estimate_by_pair(&base, &mut fine, k, order, accuracy.richardson);
         if estimate <= target {
             fine.iterations = iterations;
             return Ok(Refined::Done(fine));
@@ -539,6 +526,28 @@ fn at_elements<R: Send + 'static>(
 
 /// A pass's solution and, by shooting, where a finer pass starts.
 type Pass = (Solution, Option<WarmShot>);
+
+/// The error estimate of `fine`, the solve at `k` times `coarse`'s n, from
+/// the pair: their largest node difference over `k^order - 1` (the whole
+/// backbone: a held tip never moves, so the tip alone would estimate the
+/// error of a pinned rod as zero), set in `fine` with, asked, the
+/// Richardson-extrapolated tip.
+fn estimate_by_pair(
+    coarse: &Solution,
+    fine: &mut Solution,
+    k: usize,
+    order: i32,
+    richardson: bool,
+) -> f64 {
+    let ratio = (k as f64).powi(order) - 1.0;
+    let estimate = node_difference(&coarse.positions, &fine.positions, k) / ratio;
+    fine.error_estimate = Some(estimate);
+    if richardson {
+        let (r_n, r_kn) = (coarse.tip_position(), fine.tip_position());
+        fine.extrapolated_tip = Some(r_kn + (r_kn - r_n) / ratio);
+    }
+    estimate
+}
 
 /// Largest distance between the nodes `coarse` and the same nodes of the `k`
 /// times finer `fine` [m].

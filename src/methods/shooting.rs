@@ -1179,3 +1179,47 @@ fn start_moment(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector
     }
     moment + (r[model.n()] - base).cross(&rod.tip_force)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn broydens_update_meets_the_secant_and_leaves_a_free_tips_identity() {
+        // A free tip's Newton has 3 unknowns in a 6 x 6 matrix: its steps
+        // and mismatch are nil in the last three rows, whose identity block
+        // must stay for the LU.
+        let mut jac = Matrix6::identity();
+        jac.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&Matrix3::new(2.0, 0.3, -0.1, 0.4, 1.5, 0.2, -0.2, 0.1, 3.0));
+        let before = jac;
+        let dx = Vector6::new(0.1, -0.2, 0.05, 0.0, 0.0, 0.0);
+        let dr = Vector6::new(0.3, -0.1, 0.2, 0.0, 0.0, 0.0);
+        broyden_update(&mut jac, &dx, &dr);
+        assert!(
+            (jac * dx - dr).amax() < 1e-15,
+            "the secant: {}",
+            jac * dx - dr
+        );
+        assert_eq!(
+            jac.fixed_view::<3, 3>(3, 3),
+            Matrix6::identity().fixed_view::<3, 3>(3, 3)
+        );
+        assert_eq!(
+            jac.fixed_view::<3, 3>(0, 3),
+            before.fixed_view::<3, 3>(0, 3)
+        );
+        assert_eq!(
+            jac.fixed_view::<3, 3>(3, 0),
+            before.fixed_view::<3, 3>(3, 0)
+        );
+        // Along directions orthogonal to the step it changes nothing.
+        let across = Vector6::new(0.2, 0.1, 0.0, 0.0, 0.0, 0.0);
+        assert!(across.dot(&dx).abs() < 1e-15);
+        assert!((jac * across - before * across).amax() < 1e-15);
+        // A nil step leaves it as it was.
+        let mut same = before;
+        broyden_update(&mut same, &Vector6::zeros(), &dr);
+        assert_eq!(same, before);
+    }
+}

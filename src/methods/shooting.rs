@@ -256,7 +256,7 @@ impl<'a> Rod<'a> {
             0 => u0 + compliance.component_mul(&moment),
             k => self.curvature_with_tendons(
                 &self.tendons[..k],
-                (s, stretch_at),
+                (i, s, stretch_at),
                 u0,
                 compliance,
                 moment,
@@ -278,12 +278,17 @@ impl<'a> Rod<'a> {
     fn curvature_with_tendons(
         &self,
         tendons: &[Tendon],
-        at: (f64, f64),
+        (i, s, stretch_at): (usize, f64, f64),
         u0: Vector3<f64>,
         compliance: &Vector3<f64>,
         moment: Vector3<f64>,
     ) -> Vector3<f64> {
-        let stiffness = compliance.map(|c| 1.0 / c);
+        let at = (s, stretch_at);
+        // Element i's stiffness, as the elastic term holds it.
+        let stiffness = match self.model.rod().loading.stiffness.as_slice() {
+            [one] => *one,
+            each => each[i],
+        };
         let mut u = u0 + compliance.component_mul(&moment);
         let scale = u0.amax() + 1.0 / self.model.length();
         for _ in 0..CURVATURE_ITERATIONS {

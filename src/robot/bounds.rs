@@ -137,7 +137,11 @@ impl Bounds {
     }
 
     fn dot(&self, row: Row, v: &DVector<f64>) -> f64 {
-        let at = self.first(row, v.len());
+        self.dot_at(row, self.first(row, v.len()), v)
+    }
+
+    /// `a_r . x_s` for row `row` whose block starts at coordinate `at`.
+    fn dot_at(&self, row: Row, at: usize, v: &DVector<f64>) -> f64 {
         self.row(row.0, row.2)
             .iter()
             .zip(&v.as_slice()[at..])
@@ -147,7 +151,11 @@ impl Bounds {
 
     /// Room left by `row` at `x` (never negative: `x` is within range).
     fn slack(&self, x: &DVector<f64>, row: Row) -> f64 {
-        (self.groups[row.0].limits[row.2] - self.dot(row, x)).max(0.0)
+        self.slack_at(row, self.first(row, x.len()), x)
+    }
+
+    fn slack_at(&self, row: Row, at: usize, x: &DVector<f64>) -> f64 {
+        (self.groups[row.0].limits[row.2] - self.dot_at(row, at, x)).max(0.0)
     }
 
     fn dense(&self, row: Row, len: usize) -> DVector<f64> {
@@ -156,17 +164,6 @@ impl Bounds {
         a.rows_mut(self.first(row, len), block)
             .copy_from_slice(self.row(row.0, row.2));
         a
-    }
-
-    /// Every row for `len` coordinates.
-    fn all_rows(&self, len: usize) -> Vec<Row> {
-        let mut out = Vec::new();
-        for (g, group) in self.groups.iter().enumerate() {
-            for s in 0..self.count(g, len) {
-                out.extend((0..group.limits.len()).map(|r| (g, s, r)));
-            }
-        }
-        out
     }
 
     /// The widest row's norm.
@@ -348,16 +345,26 @@ impl ActiveSet<'_> {
         let bounds = self.bounds;
         let tiny = 1e-12 * d.norm() * bounds.widest();
         let mut best = (1.0, None);
-        for row in bounds.all_rows(self.at.len()) {
-            let rate = bounds.dot(row, d);
-            if rate <= tiny || (skip_work && self.work.contains(&row)) {
-                continue;
+        // Block by block, no allocation: this runs at every step.
+        let mut first = 0;
+        for (g, group) in bounds.groups.iter().enumerate() {
+            let count = bounds.count(g, self.at.len());
+            for s in 0..count {
+                let at = first + s * group.block;
+                for r in 0..group.limits.len() {
+                    let row = (g, s, r);
+                    let rate = bounds.dot_at(row, at, d);
+                    if rate <= tiny || (skip_work && self.work.contains(&row)) {
+                        continue;
+                    }
+                    let room = bounds.slack_at(row, at, self.at) - bounds.dot_at(row, at, from);
+                    let t = room.max(0.0) / rate;
+                    if t < best.0 {
+                        best = (t, Some(row));
+                    }
+                }
             }
-            let room = bounds.slack(self.at, row) - bounds.dot(row, from);
-            let t = room.max(0.0) / rate;
-            if t < best.0 {
-                best = (t, Some(row));
-            }
+            first += count * group.block;
         }
         best
     }

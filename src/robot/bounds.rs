@@ -166,6 +166,21 @@ impl Bounds {
         a
     }
 
+    /// `f(row, first)` for every row for `len` coordinates, with its
+    /// block's first coordinate (no allocation: the step walks them often).
+    fn for_each_row(&self, len: usize, mut f: impl FnMut(Row, usize)) {
+        let mut first = 0;
+        for (g, group) in self.groups.iter().enumerate() {
+            let count = self.count(g, len);
+            for s in 0..count {
+                for r in 0..group.limits.len() {
+                    f((g, s, r), first + s * group.block);
+                }
+            }
+            first += count * group.block;
+        }
+    }
+
     /// The widest row's norm.
     fn widest(&self) -> f64 {
         self.groups
@@ -196,6 +211,7 @@ impl Bounds {
             at: x,
             free,
             h_inv: &h_inv,
+            h_rows: Vec::new(),
             work: Vec::new(),
             x: DVector::zeros(r.len()),
         };
@@ -210,6 +226,8 @@ struct ActiveSet<'a> {
     at: &'a DVector<f64>,
     free: DVector<f64>,
     h_inv: &'a dyn Fn(&DVector<f64>) -> DVector<f64>,
+    /// `H^{-1} a_r` of the rows the working set has held, each computed once.
+    h_rows: Vec<(Row, DVector<f64>)>,
     /// Working set: constraints held with equality.
     work: Vec<Row>,
     /// Current (feasible) point.
@@ -218,6 +236,19 @@ struct ActiveSet<'a> {
 
 impl ActiveSet<'_> {
     fn solve(&mut self) -> BoundedStep {
+        // The free step, where it stays within range, is the answer (one
+        // pass over the rows). Else the search starts at `d = 0` holding the
+        // rows `x` is on that the free step would cross: the bounds the last
+        // step ended on, usually the ones this step ends on (a tendon slack
+        // at zero), each otherwise dropped in one round.
+        let (alpha, blocking) = self.ratio_test(&self.x, &self.free, false);
+        if blocking.is_none() && alpha >= 1.0 {
+            return BoundedStep {
+                step: std::mem::replace(&mut self.free, DVector::zeros(0)),
+                blocking: 0,
+            };
+        }
+        self.work = self.rows_held_at_start();
         for _ in 0..MAX_ROUNDS {
             let Some((target, nu)) = self.equality_minimiser() else {
                 break;
@@ -239,19 +270,10 @@ impl ActiveSet<'_> {
                 }
             }
             let (alpha, blocking) = self.ratio_test(&self.x, &d, true);
-            let from_zero = self.x.iter().all(|v| *v == 0.0);
             self.x += d * alpha;
             if let Some(row) = blocking {
                 self.work.push(row);
             } else if self.work.is_empty() {
-                // The unconstrained minimiser is within range; reached in one
-                // move from zero, the ratio test just made was `fit_within`'s.
-                if from_zero {
-                    return BoundedStep {
-                        step: std::mem::replace(&mut self.x, DVector::zeros(0)),
-                        blocking: 0,
-                    };
-                }
                 break;
             }
         }
@@ -300,6 +322,22 @@ impl ActiveSet<'_> {
         held
     }
 
+    /// The rows `x` is on (no room left) that the free step would cross.
+    fn rows_held_at_start(&self) -> Vec<Row> {
+        let bounds = self.bounds;
+        let len = self.at.len();
+        let tiny = 1e-12 * self.free.norm() * bounds.widest();
+        let mut held = Vec::new();
+        bounds.for_each_row(len, |row, at| {
+            if bounds.slack_at(row, at, self.at) <= tiny
+                && bounds.dot_at(row, at, &self.free) > tiny
+            {
+                held.push(row);
+            }
+        });
+        held
+    }
+
     /// The last guard against rounding: shorten the step until it is within range.
     fn fit_within(&mut self) {
         let zero = DVector::zeros(self.x.len());
@@ -309,18 +347,29 @@ impl ActiveSet<'_> {
 
     /// The minimiser with the working set held as equalities, and its
     /// multipliers with the sign flipped (`None` if the rows are dependent).
-    fn equality_minimiser(&self) -> Option<(DVector<f64>, DVector<f64>)> {
+    fn equality_minimiser(&mut self) -> Option<(DVector<f64>, DVector<f64>)> {
         if self.work.is_empty() {
             return Some((self.free.clone(), DVector::zeros(0)));
         }
         let len = self.free.len();
         let w = self.work.len();
-        let h_a: Vec<DVector<f64>> = self
+        for &row in &self.work {
+            if !self.h_rows.iter().any(|(held, _)| *held == row) {
+                let column = (self.h_inv)(&self.bounds.dense(row, len));
+                self.h_rows.push((row, column));
+            }
+        }
+        let h_a: Vec<&DVector<f64>> = self
             .work
             .iter()
-            .map(|&row| (self.h_inv)(&self.bounds.dense(row, len)))
+            .filter_map(|row| {
+                self.h_rows
+                    .iter()
+                    .find(|(held, _)| held == row)
+                    .map(|(_, c)| c)
+            })
             .collect();
-        let m = DMatrix::from_fn(w, w, |i, k| self.bounds.dot(self.work[i], &h_a[k]));
+        let m = DMatrix::from_fn(w, w, |i, k| self.bounds.dot(self.work[i], h_a[k]));
         let rhs = DVector::from_fn(w, |i, _| {
             let row = self.work[i];
             self.bounds.slack(self.at, row) - self.bounds.dot(row, &self.free)
@@ -328,7 +377,7 @@ impl ActiveSet<'_> {
         let nu = m.lu().solve(&rhs)?;
         let mut target = self.free.clone();
         for (col, v) in h_a.iter().zip(nu.iter()) {
-            target += col * *v;
+            target += *col * *v;
         }
         Some((target, nu))
     }
@@ -345,27 +394,17 @@ impl ActiveSet<'_> {
         let bounds = self.bounds;
         let tiny = 1e-12 * d.norm() * bounds.widest();
         let mut best = (1.0, None);
-        // Block by block, no allocation: this runs at every step.
-        let mut first = 0;
-        for (g, group) in bounds.groups.iter().enumerate() {
-            let count = bounds.count(g, self.at.len());
-            for s in 0..count {
-                let at = first + s * group.block;
-                for r in 0..group.limits.len() {
-                    let row = (g, s, r);
-                    let rate = bounds.dot_at(row, at, d);
-                    if rate <= tiny || (skip_work && self.work.contains(&row)) {
-                        continue;
-                    }
-                    let room = bounds.slack_at(row, at, self.at) - bounds.dot_at(row, at, from);
-                    let t = room.max(0.0) / rate;
-                    if t < best.0 {
-                        best = (t, Some(row));
-                    }
-                }
+        bounds.for_each_row(self.at.len(), |row, at| {
+            let rate = bounds.dot_at(row, at, d);
+            if rate <= tiny || (skip_work && self.work.contains(&row)) {
+                return;
             }
-            first += count * group.block;
-        }
+            let room = bounds.slack_at(row, at, self.at) - bounds.dot_at(row, at, from);
+            let t = room.max(0.0) / rate;
+            if t < best.0 {
+                best = (t, Some(row));
+            }
+        });
         best
     }
 }
@@ -414,5 +453,70 @@ mod tests {
         assert!(held.blocking > 0);
         assert!(within(&robot, &kappa, &held.step));
         assert!((&j * &held.step - &large).norm() < large.norm());
+    }
+
+    /// The tension step against every choice of the tensions held at zero:
+    /// the one whose equality-constrained minimiser is feasible with
+    /// non-negative multipliers is the QP's unique answer. From a start on
+    /// the bounds (tendons slack, where the search starts holding them) and
+    /// from one inside, the active-set step is that answer.
+    #[test]
+    fn a_tension_step_from_slack_tendons_is_the_qp_minimiser() {
+        use rand::{RngExt, SeedableRng};
+        let bounds = Bounds::tensions(None);
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(7);
+        let m = 6;
+        for case in 0..40 {
+            let j = DMatrix::from_fn(3, m, |_, _| rng.random_range(-1.0..1.0));
+            let x = DVector::from_fn(m, |k, _| {
+                if case % 2 == 0 && k % 2 == 0 {
+                    0.0
+                } else {
+                    rng.random_range(0.0..2.0)
+                }
+            });
+            let e = DVector::from_fn(3, |_, _| rng.random_range(-1.0..1.0));
+            let r = -&x;
+            let c = 1e-2;
+            let step = bounds.step(&x, &j, &e, &r, c).unwrap().step;
+            // minimise |d - r|^2 + |J d - e|^2 / c with the coordinates in
+            // `held` at -x (their tension zero): stationary in the others.
+            let mut best: Option<DVector<f64>> = None;
+            for mask in 0..(1u32 << m) {
+                let held: Vec<bool> = (0..m).map(|k| mask & (1 << k) != 0).collect();
+                let h = DMatrix::identity(m, m) + j.transpose() * &j / c;
+                let g = &r + j.transpose() * &e / c;
+                let free: Vec<usize> = (0..m).filter(|k| !held[*k]).collect();
+                let mut d = DVector::from_fn(m, |k, _| if held[k] { -x[k] } else { 0.0 });
+                if !free.is_empty() {
+                    let hff =
+                        DMatrix::from_fn(free.len(), free.len(), |a, b| h[(free[a], free[b])]);
+                    let rhs = DVector::from_fn(free.len(), |a, _| {
+                        g[free[a]]
+                            - (0..m)
+                                .filter(|k| held[*k])
+                                .map(|k| h[(free[a], k)] * d[k])
+                                .sum::<f64>()
+                    });
+                    let df = hff.lu().solve(&rhs).unwrap();
+                    for (a, k) in free.iter().enumerate() {
+                        d[*k] = df[a];
+                    }
+                }
+                // Feasible, and each held tension's multiplier pushes it up.
+                let gradient = &h * &d - &g;
+                let ok = (0..m).all(|k| x[k] + d[k] >= -1e-12)
+                    && (0..m).filter(|k| held[*k]).all(|k| gradient[k] >= -1e-10);
+                if ok {
+                    best = Some(d);
+                    break;
+                }
+            }
+            let expected = best.expect("a convex QP has a KKT point");
+            assert!(
+                (&step - &expected).norm() <= 1e-9 * (1.0 + expected.norm()),
+                "case {case}: {step} against {expected}"
+            );
+        }
     }
 }

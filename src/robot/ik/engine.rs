@@ -78,6 +78,16 @@ const SLIDE_RATIO: f64 = 0.8;
 /// and the slide toward the reference is short along a path).
 const COUPLED_ITERATIONS: usize = 10;
 
+/// Where the coupled iteration's first step is undamped: within this
+/// fraction of the length of the target, after Newton's step (the spiral's
+/// quadratic prediction misses by 1e-3 of it; undamped there, 2.5 iterations
+/// a point instead of 3.15).
+const COUPLED_NEAR: f64 = 1e-2;
+
+/// How much larger than Newton's rule the coupled iteration takes the miss
+/// its last move leaves, to settle on it (see `coupled`).
+const LANDING_MARGIN: f64 = 10.0;
+
 /// Tip miss allowed while a restart's answer slides toward the reference [relative to L].
 const POLISH_SLACK: f64 = 1e-2;
 
@@ -85,11 +95,22 @@ const POLISH_SLACK: f64 = 1e-2;
 /// the next answer to be predicted by extrapolation.
 const PATH_EVENNESS: f64 = 0.5;
 
-/// The targets of an inverse solver's last two answers (the older `None`
-/// after the first) and the answer before the last.
-struct PathHistory {
-    targets: [Option<Vector3<f64>>; 2],
-    before_last: DVector<f64>,
+/// The answers an inverse solver reached along its path, oldest first
+/// (at most `PATH_POINTS`), each with its target and equilibrium: what the
+/// next start is predicted from (see `predicted`). Empty after a miss.
+const PATH_POINTS: usize = 3;
+
+#[derive(Debug, Clone)]
+struct PathPoint {
+    target: Vector3<f64>,
+    drive: DVector<f64>,
+    state: Vec<Quat>,
+}
+
+/// A start predicted along the path: the drive and the equilibrium.
+struct Prediction {
+    drive: DVector<f64>,
+    state: Vec<Quat>,
 }
 
 /// What a step is pulled toward besides the target.
@@ -212,13 +233,15 @@ pub struct InverseSolver {
     /// The last answer's drive and equilibrium.
     last: DVector<f64>,
     q: Option<Vec<Quat>>,
-    /// The targets of the last two answers reached and the answer before the
-    /// last, the path a next start is predicted along (see `predicted`).
-    path: Option<PathHistory>,
+    /// The last answers reached along the path (see `PathPoint`).
+    path: Vec<PathPoint>,
     /// The current descent starts from the path's prediction: near the
     /// solution set, so its first step already pulls toward the reference
     /// (taken by the first `min_norm`).
     start_on_path: bool,
+    /// The equilibrium predicted with that start: where the coupled
+    /// iteration linearises first.
+    predicted_state: Option<Vec<Quat>>,
     /// Iterations of the current solve, all starts included.
     iterations: usize,
     /// The warm start the current solve was given (the last answer's equilibrium).
@@ -243,8 +266,9 @@ impl InverseSolver {
             drive,
             solver: Solver::new(&scene, settings)?,
             q: None,
-            path: None,
+            path: Vec::new(),
             start_on_path: false,
+            predicted_state: None,
             iterations: 0,
             given_warm: None,
             stance: if robot.has_friction() {
@@ -280,7 +304,7 @@ impl InverseSolver {
         if let Some(x) = self.drive.warm(&self.robot, start)? {
             self.last = x;
         }
-        self.path = None;
+        self.path.clear();
         self.q = Some(start.quaternions.clone());
         if !matches!(self.stance, Stance::Frictionless) {
             let base = self.robot.base_at(start.insertion.unwrap_or(0.0));
@@ -361,6 +385,11 @@ impl InverseSolver {
             _ => self.predicted(&goal),
         };
         self.start_on_path = predicted.is_some();
+        let (predicted, predicted_state) = match predicted {
+            Some(p) => (Some(p.drive), Some(p.state)),
+            None => (None, None),
+        };
+        self.predicted_state = predicted_state;
         let start = match (reference, predicted) {
             (_, Some(x)) => x,
             (Some(_), None) if goal.reference != self.last => goal.reference.clone(),
@@ -554,7 +583,14 @@ impl InverseSolver {
             && !model.is_constrained()
             && !model.has_contact()
             && !self.drive.has_insertion();
-        let Some(q) = self.q.clone().filter(|_| applies) else {
+        // Along the path the first linearisation is at the predicted
+        // equilibrium: it starts as near the answer's state as the drive's
+        // prediction is to its drive (one iteration fewer of four, measured).
+        let warm = match self.predicted_state.take() {
+            Some(q) if self.start_on_path => Some(q),
+            _ => self.q.clone(),
+        };
+        let Some(q) = warm.filter(|_| applies) else {
             return Ok(None);
         };
         let mut x = start.clone();
@@ -562,11 +598,11 @@ impl InverseSolver {
         self.drive.apply(&mut self.solver, &x)?;
         self.solver.set_state(&q)?;
         let begun = self.iterations;
-        let mut settled = false;
         // The last full step, not extrapolated, and the slide's ratio once
-        // two full steps agreed (see the loop).
+        // two full steps agreed (see the loop); the length of the last move.
         let mut last_slide = None;
         let mut rate: Option<f64> = None;
+        let mut last_move: Option<f64> = None;
         while self.iterations < end && self.iterations - begun < COUPLED_ITERATIONS {
             self.iterations += 1;
             let Some(lin) = self.drive.linearise(&mut self.solver, goal.turns()) else {
@@ -582,12 +618,12 @@ impl InverseSolver {
                 &Matrix3xX::from_column_slice(lin.newton_rotation.as_slice()),
             );
             let left = &e - newton.column(0);
-            // Farther than NEAR, damped as the descent's first step (a
+            // Farther than COUPLED_NEAR, damped as the descent's first step (a
             // nearly singular drive, a field along a magnet, throws an
             // undamped step far), its pull toward the reference fading.
             let squared = j.norm_squared().max(f64::MIN_POSITIVE);
             let c = 1e-14 * squared;
-            let damping = if left.norm() > NEAR * goal.length {
+            let damping = if left.norm() > COUPLED_NEAR * goal.length {
                 LM_START * squared / j.ncols() as f64
             } else {
                 0.0
@@ -629,40 +665,50 @@ impl InverseSolver {
                     (step, rate.map_or(norm, |r| norm * r / (1.0 - r)))
                 }
             };
-            // Settled (undamped, on target, the slide's rest below
-            // MIN_NORM_ACCURACY): the last move, then the solve from there
-            // certifies the equilibrium, its stability and the miss.
-            settled = damping == 0.0
-                && goal.reached(&e)
-                && to_go <= MIN_NORM_ACCURACY * self.drive.size(&x);
+            // Settled: undamped, the slide's rest below MIN_NORM_ACCURACY,
+            // and on target, or landing there (within LANDING_MARGIN) by the
+            // rule Newton's iteration has followed: a miss that falls with
+            // the square of the move, `e (|step| / |last move|)^2`. Then the
+            // last move, and the solve from there certifies the equilibrium,
+            // its stability and the miss (a landing one iteration sooner
+            // than on target, measured on the seed's robot: 2 instead of 3).
+            let landing = last_move
+                .filter(|last| *last > 0.0)
+                .map(|last| &e * (LANDING_MARGIN * (step.norm() / last).powi(2)));
+            let settled = damping == 0.0
+                && to_go <= MIN_NORM_ACCURACY * self.drive.size(&x)
+                && (goal.reached(&e) || landing.as_ref().is_some_and(|l| goal.reached(l)));
             if !self.solver.move_state(step.as_slice()) {
-                settled = false;
                 break;
             }
+            last_move = Some(step.norm());
             x += step;
             // Rounding only: the bounded step stays within range (a tension
             // of -1e-32 N would be refused).
             self.drive.clamp(&self.robot, &mut x);
             self.drive.apply(&mut self.solver, &x)?;
-            if settled {
-                break;
+            if !settled {
+                continue;
             }
+            let q = self.solver.state().to_vec();
+            let sol = self.solver.solve(Some(&q))?;
+            let st = State {
+                e: goal.error(&sol),
+                x: x.clone(),
+                sol,
+            };
+            if !st.usable() {
+                return Ok(None);
+            }
+            if goal.reached(&st.e) {
+                self.q = Some(st.sol.quaternions.clone());
+                return Ok(Some(st));
+            }
+            // Landed short: its equilibrium is where the iteration goes on.
+            self.solver.set_state(&st.sol.quaternions)?;
+            last_move = None;
         }
-        if !settled {
-            return Ok(None);
-        }
-        let q = self.solver.state().to_vec();
-        let sol = self.solver.solve(Some(&q))?;
-        let st = State {
-            e: goal.error(&sol),
-            x,
-            sol,
-        };
-        if !st.usable() || !goal.reached(&st.e) {
-            return Ok(None);
-        }
-        self.q = Some(st.sol.quaternions.clone());
-        Ok(Some(st))
+        Ok(None)
     }
 
     /// The equilibrium at a starting actuation (brought within range), or
@@ -1202,16 +1248,19 @@ impl InverseSolver {
 
     /// The answer, its state kept as the warm start of the next solve.
     fn conclude(&mut self, goal: &Goal, state: State, ending: IkEnding, starts: usize) -> IkResult {
-        self.path = match (&self.path, ending) {
-            (_, IkEnding::Reached) if state.usable() => Some(PathHistory {
-                targets: [
-                    self.path.as_ref().and_then(|p| p.targets[1]),
-                    Some(goal.target),
-                ],
-                before_last: self.last.clone(),
-            }),
-            _ => None,
-        };
+        match ending {
+            IkEnding::Reached if state.usable() => {
+                if self.path.len() == PATH_POINTS {
+                    self.path.remove(0);
+                }
+                self.path.push(PathPoint {
+                    target: goal.target,
+                    drive: state.x.clone(),
+                    state: state.sol.quaternions.clone(),
+                });
+            }
+            _ => self.path.clear(),
+        }
         if state.usable() {
             self.last = state.x.clone();
             self.q = Some(state.sol.quaternions.clone());
@@ -1227,22 +1276,74 @@ impl InverseSolver {
         r
     }
 
-    /// Along a path, the start of the next solve: the linear extrapolation
-    /// of the last two answers, when both were reached and the targets
-    /// advance by nearly equal steps (the new step within half of the last).
-    /// The slide along the solution set then begins as near its end as the
-    /// path is straight. `None`: start from the last answer.
-    /// Its forward solve starts warm from the last answer's equilibrium
-    /// (measured: from the same extrapolation of the last two equilibria it
-    /// cost a fifth more on the pneumatic robot).
-    fn predicted(&self, goal: &Goal) -> Option<DVector<f64>> {
-        let path = self.path.as_ref()?;
-        let [Some(t0), Some(t1)] = path.targets else {
+    /// Along a path, the start of the next solve: the last answers' drives
+    /// and equilibria extrapolated to the new target, each answer placed at
+    /// its target's distance along the path. Quadratic through the last three
+    /// where the targets advance by nearly equal steps (each step within
+    /// `PATH_EVENNESS` of the one before), linear through the last two where
+    /// only the last step is even with the new one. The slide along the solution set
+    /// then begins as near its end as the path is smooth. `None`: start from
+    /// the last answer.
+    /// The descent's forward solve starts warm from the last answer's
+    /// equilibrium (measured: from the extrapolated one it cost a fifth more
+    /// on the pneumatic robot); the coupled iteration from the extrapolated
+    /// one (a quarter fewer iterations).
+    fn predicted(&self, goal: &Goal) -> Option<Prediction> {
+        let path = &self.path;
+        let last = path.last()?;
+        if last.drive != self.last {
             return None;
+        }
+        // The steps between targets, the new one last; the even tail.
+        let mut steps: Vec<Vector3<f64>> =
+            path.windows(2).map(|w| w[1].target - w[0].target).collect();
+        steps.push(goal.target - last.target);
+        let even = |a: &Vector3<f64>, b: &Vector3<f64>| {
+            a.norm() > 0.0 && (b - a).norm() <= PATH_EVENNESS * a.norm()
         };
-        let (last, next) = (t1 - t0, goal.target - t1);
-        let even = last.norm() > 0.0 && (next - last).norm() <= PATH_EVENNESS * last.norm();
-        even.then(|| 2.0 * &self.last - &path.before_last)
+        let evenly = steps
+            .windows(2)
+            .rev()
+            .take_while(|w| even(&w[0], &w[1]))
+            .count();
+        if evenly == 0 {
+            return None;
+        }
+        let used = &path[path.len() - (evenly + 1)..];
+        // Lagrange's weights at the new target, in the distance along the path.
+        let mut along = vec![0.0];
+        for step in &steps[steps.len() - evenly - 1..] {
+            along.push(along.last().copied().unwrap_or(0.0) + step.norm());
+        }
+        let at = along.pop().unwrap_or(0.0);
+        let weights: Vec<f64> = (0..along.len())
+            .map(|i| {
+                (0..along.len())
+                    .filter(|&j| j != i)
+                    .map(|j| (at - along[j]) / (along[i] - along[j]))
+                    .product()
+            })
+            .collect();
+        let mut drive = DVector::zeros(self.last.len());
+        for (p, w) in used.iter().zip(&weights) {
+            drive += &p.drive * *w;
+        }
+        let state = (0..last.state.len())
+            .map(|node| {
+                let newest = last.state[node];
+                let mut sum = [0.0; 4];
+                for (p, w) in used.iter().zip(&weights) {
+                    // The same rotation's two quaternions: the one nearest the last.
+                    let q = p.state[node];
+                    let sign = if q.dot(newest) < 0.0 { -w } else { *w };
+                    for (s, v) in sum.iter_mut().zip(q.to_array()) {
+                        *s += sign * v;
+                    }
+                }
+                Quat::from_array(sum).normalized()
+            })
+            .collect();
+        Some(Prediction { drive, state })
     }
 
     fn message(

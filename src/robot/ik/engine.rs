@@ -80,7 +80,7 @@ const COUPLED_ITERATIONS: usize = 10;
 
 /// Where the coupled iteration's first step is undamped: within this
 /// fraction of the length of the target, after Newton's step (the spiral's
-/// quadratic prediction misses by 1e-3 of it; undamped there, 2.5 iterations
+/// quadratic prediction missed by 1e-3 of it; undamped there, 2.5 iterations
 /// a point instead of 3.15).
 const COUPLED_NEAR: f64 = 1e-2;
 
@@ -95,10 +95,23 @@ const POLISH_SLACK: f64 = 1e-2;
 /// the next answer to be predicted by extrapolation.
 const PATH_EVENNESS: f64 = 0.5;
 
+/// Lagrange's weights at `at` of the values at `nodes` (distinct).
+fn lagrange_weights(nodes: &[f64], at: f64) -> Vec<f64> {
+    (0..nodes.len())
+        .map(|i| {
+            (0..nodes.len())
+                .filter(|&j| j != i)
+                .map(|j| (at - nodes[j]) / (nodes[i] - nodes[j]))
+                .product()
+        })
+        .collect()
+}
+
 /// The answers an inverse solver reached along its path, oldest first
-/// (at most `PATH_POINTS`), each with its target and equilibrium: what the
-/// next start is predicted from (see `predicted`). Empty after a miss.
-const PATH_POINTS: usize = 3;
+/// (at most `PATH_POINTS`: a fourth-order prediction and the test of it),
+/// each with its target and equilibrium: what the next start is predicted
+/// from (see `predicted`). Empty after a miss.
+const PATH_POINTS: usize = 6;
 
 #[derive(Debug, Clone)]
 struct PathPoint {
@@ -1278,12 +1291,11 @@ impl InverseSolver {
 
     /// Along a path, the start of the next solve: the last answers' drives
     /// and equilibria extrapolated to the new target, each answer placed at
-    /// its target's distance along the path. Quadratic through the last three
-    /// where the targets advance by nearly equal steps (each step within
-    /// `PATH_EVENNESS` of the one before), linear through the last two where
-    /// only the last step is even with the new one. The slide along the solution set
-    /// then begins as near its end as the path is smooth. `None`: start from
-    /// the last answer.
+    /// its target's distance along the path, over the tail of the path whose
+    /// targets advance by nearly equal steps (each within `PATH_EVENNESS` of
+    /// the one before), in the order (one to `PATH_POINTS - 2`) that predicted
+    /// the last answer best. The slide along the solution set then begins as
+    /// near its end as the path is smooth. `None`: start from the last answer.
     /// The descent's forward solve starts warm from the last answer's
     /// equilibrium (measured: from the extrapolated one it cost a fifth more
     /// on the pneumatic robot); the coupled iteration from the extrapolated
@@ -1309,21 +1321,32 @@ impl InverseSolver {
         if evenly == 0 {
             return None;
         }
+        // The even tail's points and the new target at their distances along the path.
         let used = &path[path.len() - (evenly + 1)..];
-        // Lagrange's weights at the new target, in the distance along the path.
         let mut along = vec![0.0];
         for step in &steps[steps.len() - evenly - 1..] {
             along.push(along.last().copied().unwrap_or(0.0) + step.norm());
         }
         let at = along.pop().unwrap_or(0.0);
-        let weights: Vec<f64> = (0..along.len())
-            .map(|i| {
-                (0..along.len())
-                    .filter(|&j| j != i)
-                    .map(|j| (at - along[j]) / (along[i] - along[j]))
-                    .product()
+        // The order that predicted the last answer best from the ones before
+        // it (linear where there is no such test): a smooth path gains an
+        // order a point, a noisy one keeps a low one.
+        let last_at = along[evenly];
+        let order = (1..evenly)
+            .map(|order| {
+                let before = evenly - order - 1..evenly;
+                let weights = lagrange_weights(&along[before.clone()], last_at);
+                let mut guess = -&last.drive;
+                for (p, w) in used[before].iter().zip(&weights) {
+                    guess += &p.drive * *w;
+                }
+                (order, guess.norm())
             })
-            .collect();
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or(1, |(order, _)| order);
+        let from = evenly - order..=evenly;
+        let weights = lagrange_weights(&along[from.clone()], at);
+        let used = &used[from];
         let mut drive = DVector::zeros(self.last.len());
         for (p, w) in used.iter().zip(&weights) {
             drive += &p.drive * *w;
@@ -1512,4 +1535,34 @@ enum Trial {
     Rejected,
     /// The forward solve found no stable equilibrium there.
     Unusable,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lagrange_weights;
+
+    /// The path's extrapolation is exact on polynomials of lower degree than
+    /// its points, at uneven distances too (the steps may differ by half).
+    #[test]
+    fn lagrange_weights_extrapolate_polynomials_of_lower_degree_exactly() {
+        let nodes = [0.0, 1.0, 1.8, 3.1, 4.0];
+        let at = 5.2;
+        for degree in 0..nodes.len() {
+            let f = |s: f64| {
+                (0..=degree)
+                    .map(|k| (k as f64 + 1.0) * s.powi(k as i32))
+                    .sum::<f64>()
+            };
+            let used = &nodes[nodes.len() - degree - 1..];
+            let weights = lagrange_weights(used, at);
+            let guess: f64 = used.iter().zip(&weights).map(|(s, w)| w * f(*s)).sum();
+            assert!(
+                (guess - f(at)).abs() <= 1e-10 * f(at).abs(),
+                "degree {degree}: {guess} against {}",
+                f(at)
+            );
+        }
+        // Linear through two even points: the last step again.
+        assert_eq!(lagrange_weights(&[0.0, 1.0], 2.0), vec![-1.0, 2.0]);
+    }
 }

@@ -78,8 +78,8 @@ const SLIDE_RATIO: f64 = 0.8;
 /// and the slide toward the reference is short along a path).
 const COUPLED_ITERATIONS: usize = 10;
 
-/// Where the coupled iteration's first step is undamped: within this
-/// fraction of the length of the target, after Newton's step (the spiral's
+/// Where the coupled iteration's steps are undamped: within this fraction
+/// of the length of the target, after Newton's step (the spiral's
 /// quadratic prediction missed by 1e-3 of it; undamped there, 2.5 iterations
 /// a point instead of 3.15).
 const COUPLED_NEAR: f64 = 1e-2;
@@ -571,18 +571,21 @@ impl InverseSolver {
         Ok(Attempt { state: st, phase })
     }
 
-    /// Newton on the equilibrium and the drive together, from the last
-    /// answer's state with the drive at `start` (along a path, its
-    /// prediction): each iteration linearises the equations and the tip at
-    /// the state, which need not be an equilibrium (`solver/coupled.rs`),
-    /// and steps both, the drive by the minimum-norm rule toward where
-    /// Newton's step and the drive's columns put the aimed point. Once on
-    /// target, undamped, and what is left of the slide below
-    /// `MIN_NORM_ACCURACY` of the drive, one solve from there gives the answer,
-    /// accepted if converged, stable and on target: what the descent's
-    /// answer is, at about one solve's cost instead of one a step. `None`
-    /// (the iterations spent counted) where it does not apply (friction,
-    /// contact, an insertion, no warm state, a start away from it) or does not settle within
+    /// Newton on the equilibrium and the drive together, from the drive at
+    /// `start` and, along a path, the equilibrium predicted with it (else
+    /// the last answer's): each iteration linearises the equations and the
+    /// tip at the state, which need not be an equilibrium
+    /// (`solver/coupled.rs`), and steps both, the drive by the minimum-norm
+    /// rule toward where Newton's step and the drive's columns put the aimed
+    /// point. Once undamped, what is left of the slide below
+    /// `MIN_NORM_ACCURACY` of the drive and the tip on target or landing
+    /// there by Newton's rule (see the loop), the last move is taken and one
+    /// solve from there gives the answer, accepted if converged, stable and
+    /// on target (where it is usable but short of the target, the iteration
+    /// goes on from its equilibrium): what the descent's answer is, at about
+    /// one solve's cost instead of one a step. `None` (the iterations spent
+    /// counted) where it does not apply (friction, contact, an insertion, no
+    /// warm state, a start away from it) or does not settle within
     /// `COUPLED_ITERATIONS`: the descent then starts from `start`.
     fn coupled(&mut self, goal: &Goal, start: &DVector<f64>, end: usize) -> Result<Option<State>> {
         let model = self.solver.model();
@@ -717,9 +720,11 @@ impl InverseSolver {
                 self.q = Some(st.sol.quaternions.clone());
                 return Ok(Some(st));
             }
-            // Landed short: its equilibrium is where the iteration goes on.
+            // Landed short: its equilibrium is where the iteration goes on,
+            // the slide's series begun afresh from there.
             self.solver.set_state(&st.sol.quaternions)?;
             last_move = None;
+            last_slide = None;
         }
         Ok(None)
     }
@@ -1542,7 +1547,7 @@ mod tests {
     use super::lagrange_weights;
 
     /// The path's extrapolation is exact on polynomials of lower degree than
-    /// its points, at uneven distances too (the steps may differ by half).
+    /// its points, at uneven distances too.
     #[test]
     fn lagrange_weights_extrapolate_polynomials_of_lower_degree_exactly() {
         let nodes = [0.0, 1.0, 1.8, 3.1, 4.0];

@@ -107,12 +107,13 @@ fn lagrange_weights(nodes: &[f64], at: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The answers an inverse solver reached along its path, oldest first
-/// (at most `PATH_POINTS`: a fourth-order prediction and the test of it),
-/// each with its target and equilibrium: what the next start is predicted
-/// from (see `predicted`). Empty after a miss.
+/// How many answers the path keeps: enough for a fourth-order prediction
+/// and the test of it on the last answer (see `predicted`).
 const PATH_POINTS: usize = 6;
 
+/// An answer reached along the path, with its target and equilibrium: the
+/// inverse solver keeps the last `PATH_POINTS`, oldest first, to predict the
+/// next start from (see `predicted`); none after a miss.
 #[derive(Debug, Clone)]
 struct PathPoint {
     target: Vector3<f64>,
@@ -252,8 +253,8 @@ pub struct InverseSolver {
     /// solution set, so its first step already pulls toward the reference
     /// (taken by the first `min_norm`).
     start_on_path: bool,
-    /// The equilibrium predicted with that start: where the coupled
-    /// iteration linearises first.
+    /// The equilibrium predicted with that start (`Some` only then): where
+    /// the coupled iteration linearises first.
     predicted_state: Option<Vec<Quat>>,
     /// Iterations of the current solve, all starts included.
     iterations: usize,
@@ -398,10 +399,7 @@ impl InverseSolver {
             _ => self.predicted(&goal),
         };
         self.start_on_path = predicted.is_some();
-        let (predicted, predicted_state) = match predicted {
-            Some(p) => (Some(p.drive), Some(p.state)),
-            None => (None, None),
-        };
+        let (predicted, predicted_state) = predicted.map(|p| (p.drive, p.state)).unzip();
         self.predicted_state = predicted_state;
         let start = match (reference, predicted) {
             (_, Some(x)) => x,
@@ -602,10 +600,7 @@ impl InverseSolver {
         // Along the path the first linearisation is at the predicted
         // equilibrium: it starts as near the answer's state as the drive's
         // prediction is to its drive (one iteration fewer of four, measured).
-        let warm = match self.predicted_state.take() {
-            Some(q) if self.start_on_path => Some(q),
-            _ => self.q.clone(),
-        };
+        let warm = self.predicted_state.take().or_else(|| self.q.clone());
         let Some(q) = warm.filter(|_| applies) else {
             return Ok(None);
         };

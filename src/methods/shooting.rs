@@ -238,7 +238,7 @@ impl<'a> Rod<'a> {
     /// `(q', r', m')` at a state of element `i` at arc length `s` (its
     /// routings those of the element's middle `stretch_at`), with the
     /// internal force `force` and rest curvature `u0`.
-    #[inline]
+    #[inline(always)]
     fn derivative(
         &self,
         (i, s, stretch_at): (usize, f64, f64),

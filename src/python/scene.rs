@@ -31,6 +31,13 @@ impl PyScene {
         if let Ok(s) = data.cast::<PyScene>() {
             return Ok(s.get().clone());
         }
+        if data.is_instance_of::<PyDict>() {
+            let inner = Scene::from_value(&to_value(data, &Path::input("scene"))?)?;
+            warn_user(data.py(), &inner.warnings())?;
+            return Ok(PyScene { inner });
+        }
+        // (A dict first: importing `os` for the path test costs as much as
+        // reading a small scene.)
         let os = data.py().import("os")?;
         if data.is_instance_of::<pyo3::types::PyString>()
             || data.is_instance(&os.getattr("PathLike")?)?
@@ -41,15 +48,10 @@ impl PyScene {
             warn_user(data.py(), &inner.warnings())?;
             return Ok(PyScene { inner });
         }
-        if !data.is_instance_of::<PyDict>() {
-            return Err(PyValueError::new_err(format!(
-                "scene: expected a Scene, a dict or a file's path, got {}",
-                data.get_type().name()?
-            )));
-        }
-        let inner = Scene::from_value(&to_value(data, &Path::input("scene"))?)?;
-        warn_user(data.py(), &inner.warnings())?;
-        Ok(PyScene { inner })
+        Err(PyValueError::new_err(format!(
+            "scene: expected a Scene, a dict or a file's path, got {}",
+            data.get_type().name()?
+        )))
     }
 
     /// Read a scene from a JSON string.

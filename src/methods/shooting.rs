@@ -504,7 +504,7 @@ impl Newton<'_, '_> {
                 return Ran::ended(true, iteration, last, &res);
             }
             if let Some(mut jac) = chord.take() {
-                if let Some(dx) = jac.lu().solve(&(-res)) {
+                if let Some(dx) = Factored::new(&jac, self.held).solve(&(-res)) {
                     let trial = *x + dx;
                     let r = self.residual(&trial);
                     if r.iter().all(|v| v.is_finite()) && r.norm() <= CHORD_CONTRACTION * res.norm()
@@ -528,7 +528,8 @@ impl Newton<'_, '_> {
                 jac.set_column(c, &column);
             }
             last = Some(jac);
-            let Some(lu) = Some(jac.lu()).filter(|lu| lu.is_invertible()) else {
+            let Some(lu) = Some(Factored::new(&jac, self.held)).filter(Factored::is_invertible)
+            else {
                 return Ran::ended(false, iteration + 1, last, &res);
             };
             let Some(dx) = lu.solve(&(-res)) else {
@@ -566,6 +567,44 @@ impl Newton<'_, '_> {
             }
         }
         Ran::ended(res.amax() <= tol, budget, last, &res)
+    }
+}
+
+/// The LU factors of a shot's Jacobian: of its leading 3 x 3 block alone
+/// for a free tip (its unknowns are the base moment; the rest of the 6 x 6
+/// matrix is the identity and its steps and mismatch are nil there).
+// Short-lived on the stack: boxing the larger variant would allocate.
+#[allow(clippy::large_enum_variant)]
+enum Factored {
+    Free(nalgebra::linalg::LU<f64, nalgebra::U3, nalgebra::U3>),
+    Held(nalgebra::linalg::LU<f64, nalgebra::U6, nalgebra::U6>),
+}
+
+impl Factored {
+    fn new(jacobian: &Matrix6, held: bool) -> Self {
+        if held {
+            Factored::Held(jacobian.lu())
+        } else {
+            Factored::Free(jacobian.fixed_view::<3, 3>(0, 0).into_owned().lu())
+        }
+    }
+
+    fn is_invertible(&self) -> bool {
+        match self {
+            Factored::Free(lu) => lu.is_invertible(),
+            Factored::Held(lu) => lu.is_invertible(),
+        }
+    }
+
+    fn solve(&self, rhs: &Vector6) -> Option<Vector6> {
+        match self {
+            Factored::Free(lu) => lu.solve(&rhs.fixed_rows::<3>(0).into_owned()).map(|x| {
+                let mut out = Vector6::zeros();
+                out.fixed_rows_mut::<3>(0).copy_from(&x);
+                out
+            }),
+            Factored::Held(lu) => lu.solve(rhs),
+        }
     }
 }
 
@@ -1024,7 +1063,7 @@ pub fn finer_shot(
     };
     let mut res = shot(&x, &mut positions);
     let tol = limits.tol.max(ESTIMATE_CONTRACTION * res.amax());
-    let lu = warm.jacobian.map(|jacobian| jacobian.lu());
+    let lu = warm.jacobian.map(|jacobian| Factored::new(&jacobian, held));
     let mut iterations = 0;
     while res.amax() > tol {
         if interrupt::requested() {

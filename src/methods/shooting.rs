@@ -494,16 +494,22 @@ impl Newton<'_, '_> {
         let k = self.unknowns();
         let mut res = self.residual(x);
         let tol = tol.max(relative * res.amax());
-        let mut chord = chord;
-        let mut last = chord;
+        // One Jacobian in place (copies of a 6 x 6 were a twentieth of a
+        // small solve): `chord` says whether a chord step may use it,
+        // `known` whether it is set (the last one used).
+        let (mut jac, mut chord, mut known) = match chord {
+            Some(jac) => (jac, true, true),
+            None => (Matrix6::identity(), false, false),
+        };
+        let last = |known: bool, jac: &Matrix6| known.then_some(*jac);
         for iteration in 0..budget {
             if !res.iter().all(|v| v.is_finite()) || interrupt::requested() {
-                return Ran::ended(false, iteration, last, &res);
+                return Ran::ended(false, iteration, last(known, &jac), &res);
             }
             if res.amax() <= tol {
-                return Ran::ended(true, iteration, last, &res);
+                return Ran::ended(true, iteration, last(known, &jac), &res);
             }
-            if let Some(mut jac) = chord.take() {
+            if std::mem::take(&mut chord) {
                 if let Some(dx) = Factored::new(&jac, self.held).solve(&(-res)) {
                     let trial = *x + dx;
                     let r = self.residual(&trial);
@@ -512,14 +518,13 @@ impl Newton<'_, '_> {
                         broyden_update(&mut jac, &dx, &(r - res));
                         *x = trial;
                         res = r;
-                        chord = Some(jac);
-                        last = chord;
+                        chord = true;
                         continue;
                     }
                 }
             }
             // Forward differences, one integration a column.
-            let mut jac = Matrix6::identity();
+            jac = Matrix6::identity();
             for c in 0..k {
                 let step = 1e-7 * x[c].abs().max(self.scale[c]);
                 let mut probe = *x;
@@ -527,13 +532,13 @@ impl Newton<'_, '_> {
                 let column = (self.residual(&probe) - res) / step;
                 jac.set_column(c, &column);
             }
-            last = Some(jac);
+            known = true;
             let Some(lu) = Some(Factored::new(&jac, self.held)).filter(Factored::is_invertible)
             else {
-                return Ran::ended(false, iteration + 1, last, &res);
+                return Ran::ended(false, iteration + 1, Some(jac), &res);
             };
             let Some(dx) = lu.solve(&(-res)) else {
-                return Ran::ended(false, iteration + 1, last, &res);
+                return Ran::ended(false, iteration + 1, Some(jac), &res);
             };
             // Backtrack on the squared mismatch (Armijo, halving).
             let merit = res.norm_squared();
@@ -557,16 +562,15 @@ impl Newton<'_, '_> {
                     // not one a column).
                     if alpha == 1.0 {
                         broyden_update(&mut jac, &dx, &(r - res));
-                        chord = Some(jac);
-                        last = chord;
+                        chord = true;
                     }
                     *x = trial;
                     res = r;
                 }
-                None => return Ran::ended(false, iteration + 1, last, &res),
+                None => return Ran::ended(false, iteration + 1, Some(jac), &res),
             }
         }
-        Ran::ended(res.amax() <= tol, budget, last, &res)
+        Ran::ended(res.amax() <= tol, budget, last(known, &jac), &res)
     }
 }
 

@@ -681,6 +681,15 @@ pub struct ShotTip {
     pub reaction_moment: Option<Vector3<f64>>,
 }
 
+impl ShotTip {
+    /// A free tip's: no reactions.
+    const FREE: ShotTip = ShotTip {
+        reaction_force: None,
+        reaction_torque_body: None,
+        reaction_moment: None,
+    };
+}
+
 impl Shot {
     /// Integrate the shot into the node quaternions and positions (`n + 1`
     /// each) and give the held tip's reactions.
@@ -691,8 +700,15 @@ impl Shot {
         quaternions: &mut [Quat],
         positions: &mut [Vector3<f64>],
     ) -> ShotTip {
-        let full = Rod::new(model, scene, 1.0);
         let held = !model.constraints().is_empty();
+        if let (Some(drawn), false) = (&self.drawn, held) {
+            // Drawn where it was judged, and a free tip has no reactions: no
+            // rod to build.
+            quaternions.copy_from_slice(&drawn.quaternions);
+            positions.copy_from_slice(&drawn.positions);
+            return ShotTip::FREE;
+        }
+        let full = Rod::new(model, scene, 1.0);
         let m0 = self.x.fixed_rows::<3>(0).into_owned();
         let n0 = if held {
             self.x.fixed_rows::<3>(3).into_owned()
@@ -708,11 +724,7 @@ impl Shot {
             None => full.integrate(m0, n0, Some(quaternions), Some(positions)),
         };
         if !held {
-            return ShotTip {
-                reaction_force: None,
-                reaction_torque_body: None,
-                reaction_moment: None,
-            };
+            return ShotTip::FREE;
         }
         let (force, torque) = full.held_tip_reaction(&tip);
         ShotTip {

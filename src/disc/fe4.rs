@@ -432,9 +432,11 @@ pub(crate) fn derivatives(
 
 /// The elastic Jacobian's blocks of the internal node from the ends'. The
 /// energy is the same for every node turned by one rotation `g` (the
-/// curvature `vec(conj(q) p) / |q|^2` is), and `g x_k = x_k exp(R_k^T phi /
-/// 2)`: so `sum_k R_k g_k = 0` in every state, and its derivative along node
-/// `l`'s update gives `sum_k R_k J_kl = R_l [g_l]x`. With `P_k = R_m^T R_k`:
+/// curvature `2 vec(conj(q) p) / |q|^2` is), and `g x_k = x_k exp(R_k^T phi
+/// / 2)`: so `sum_k R_k g_k = 0` in every state, and its derivative along node
+/// `l`'s update gives `sum_k R_k J_kl = R_l [g_l]x`. With `P_k = R_m^T R_k`
+/// (the rotations of the nodes normalised: a node given off the unit sphere,
+/// as `residual` and `jacobian` take it from Python, turns as its direction):
 ///
 /// ```text
 /// J_ma = P_a ([g_a]x - J_aa) - P_b J_ba
@@ -447,10 +449,8 @@ pub(crate) fn derivatives(
 fn internal_blocks(x: &[Vector4<f64>; 3], out: &mut Derivatives) {
     let quat = |v: &Vector4<f64>| Quat::new(v[0], v[1], v[2], v[3]);
     let mid = quat(&x[1]).conj();
-    let (pa, pb) = (
-        (mid * quat(&x[0])).rotation(),
-        (mid * quat(&x[2])).rotation(),
-    );
+    let relative = |k: usize| (mid * quat(&x[k])).normalized().rotation();
+    let (pa, pb) = (relative(0), relative(2));
     let j = &mut out.jac;
     let g = &out.grad;
     j[1][0] = pa * (skew(&g[0]) - j[0][0]) - pb * j[2][0];
@@ -1172,33 +1172,76 @@ mod tests {
         }
     }
 
+    /// A curvature density `exp(w . omega) + s |omega|^2 / 2`: not quadratic,
+    /// and not the same along the element.
+    #[derive(Debug)]
+    struct Curved;
+
+    impl super::super::CurvatureDensity for Curved {
+        fn acts_on(&self, _: usize) -> bool {
+            true
+        }
+
+        fn density(
+            &self,
+            _: usize,
+            s: f64,
+            omega: &Vector3<f64>,
+            scale: f64,
+        ) -> Option<(f64, Vector3<f64>, Matrix3<f64>)> {
+            let w = Vector3::new(0.3, -0.2, 0.1);
+            let e = (w.dot(omega)).exp();
+            Some((
+                scale * (e + 0.5 * s * omega.norm_squared()),
+                scale * (e * w + s * omega),
+                scale * (e * w * w.transpose() + s * Matrix3::identity()),
+            ))
+        }
+    }
+
     #[test]
     fn the_internal_nodes_block_from_the_invariance_is_the_integrated_one() {
         // `internal_blocks` derives the internal node's blocks from the
         // ends'; with `mid_only` its block is integrated directly. A shifted
-        // moment, a dead moment and body loads (added after) and turned
-        // nodes: the two agree to round-off, and to central differences
-        // (`jacobian_matches_central_differences_of_the_gradient`).
+        // moment, a curvature density, a dead moment and body loads (added
+        // after), turned nodes, on and off the unit sphere: the two agree to
+        // round-off (the other blocks agree with central differences,
+        // `jacobian_matches_central_differences_of_the_gradient`).
+        let loading: &'static Loading = Box::leak(Box::new(Loading {
+            densities: vec![std::sync::Arc::new(Curved)],
+            ..element().loading.clone()
+        }));
         let el = Element {
             moment: Vector3::new(0.7, -0.4, 1.1),
             shift: Vector3::new(0.2, 0.1, -0.3),
+            loading,
+            density: true,
+            start: 0.4,
             ..element()
         };
         let a = Quat::new(0.3, -0.6, 0.2, 0.7).normalized();
-        let x = [
+        let unit = [
             a,
             a.perturbed(Vector3::new(0.4, -0.3, 0.2)),
             a.perturbed(Vector3::new(0.7, -0.5, 0.5)),
         ];
-        let full = derivatives(x, &el, true, false).jac;
-        let direct = derivatives(x, &el, true, true).jac[1][1];
-        let scale = direct.amax();
-        assert!(
-            (full[1][1] - direct).amax() < 1e-13 * scale,
-            "{} vs {direct}",
-            full[1][1]
-        );
-        assert!((full[0][1] - full[1][0].transpose()).amax() == 0.0);
+        let scaled = |q: Quat, f: f64| Quat {
+            w: f * q.w,
+            v: f * q.v,
+        };
+        let off = [
+            scaled(unit[0], 1.0 + 1e-3),
+            unit[1],
+            scaled(unit[2], 1.0 - 1e-3),
+        ];
+        for x in [unit, off] {
+            let full = derivatives(x, &el, true, false).jac;
+            let direct = derivatives(x, &el, true, true).jac[1][1];
+            let scale = direct.amax();
+            let miss = (full[1][1] - direct).amax() / scale;
+            assert!(miss < 1e-13, "{miss:e}: {} vs {direct}", full[1][1]);
+            assert!((full[0][1] - full[1][0].transpose()).amax() == 0.0);
+        }
     }
 
     #[test]

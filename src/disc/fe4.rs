@@ -201,8 +201,19 @@ fn point_terms(
     }
     let jq = -2.0 * inv * (conj_product(p) + omega * q.transpose());
     let jp = 2.0 * inv * bq;
-    let kjq = k * jq;
-    let kjp = k * jp;
+    // Without a curvature density the stiffness is diagonal: scale rows.
+    let (kjq, kjp) = if el.density {
+        (k * jq, k * jp)
+    } else {
+        let rows = |m: &Matrix3x4<f64>| {
+            let mut out = *m;
+            for (r, kr) in el.stiffness.iter().enumerate() {
+                out.row_mut(r).scale_mut(*kr);
+            }
+            out
+        };
+        (rows(&jq), rows(&jp))
+    };
     let inv2 = inv * inv;
     // mu . omega as a function of (q, p) with mu fixed: 2 q^T M p / |q|^2,
     // M = -right_pure(mu), so M p = -p (0, mu) and M^T q = q (0, mu).

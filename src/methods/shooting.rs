@@ -671,6 +671,15 @@ struct Drawn {
     tip: TipState,
 }
 
+impl Drawn {
+    /// Its nodes into `quaternions` and `positions`; its tip.
+    fn copy_into(&self, quaternions: &mut [Quat], positions: &mut [Vector3<f64>]) -> TipState {
+        quaternions.copy_from_slice(&self.quaternions);
+        positions.copy_from_slice(&self.positions);
+        self.tip
+    }
+}
+
 /// The tip of an integrated shot: a held tip's reactions.
 pub struct ShotTip {
     /// The held tip's reaction force [N, world].
@@ -704,8 +713,7 @@ impl Shot {
         if let (Some(drawn), false) = (&self.drawn, held) {
             // Drawn where it was judged, and a free tip has no reactions: no
             // rod to build.
-            quaternions.copy_from_slice(&drawn.quaternions);
-            positions.copy_from_slice(&drawn.positions);
+            drawn.copy_into(quaternions, positions);
             return ShotTip::FREE;
         }
         let full = Rod::new(model, scene, 1.0);
@@ -716,11 +724,7 @@ impl Shot {
             full.free_base_force
         };
         let tip = match &self.drawn {
-            Some(drawn) => {
-                quaternions.copy_from_slice(&drawn.quaternions);
-                positions.copy_from_slice(&drawn.positions);
-                drawn.tip
-            }
+            Some(drawn) => drawn.copy_into(quaternions, positions),
             None => full.integrate(m0, n0, Some(quaternions), Some(positions)),
         };
         if !held {

@@ -1,7 +1,7 @@
 //! Load-aware inverse kinematics of the default robot (n = 20): one trajectory
 //! point warm from its neighbour, and whole 60-point trajectories. Then the
 //! tendon robot and the magnetic catheter of `examples/robots`: a forward
-//! solve of each kind of robot, and a tracked trajectory.
+//! solve of each kind of robot, a tracked trajectory, and a target out of reach.
 //!
 //! `cargo bench --bench robot`
 
@@ -142,6 +142,27 @@ fn actuated(c: &mut Criterion) {
     group.bench_function(
         BenchmarkId::new("trajectory_60", "catheter_ring"),
         |bench| bench.iter(|| black_box(catheter.track(&ring, &unloaded).unwrap())),
+    );
+    group.finish();
+    // A target the loaded robot cannot reach: the tendon robot's first
+    // pentagram point under 45 g (out of reach, all the starts tried, their
+    // trials into the tensions' limits failing). What a user pays to learn it.
+    let mut group = c.benchmark_group("out_of_reach");
+    group.sample_size(10);
+    let target = trajectory::placed(&trajectory::pentagram(60), &tendon)[0];
+    let heavy = IkOptions {
+        load: 0.045.into(),
+        ..IkOptions::default()
+    };
+    group.bench_function(
+        BenchmarkId::new("inverse", "tendons_pentagram_45g"),
+        |bench| {
+            bench.iter(|| {
+                let ik = tendon.inverse(target, &heavy).unwrap();
+                assert!(!ik.reached);
+                black_box(ik)
+            })
+        },
     );
     group.finish();
 }

@@ -1132,9 +1132,13 @@ impl InverseSolver {
             Some(q) => {
                 self.drive.apply(&mut self.solver, &x)?;
                 let sol = self.solver.solve_warm_or_cold(Some(&q))?;
-                match usable(&sol) {
-                    true => sol,
-                    false => self.forward(&x)?,
+                match (usable(&sol), self.q.as_deref()) {
+                    (true, _) | (false, None) => sol,
+                    // Warm from the state's equilibrium, as `forward` would
+                    // start; its fallback, the solve from the straight rod,
+                    // has just failed here (an unreachable target's failing
+                    // trials each cost a load path: the same one twice).
+                    (false, Some(state)) => self.solver.solve(Some(state))?,
                 }
             }
             None => self.forward(&x)?,

@@ -37,6 +37,7 @@ use crate::error::{Error, Result};
 use crate::quat::Quat;
 use crate::robot::{Actuation, Load, Robot};
 use crate::solver::{Settings, Solution, Solver};
+use crate::status::Status;
 use nalgebra::{DMatrix, DVector, Matrix3xX, Vector3};
 
 /// Relative accuracy to which the actuation is the one closest to the reference.
@@ -1131,13 +1132,22 @@ impl InverseSolver {
         let sol = match predicted {
             Some(q) => {
                 self.drive.apply(&mut self.solver, &x)?;
-                let sol = self.solver.solve_warm_or_cold(Some(&q))?;
+                let sol = self.solver.solve(Some(&q))?;
+                // Where the step's own branch is too curled for the mesh
+                // (an element turning more than it resolves), the step is
+                // too long: the straight rod's load path, a cold solve's
+                // cost many times over, ends as curled (on an unreachable
+                // target under load, every one of 61 such trials did).
+                let sol = if usable(&sol) || sol.status == Status::Underresolved {
+                    sol
+                } else {
+                    self.solver.solve(None)?
+                };
                 match (usable(&sol), self.q.as_deref()) {
                     (true, _) | (false, None) => sol,
                     // Warm from the state's equilibrium, as `forward` would
-                    // start; its fallback, the solve from the straight rod,
-                    // has just failed here (an unreachable target's failing
-                    // trials each cost a load path: the same one twice).
+                    // start, without its fallback: the solve from the
+                    // straight rod was tried (or judged vain) just above.
                     (false, Some(state)) => self.solver.solve(Some(state))?,
                 }
             }

@@ -734,6 +734,22 @@ impl RodModel {
             .residual_derivative(&self.rod, q, held, tangent, interior, dg, interior_shift);
     }
 
+    /// [`RodModel::residual_derivative`] along each of `tangents` at a free
+    /// state, their columns one after another in `dg` (`n` each), their
+    /// interiors' moves likewise in `interior_shift` (empty for `fd2`).
+    pub fn residual_derivatives(
+        &self,
+        q: &[Quat],
+        tangents: &[crate::disc::Loading],
+        interior: &mut Interior,
+        dg: &mut [Vector3<f64>],
+        interior_shift: &mut Vec<Vector3<f64>>,
+    ) {
+        let held = self.held(&[]);
+        self.disc
+            .residual_derivatives(&self.rod, q, held, tangents, interior, dg, interior_shift);
+    }
+
     /// `d r / d p` of the node positions at fixed rotations from the
     /// interior's move `interior_shift` (zero for `fd2`).
     pub fn position_derivative(

@@ -14,7 +14,7 @@
 //! bilinear parts and the curvature are element terms: every element adds
 //! to the rows of its two nodes and their coupling block.
 
-use super::{Discretisation, Interior, Loading, NodeForces, Rod, Scheme};
+use super::{derivatives_one_by_one, Discretisation, Interior, Loading, NodeForces, Rod, Scheme};
 use crate::blocktri::BlockTridiagonal;
 use crate::quat::{rotation_form_apply, skew, tangent_bilinear, tangent_form_apply, Quat};
 use nalgebra::{Matrix3, Vector3};
@@ -502,6 +502,54 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
     }
 }
 
+/// `dg` along tangents of the elastic law or of curvature densities (a
+/// section's rest curvature, a tension), one column of `n` each: the
+/// moment's derivative on the elements each moves, `dK (omega - omega0) -
+/// K domega0 + dW/domega`, the rest of the assembly skipped. Each element's
+/// relative rotation is formed once for all the columns (a drive's nine
+/// tensions share every element).
+fn moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vector3<f64>]) {
+    let n = rod.n();
+    dg.iter_mut().for_each(|x| *x = Vector3::zeros());
+    let entry = Source::<true>::entry;
+    let supports = tangents.iter().map(|t| t.support.unwrap_or((1, n)));
+    let first = supports.clone().map(|s| s.0).min().unwrap_or(1);
+    let last = supports.map(|s| s.1).max().unwrap_or(0);
+    for i in first..=last {
+        let h = rod.h(i);
+        let c = q[i - 1].conj() * q[i];
+        let omega = (2.0 / h) * c.v;
+        let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
+        let amat = Matrix3::identity() * c.w + skew(&c.v);
+        for (tangent, column) in tangents.iter().zip(dg.chunks_exact_mut(n)) {
+            let (lo, hi) = tangent.support.unwrap_or((1, n));
+            if i < lo || i > hi {
+                continue;
+            }
+            let (dk, drest) = (
+                entry(&tangent.stiffness, i),
+                entry(&tangent.rest_curvature, i),
+            );
+            let elastic = dk != Vector3::zeros() || drest != Vector3::zeros();
+            let density = tangent.densities.iter().any(|d| d.acts_on(i));
+            if !elastic && !density {
+                continue;
+            }
+            let mut moment = dk.component_mul(&(omega - rod.loading.rest_of(i)))
+                - rod.loading.stiffness_of(i).component_mul(&drest);
+            if density {
+                if let Some(m) = tangent.density_moment(i, middle, &omega, 1.0) {
+                    moment += m;
+                }
+            }
+            column[i - 1] += amat.transpose() * moment;
+            if i >= 2 {
+                column[i - 2] -= amat * moment;
+            }
+        }
+    }
+}
+
 impl Discretisation for Fd2 {
     fn scheme(&self) -> Scheme {
         Scheme::Fd2
@@ -539,44 +587,29 @@ impl Discretisation for Fd2 {
     ) {
         interior_shift.clear();
         if tangent.only_moments() {
-            // A parameter of the elastic law or a density (a section's rest
-            // curvature, a tension): the moment's derivative on the elements
-            // it moves, `dK (omega - omega0) - K domega0 + dW/domega`, the
-            // rest of the assembly skipped.
-            dg.iter_mut().for_each(|x| *x = Vector3::zeros());
-            let entry = Source::<true>::entry;
-            let (first, last) = tangent.support.unwrap_or((1, rod.n()));
-            for i in first..=last {
-                let (dk, drest) = (
-                    entry(&tangent.stiffness, i),
-                    entry(&tangent.rest_curvature, i),
-                );
-                let elastic = dk != Vector3::zeros() || drest != Vector3::zeros();
-                let density = tangent.densities.iter().any(|d| d.acts_on(i));
-                if !elastic && !density {
-                    continue;
-                }
-                let h = rod.h(i);
-                let c = q[i - 1].conj() * q[i];
-                let omega = (2.0 / h) * c.v;
-                let mut moment = dk.component_mul(&(omega - rod.loading.rest_of(i)))
-                    - rod.loading.stiffness_of(i).component_mul(&drest);
-                if density {
-                    let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
-                    if let Some(m) = tangent.density_moment(i, middle, &omega, 1.0) {
-                        moment += m;
-                    }
-                }
-                let amat = Matrix3::identity() * c.w + skew(&c.v);
-                dg[i - 1] += amat.transpose() * moment;
-                if i >= 2 {
-                    dg[i - 2] -= amat * moment;
-                }
-            }
+            moment_columns(rod, q, std::slice::from_ref(tangent), dg);
             return;
         }
         let source = Source::<true>::new(rod, tangent, 1.0, NodeForces::NONE);
         source.assemble(q, dg, None, ASSEMBLY_CHUNK);
+    }
+
+    fn residual_derivatives(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        held: NodeForces,
+        tangents: &[Loading],
+        interior: &mut Interior,
+        dg: &mut [Vector3<f64>],
+        interior_shift: &mut Vec<Vector3<f64>>,
+    ) {
+        if tangents.iter().all(Loading::only_moments) {
+            interior_shift.clear();
+            moment_columns(rod, q, tangents, dg);
+        } else {
+            derivatives_one_by_one(self, rod, q, held, tangents, interior, dg, interior_shift);
+        }
     }
 
     fn positions(&self, rod: &Rod, q: &[Quat], _interior: &mut Interior, out: &mut [Vector3<f64>]) {

@@ -268,6 +268,26 @@ pub trait Discretisation: std::fmt::Debug + Send + Sync {
         interior_shift: &mut Vec<Vector3<f64>>,
     );
 
+    /// [`Discretisation::residual_derivative`] along each of `tangents`:
+    /// `dg` holds their columns one after another (`n` entries each) and
+    /// `interior_shift` their interiors' moves likewise (empty without
+    /// interior unknowns). A drive's columns (a sensitivity, the coupled
+    /// iteration) come so in one pass; a scheme whose columns share each
+    /// element's kinematics overrides it.
+    #[allow(clippy::too_many_arguments)]
+    fn residual_derivatives(
+        &self,
+        rod: &Rod,
+        q: &[Quat],
+        held: NodeForces,
+        tangents: &[Loading],
+        interior: &mut Interior,
+        dg: &mut [Vector3<f64>],
+        interior_shift: &mut Vec<Vector3<f64>>,
+    ) {
+        derivatives_one_by_one(self, rod, q, held, tangents, interior, dg, interior_shift);
+    }
+
     /// `d r_k / dp` of the node positions `k = 0..=n` at fixed node
     /// rotations, from the interior's move `interior_shift` (zero without
     /// interior unknowns).
@@ -350,6 +370,27 @@ pub trait Discretisation: std::fmt::Debug + Send + Sync {
     ) -> Option<DMatrix<f64>> {
         let _ = (rod, q, nodes, interior);
         None
+    }
+}
+
+/// [`Discretisation::residual_derivatives`] column by column.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn derivatives_one_by_one<D: Discretisation + ?Sized>(
+    disc: &D,
+    rod: &Rod,
+    q: &[Quat],
+    held: NodeForces,
+    tangents: &[Loading],
+    interior: &mut Interior,
+    dg: &mut [Vector3<f64>],
+    interior_shift: &mut Vec<Vector3<f64>>,
+) {
+    interior_shift.clear();
+    // Allocates only for a scheme with interior unknowns.
+    let mut one = Vec::new();
+    for (tangent, column) in tangents.iter().zip(dg.chunks_exact_mut(rod.n())) {
+        disc.residual_derivative(rod, q, held, tangent, interior, column, &mut one);
+        interior_shift.extend_from_slice(&one);
     }
 }
 

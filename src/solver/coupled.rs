@@ -140,22 +140,29 @@ impl Solver {
         let m = tangents.len();
         let (mut position, mut rotation) = (Matrix3xX::zeros(m), Matrix3xX::zeros(m));
         c.columns.clear();
+        c.columns.resize(m * n, Vector3::zeros());
+        model.residual_derivatives(
+            &w.q,
+            tangents,
+            &mut w.interior,
+            &mut c.columns,
+            &mut c.shift,
+        );
         c.moved.resize(n + 1, Vector3::zeros());
         c.positions.resize(n + 1, Vector3::zeros());
-        for (k, t) in tangents.iter().enumerate() {
-            model.residual_derivative(&w.q, &[], t, &mut w.interior, &mut w.step, &mut c.shift);
+        for (k, column) in c.columns.chunks_exact(n).enumerate() {
             // fe4: the tip also moves with the interior at fixed nodes.
             let at_fixed_nodes = if c.shift.is_empty() {
                 Vector3::zeros()
             } else {
-                model.position_derivative(&w.q, &mut w.interior, &c.shift, &mut c.moved);
+                let shift = &c.shift[k * n..(k + 1) * n];
+                model.position_derivative(&w.q, &mut w.interior, shift, &mut c.moved);
                 c.moved[n]
             };
             // A section's or a tendon's column is nonzero on its elements only.
             let zero = Vector3::zeros();
-            let lo = w.step.iter().position(|g| *g != zero).unwrap_or(n);
-            let hi = w
-                .step
+            let lo = column.iter().position(|g| *g != zero).unwrap_or(n);
+            let hi = column
                 .iter()
                 .rposition(|g| *g != zero)
                 .map_or(lo, |i| i + 1);
@@ -163,7 +170,7 @@ impl Solver {
                 let dot = |row: &[Vector3<f64>]| -> f64 {
                     -row[lo..hi]
                         .iter()
-                        .zip(&w.step[lo..hi])
+                        .zip(&column[lo..hi])
                         .map(|(l, g)| l.dot(g))
                         .sum::<f64>()
                 };
@@ -172,7 +179,6 @@ impl Solver {
                     rotation[(a, k)] = dot(&c.adjoint[3 + a]);
                 }
             }
-            c.columns.extend_from_slice(&w.step);
         }
         model.positions(&w.q, &mut w.interior, &mut c.positions);
         let tol = model.effective_tol(self.settings.residual_tol);

@@ -192,17 +192,25 @@ impl Solver {
         let mut out = TipSensitivity::zeros(columns);
         let mut shift = Vec::new();
         let mut moved = vec![Vector3::zeros(); n + 1];
-        for (column, t) in tangents.iter().enumerate() {
-            model.residual_derivative(&w.q, &[], t, &mut w.interior, &mut w.step, &mut shift);
+        // The columns dg/dp in one pass, then d theta / dp = -A^{-1} dg/dp
+        // in their place; the tip also moves with the interior at fixed
+        // nodes (fe4).
+        self.state_tangents.resize(columns * n, Vector3::zeros());
+        model.residual_derivatives(
+            &w.q,
+            tangents,
+            &mut w.interior,
+            &mut self.state_tangents,
+            &mut shift,
+        );
+        for (column, tangent) in self.state_tangents.chunks_exact_mut(n).enumerate() {
             if !shift.is_empty() {
-                model.position_derivative(&w.q, &mut w.interior, &shift, &mut moved);
+                let at = &shift[column * n..(column + 1) * n];
+                model.position_derivative(&w.q, &mut w.interior, at, &mut moved);
             }
-            // d theta / dp = -A^{-1} dg/dp; the tip also moves with the
-            // interior at fixed nodes (fe4).
-            w.lu.solve_in_place(&mut w.step);
-            w.step.iter_mut().for_each(|x| *x = -*x);
-            self.state_tangents.extend_from_slice(&w.step);
-            frame.fill(&mut out, column, &w.step, moved[n]);
+            w.lu.solve_in_place(tangent);
+            tangent.iter_mut().for_each(|x| *x = -*x);
+            frame.fill(&mut out, column, tangent, moved[n]);
         }
         self.state_tangents_at.extend_from_slice(&w.q);
         Ok(out)

@@ -526,22 +526,31 @@ fn moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vector3
             if i < lo || i > hi {
                 continue;
             }
-            let (dk, drest) = (
-                entry(&tangent.stiffness, i),
-                entry(&tangent.rest_curvature, i),
-            );
-            let elastic = dk != Vector3::zeros() || drest != Vector3::zeros();
-            let density = tangent.densities.iter().any(|d| d.acts_on(i));
-            if !elastic && !density {
-                continue;
-            }
-            let mut moment = dk.component_mul(&(omega - rod.loading.rest_of(i)))
-                - rod.loading.stiffness_of(i).component_mul(&drest);
-            if density {
-                if let Some(m) = tangent.density_moment(i, middle, &omega, 1.0) {
-                    moment += m;
-                }
-            }
+            // A tension's column has no elastic part: skipped, not formed as
+            // zero (the same moment, to the last bit).
+            let elastic = (!tangent.stiffness.is_empty() || !tangent.rest_curvature.is_empty())
+                .then(|| {
+                    let (dk, drest) = (
+                        entry(&tangent.stiffness, i),
+                        entry(&tangent.rest_curvature, i),
+                    );
+                    (dk != Vector3::zeros() || drest != Vector3::zeros()).then(|| {
+                        dk.component_mul(&(omega - rod.loading.rest_of(i)))
+                            - rod.loading.stiffness_of(i).component_mul(&drest)
+                    })
+                })
+                .flatten();
+            let density = tangent
+                .densities
+                .iter()
+                .any(|d| d.acts_on(i))
+                .then(|| tangent.density_moment(i, middle, &omega, 1.0));
+            let moment = match (elastic, density) {
+                (None, None) => continue,
+                (Some(m), None | Some(None)) | (None, Some(Some(m))) => m,
+                (None, Some(None)) => Vector3::zeros(),
+                (Some(e), Some(Some(m))) => e + m,
+            };
             column[i - 1] += amat.transpose() * moment;
             if i >= 2 {
                 column[i - 2] -= amat * moment;

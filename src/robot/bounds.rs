@@ -128,18 +128,6 @@ impl Bounds {
         &group.rows[r * group.block..(r + 1) * group.block]
     }
 
-    /// The first coordinate of row `(g, s, _)`'s block.
-    fn first(&self, (g, s, _): Row, len: usize) -> usize {
-        let before: usize = (0..g)
-            .map(|k| self.count(k, len) * self.groups[k].block)
-            .sum();
-        before + s * self.groups[g].block
-    }
-
-    fn dot(&self, row: Row, v: &DVector<f64>) -> f64 {
-        self.dot_at(row, self.first(row, v.len()), v)
-    }
-
     /// `a_r . x_s` for row `row` whose block starts at coordinate `at`.
     fn dot_at(&self, row: Row, at: usize, v: &DVector<f64>) -> f64 {
         self.row(row.0, row.2)
@@ -149,21 +137,8 @@ impl Bounds {
             .sum()
     }
 
-    /// Room left by `row` at `x` (never negative: `x` is within range).
-    fn slack(&self, x: &DVector<f64>, row: Row) -> f64 {
-        self.slack_at(row, self.first(row, x.len()), x)
-    }
-
     fn slack_at(&self, row: Row, at: usize, x: &DVector<f64>) -> f64 {
         (self.groups[row.0].limits[row.2] - self.dot_at(row, at, x)).max(0.0)
-    }
-
-    fn dense(&self, row: Row, len: usize) -> DVector<f64> {
-        let mut a = DVector::zeros(len);
-        let block = self.groups[row.0].block;
-        a.rows_mut(self.first(row, len), block)
-            .copy_from_slice(self.row(row.0, row.2));
-        a
     }
 
     /// `f(row, first)` for every row for `len` coordinates, with its
@@ -202,16 +177,26 @@ impl Bounds {
     ) -> Option<BoundedStep> {
         let rows = j.nrows();
         let g = (j * j.transpose() + DMatrix::identity(rows, rows) * c).cholesky()?;
-        // H^{-1} v = v - J^T (c I + J J^T)^{-1} J v
-        let h_inv = |v: &DVector<f64>| v - j.transpose() * g.solve(&(j * v));
         // The unconstrained minimiser, in the form that stays exact as c -> 0.
         let free = r + j.transpose() * g.solve(&(e - j * r));
+        let mut count = 0;
+        self.for_each_row(x.len(), |_, _| count += 1);
+        let mut limits = Vec::with_capacity(count);
+        self.for_each_row(x.len(), |row, at| {
+            limits.push(Limit {
+                at,
+                a: self.row(row.0, row.2),
+                room: self.slack_at(row, at, x),
+            })
+        });
         let mut qp = ActiveSet {
-            bounds: self,
-            at: x,
+            h_rows: vec![None; limits.len()],
+            limits,
+            tiny_scale: self.widest(),
             free,
-            h_inv: &h_inv,
-            h_rows: Vec::new(),
+            g: &g,
+            j,
+            h_inv: None,
             work: Vec::new(),
             x: DVector::zeros(r.len()),
         };
@@ -219,17 +204,41 @@ impl Bounds {
     }
 }
 
+/// A row of the range as one step sees it, `a . x[at..] <= b`, and the room
+/// `b - a . x` it leaves at the step's start (formed once a step: the
+/// active-set rounds walk the rows often).
+struct Limit<'a> {
+    at: usize,
+    a: &'a [f64],
+    room: f64,
+}
+
+impl Limit<'_> {
+    fn dot(&self, v: &DVector<f64>) -> f64 {
+        self.a
+            .iter()
+            .zip(&v.as_slice()[self.at..])
+            .map(|(a, x)| a * x)
+            .sum()
+    }
+}
+
 /// The primal active-set method on one step (see the module docs).
 struct ActiveSet<'a> {
-    bounds: &'a Bounds,
-    /// Where the step starts (within range).
-    at: &'a DVector<f64>,
+    limits: Vec<Limit<'a>>,
+    /// The widest row's norm: the scale of a rate at rounding level.
+    tiny_scale: f64,
     free: DVector<f64>,
-    h_inv: &'a dyn Fn(&DVector<f64>) -> DVector<f64>,
+    /// `c I + J J^T` factored, and `J`: `H^{-1} = I - J^T (c I + J J^T)^{-1} J`
+    /// (Woodbury), formed once where a row is first held (a row's
+    /// `H^{-1} a_r` is then its coefficients' columns).
+    g: &'a nalgebra::Cholesky<f64, nalgebra::Dyn>,
+    j: &'a DMatrix<f64>,
+    h_inv: Option<DMatrix<f64>>,
     /// `H^{-1} a_r` of the rows the working set has held, each computed once.
-    h_rows: Vec<(Row, DVector<f64>)>,
-    /// Working set: constraints held with equality.
-    work: Vec<Row>,
+    h_rows: Vec<Option<DVector<f64>>>,
+    /// Working set: the rows (indices of `limits`) held with equality.
+    work: Vec<usize>,
     /// Current (feasible) point.
     x: DVector<f64>,
 }
@@ -293,49 +302,39 @@ impl ActiveSet<'_> {
         if w == 0 {
             return d;
         }
-        let bounds = self.bounds;
+        let limits = &self.limits;
+        // Rows of different blocks share no coordinate.
         let gram = DMatrix::from_fn(w, w, |i, k| {
-            let ((gi, si, ri), (gk, sk, rk)) = (self.work[i], self.work[k]);
-            if (gi, si) == (gk, sk) {
-                bounds
-                    .row(gi, ri)
-                    .iter()
-                    .zip(bounds.row(gk, rk))
-                    .map(|(a, b)| a * b)
-                    .sum()
+            let (a, b) = (&limits[self.work[i]], &limits[self.work[k]]);
+            if a.at == b.at {
+                a.a.iter().zip(b.a).map(|(x, y)| x * y).sum()
             } else {
                 0.0
             }
         });
-        let rates = DVector::from_fn(w, |i, _| bounds.dot(self.work[i], &d));
+        let rates = DVector::from_fn(w, |i, _| limits[self.work[i]].dot(&d));
         let Some(y) = gram.lu().solve(&rates) else {
             return d;
         };
-        let len = d.len();
         let mut held = d;
         for (&row, v) in self.work.iter().zip(y.iter()) {
-            let at = bounds.first(row, len);
-            for (c, a) in bounds.row(row.0, row.2).iter().enumerate() {
-                held[at + c] -= a * v;
+            let limit = &limits[row];
+            for (c, a) in limit.a.iter().enumerate() {
+                held[limit.at + c] -= a * v;
             }
         }
         held
     }
 
     /// The rows `x` is on (no room left) that the free step would cross.
-    fn rows_held_at_start(&self) -> Vec<Row> {
-        let bounds = self.bounds;
-        let len = self.at.len();
-        let tiny = 1e-12 * self.free.norm() * bounds.widest();
-        let mut held = Vec::new();
-        bounds.for_each_row(len, |row, at| {
-            if bounds.slack_at(row, at, self.at) <= tiny
-                && bounds.dot_at(row, at, &self.free) > tiny
-            {
-                held.push(row);
-            }
-        });
-        held
+    fn rows_held_at_start(&self) -> Vec<usize> {
+        let tiny = 1e-12 * self.free.norm() * self.tiny_scale;
+        (0..self.limits.len())
+            .filter(|&k| {
+                let limit = &self.limits[k];
+                limit.room <= tiny && limit.dot(&self.free) > tiny
+            })
+            .collect()
     }
 
     /// The last guard against rounding: shorten the step until it is within range.
@@ -354,25 +353,32 @@ impl ActiveSet<'_> {
         let len = self.free.len();
         let w = self.work.len();
         for &row in &self.work {
-            if !self.h_rows.iter().any(|(held, _)| *held == row) {
-                let column = (self.h_inv)(&self.bounds.dense(row, len));
-                self.h_rows.push((row, column));
+            if self.h_rows[row].is_none() {
+                let (j, g) = (self.j, self.g);
+                let h_inv = self.h_inv.get_or_insert_with(|| {
+                    let mut h = -(j.transpose() * g.solve(j));
+                    for k in 0..len {
+                        h[(k, k)] += 1.0;
+                    }
+                    h
+                });
+                let limit = &self.limits[row];
+                let mut column = DVector::zeros(len);
+                for (c, a) in limit.a.iter().enumerate() {
+                    column.axpy(*a, &h_inv.column(limit.at + c), 1.0);
+                }
+                self.h_rows[row] = Some(column);
             }
         }
         let h_a: Vec<&DVector<f64>> = self
             .work
             .iter()
-            .filter_map(|row| {
-                self.h_rows
-                    .iter()
-                    .find(|(held, _)| held == row)
-                    .map(|(_, c)| c)
-            })
+            .filter_map(|row| self.h_rows[*row].as_ref())
             .collect();
-        let m = DMatrix::from_fn(w, w, |i, k| self.bounds.dot(self.work[i], h_a[k]));
+        let m = DMatrix::from_fn(w, w, |i, k| self.limits[self.work[i]].dot(h_a[k]));
         let rhs = DVector::from_fn(w, |i, _| {
-            let row = self.work[i];
-            self.bounds.slack(self.at, row) - self.bounds.dot(row, &self.free)
+            let limit = &self.limits[self.work[i]];
+            limit.room - limit.dot(&self.free)
         });
         let nu = m.lu().solve(&rhs)?;
         let mut target = self.free.clone();
@@ -389,22 +395,21 @@ impl ActiveSet<'_> {
         from: &DVector<f64>,
         d: &DVector<f64>,
         skip_work: bool,
-    ) -> (f64, Option<Row>) {
+    ) -> (f64, Option<usize>) {
         // Rates at rounding level would add rows dependent on the working set.
-        let bounds = self.bounds;
-        let tiny = 1e-12 * d.norm() * bounds.widest();
+        let tiny = 1e-12 * d.norm() * self.tiny_scale;
         let mut best = (1.0, None);
-        bounds.for_each_row(self.at.len(), |row, at| {
-            let rate = bounds.dot_at(row, at, d);
-            if rate <= tiny || (skip_work && self.work.contains(&row)) {
-                return;
+        for (k, limit) in self.limits.iter().enumerate() {
+            let rate = limit.dot(d);
+            if rate <= tiny || (skip_work && self.work.contains(&k)) {
+                continue;
             }
-            let room = bounds.slack_at(row, at, self.at) - bounds.dot_at(row, at, from);
+            let room = limit.room - limit.dot(from);
             let t = room.max(0.0) / rate;
             if t < best.0 {
-                best = (t, Some(row));
+                best = (t, Some(k));
             }
-        });
+        }
         best
     }
 }

@@ -643,7 +643,7 @@ impl Discretisation for Fd2 {
             if !loading.densities.is_empty() {
                 let omega = (2.0 / h) * cv;
                 let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
-                if let Some((value, _, _)) = loading.density(i, middle, &omega, load) {
+                if let Some(value) = loading.density_value(i, middle, &omega, load) {
                     elastic += value;
                 }
             }

@@ -77,6 +77,11 @@ pub trait CurvatureDensity: std::fmt::Debug + Send + Sync {
     ) -> Option<Vector3<f64>> {
         self.density(element, s, omega, scale).map(|(_, m, _)| m)
     }
+
+    /// Its value alone, for the energy, which needs no moment and no stiffness.
+    fn value(&self, element: usize, s: f64, omega: &Vector3<f64>, scale: f64) -> Option<f64> {
+        self.density(element, s, omega, scale).map(|(v, _, _)| v)
+    }
 }
 
 /// What the terms put on a rod of `n` elements (see the module's
@@ -203,6 +208,19 @@ impl Loading {
                 .iter()
                 .filter_map(|d| d.density(i, s, omega, scale))
                 .reduce(|a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2)),
+        }
+    }
+
+    /// The curvature densities' values alone ([`Loading::density`]'s first).
+    #[inline(always)]
+    pub fn density_value(&self, i: usize, s: f64, omega: &Vector3<f64>, scale: f64) -> Option<f64> {
+        match self.densities.as_slice() {
+            [] => None,
+            [one] => one.value(i, s, omega, scale),
+            many => many
+                .iter()
+                .filter_map(|d| d.value(i, s, omega, scale))
+                .reduce(|a, b| a + b),
         }
     }
 
@@ -385,5 +403,9 @@ impl CurvatureDensity for Scaled {
         scale: f64,
     ) -> Option<Vector3<f64>> {
         Some(self.factor * self.density.moment(element, s, omega, scale)?)
+    }
+
+    fn value(&self, element: usize, s: f64, omega: &Vector3<f64>, scale: f64) -> Option<f64> {
+        Some(self.factor * self.density.value(element, s, omega, scale)?)
     }
 }

@@ -68,6 +68,13 @@ impl CurvatureDensity for TendonDensity {
             k => Some(moment(&self.tendons[..k], scale, s, omega)),
         }
     }
+
+    fn value(&self, element: usize, s: f64, omega: &Vector3<f64>, scale: f64) -> Option<f64> {
+        match self.through[element - 1] {
+            0 => None,
+            k => Some(value(&self.tendons[..k], scale, s, omega)),
+        }
+    }
 }
 
 /// Which number of a tendon's routing a parameter is: routing `routing`
@@ -379,6 +386,13 @@ fn density_of(
             Matrix3::from_diagonal_element(r.dot(&rho)) - r * rho.transpose() - w * arm.transpose();
     }
     (value, moment, hessian)
+}
+
+/// [`density`]'s value alone: `sum tension |v|`.
+fn value(tendons: &[Tendon], scale: f64, s: f64, omega: &Vector3<f64>) -> f64 {
+    // As [`density`] sums it, to the last bit.
+    paths(tendons, scale, s, s, omega)
+        .fold(0.0, |value, (tension, _, v)| value + tension * v.norm())
 }
 
 /// [`density`]'s moment alone: `sum tension rho x v / |v|`.

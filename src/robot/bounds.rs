@@ -178,7 +178,7 @@ impl Bounds {
         let rows = j.nrows();
         let g = (j * j.transpose() + DMatrix::identity(rows, rows) * c).cholesky()?;
         // The unconstrained minimiser, in the form that stays exact as c -> 0.
-        let free = r + j.transpose() * g.solve(&(e - j * r));
+        let free = r + j.tr_mul(&g.solve(&(e - j * r)));
         let mut count = 0;
         self.for_each_row(x.len(), |_, _| count += 1);
         let mut limits = Vec::with_capacity(count);
@@ -356,7 +356,7 @@ impl ActiveSet<'_> {
             if self.h_rows[row].is_none() {
                 let (j, g) = (self.j, self.g);
                 let h_inv = self.h_inv.get_or_insert_with(|| {
-                    let mut h = -(j.transpose() * g.solve(j));
+                    let mut h = -j.tr_mul(&g.solve(j));
                     for k in 0..len {
                         h[(k, k)] += 1.0;
                     }

@@ -73,6 +73,23 @@ const NEAR: f64 = 1e-3;
 const SLIDE_ALIGNED: f64 = 0.99;
 const SLIDE_RATIO: f64 = 0.8;
 
+/// A ratio nearer one is taken once steady: within `SLIDE_STEADY` of
+/// `1 - ratio` of the ratio before it, below `SLIDE_STEADY_LIMIT`. Where the
+/// reference's choice is nearly degenerate the slide creeps at 0.99 (the
+/// tendon robot's circle under 30 g, as the active tensions change over):
+/// 430 steps to settle, or 7 to 10 with its series.
+const SLIDE_STEADY: f64 = 0.05;
+const SLIDE_STEADY_LIMIT: f64 = 0.999;
+
+/// Whether a slide's ratio `ratio` (after `before`) is known well enough
+/// for the rest of its series (see `SLIDE_RATIO`, `SLIDE_STEADY`).
+fn series_ratio(ratio: f64, before: Option<f64>) -> bool {
+    ratio < SLIDE_RATIO
+        || before.is_some_and(|before| {
+            ratio < SLIDE_STEADY_LIMIT && (ratio - before).abs() <= SLIDE_STEADY * (1.0 - ratio)
+        })
+}
+
 /// Iterations of the coupled Newton (equilibrium and drive together) before
 /// it gives way to the descent that solves the equilibrium at every step.
 /// Near the target it settles in three to six (quadratically on the tip,
@@ -167,6 +184,18 @@ enum PhaseEnd {
     Stalled { unusable: bool },
     /// The iteration budget ran out.
     Budget,
+}
+
+/// How the coupled iteration ended (see `InverseSolver::coupled`).
+enum Coupled {
+    /// Settled: the answer, its equilibrium solved.
+    Settled(State),
+    /// On target with its slide toward the reference still creeping when
+    /// the budget ran out: the equilibrium solved there, where the descent
+    /// goes on (the iterations are not spent again from the start).
+    Creeping(State),
+    /// It does not apply or did not settle: the descent starts afresh.
+    Fallback,
 }
 
 /// One descent toward the target from one start.
@@ -409,11 +438,12 @@ impl InverseSolver {
         };
         let end = self.iterations + max_iterations;
         let first = match self.coupled(&goal, &start, end)? {
-            Some(state) => Attempt {
+            Coupled::Settled(state) => Attempt {
                 state,
                 phase: PhaseEnd::Done,
             },
-            None => self.reach(&goal, start, Pull::Reference, max_iterations)?,
+            Coupled::Creeping(state) => self.descend(&goal, state, Pull::Reference, end)?,
+            Coupled::Fallback => self.reach(&goal, start, Pull::Reference, max_iterations)?,
         };
         let (mut best, starts) =
             if first.reached(&goal) || goal.unreachable(self.base_toward(&goal.target).0) {
@@ -550,10 +580,14 @@ impl InverseSolver {
         budget: usize,
     ) -> Result<Attempt> {
         let end = self.iterations + budget;
-        let mut st = match self.begin_usable(goal, start)? {
-            Ok(st) => st,
-            Err(stalled) => return Ok(stalled),
-        };
+        match self.begin_usable(goal, start)? {
+            Ok(st) => self.descend(goal, st, pull, end),
+            Err(stalled) => Ok(stalled),
+        }
+    }
+
+    /// [`InverseSolver::reach`] from the usable state `st`, until iteration `end`.
+    fn descend(&mut self, goal: &Goal, mut st: State, pull: Pull, end: usize) -> Result<Attempt> {
         let mut phase = self.min_norm(goal, &mut st, pull, end)?;
         if phase == (PhaseEnd::Stalled { unusable: false }) && !goal.reached(&st.e) {
             // Gauss-Newton creeps (a drive nearly rank-deficient at the start,
@@ -582,11 +616,14 @@ impl InverseSolver {
     /// solve from there gives the answer, accepted if converged, stable and
     /// on target (where it is usable but short of the target, the iteration
     /// goes on from its equilibrium): what the descent's answer is, at about
-    /// one solve's cost instead of one a step. `None` (the iterations spent
-    /// counted) where it does not apply (friction, contact, an insertion, no
-    /// warm state, a start away from it) or does not settle within
-    /// `COUPLED_ITERATIONS`: the descent then starts from `start`.
-    fn coupled(&mut self, goal: &Goal, start: &DVector<f64>, end: usize) -> Result<Option<State>> {
+    /// one solve's cost instead of one a step. It goes on past
+    /// `COUPLED_ITERATIONS` while it converges (undamped, the miss falling
+    /// or on target); where the budget then runs out on target, its
+    /// equilibrium is where the descent goes on (`Coupled::Creeping`).
+    /// `Coupled::Fallback` (the iterations spent counted) where it does not
+    /// apply (friction, contact, an insertion, no warm state, a start away
+    /// from it) or does not settle: the descent then starts from `start`.
+    fn coupled(&mut self, goal: &Goal, start: &DVector<f64>, end: usize) -> Result<Coupled> {
         let model = self.solver.model();
         // The warm state is the last answer's equilibrium: near it only from
         // its own drive or the path's prediction (a start at a reference
@@ -603,7 +640,7 @@ impl InverseSolver {
         // prediction is to its drive (one iteration fewer of four, measured).
         let warm = self.predicted_state.take().or_else(|| self.q.clone());
         let Some(q) = warm.filter(|_| applies) else {
-            return Ok(None);
+            return Ok(Coupled::Fallback);
         };
         let mut x = start.clone();
         self.drive.clamp(&self.robot, &mut x);
@@ -615,7 +652,17 @@ impl InverseSolver {
         let mut last_slide = None;
         let mut rate: Option<f64> = None;
         let mut last_move: Option<f64> = None;
-        while self.iterations < end && self.iterations - begun < COUPLED_ITERATIONS {
+        let mut last_ratio: Option<f64> = None;
+        // Undamped at the last linearisation, and on target or closing in:
+        // the iteration converges, if slowly, and goes on past
+        // COUPLED_ITERATIONS. Where the reference's choice is nearly
+        // degenerate the slide toward it creeps at a ratio near one (0.99
+        // and 0.89 on the tendon robot's circle under 30 g), the tip
+        // following it: cheaper here, a linearisation a step, than in the
+        // descent from the start, a solve a step.
+        let mut creeping = false;
+        let mut last_miss = f64::INFINITY;
+        while self.iterations < end && (self.iterations - begun < COUPLED_ITERATIONS || creeping) {
             self.iterations += 1;
             let Some(lin) = self.drive.linearise(&mut self.solver, goal.turns()) else {
                 break;
@@ -640,6 +687,8 @@ impl InverseSolver {
             } else {
                 0.0
             };
+            creeping = damping == 0.0 && (goal.reached(&e) || e.norm() < last_miss);
+            last_miss = e.norm();
             let r = (&goal.reference - &x) * (c / (c + damping));
             let Some(step) = self
                 .drive
@@ -659,15 +708,16 @@ impl InverseSolver {
             let ratio = previous
                 .as_ref()
                 .map(|last: &DVector<f64>| norm / last.norm());
-            let series = previous.zip(ratio).and_then(|(last, ratio)| {
+            let known = ratio.filter(|r| series_ratio(*r, last_ratio));
+            let series = previous.zip(known).and_then(|(last, ratio)| {
                 let aligned = last.dot(&step) >= SLIDE_ALIGNED * last.norm() * norm;
                 let whole = &step / (1.0 - ratio);
-                (aligned && ratio < SLIDE_RATIO && self.drive.within(&self.robot, &(&x + &whole)))
-                    .then_some(whole)
+                (aligned && self.drive.within(&self.robot, &(&x + &whole))).then_some(whole)
             });
+            last_ratio = ratio;
             // The slide's ratio grows as the state converges (0.12 to 0.24
             // on the tendon robot): the largest seen, for what is left.
-            if let Some(r) = ratio.filter(|r| *r < SLIDE_RATIO) {
+            if let Some(r) = known {
                 rate = Some(rate.map_or(r, |known| known.max(r)));
             }
             let (step, to_go) = match series {
@@ -710,11 +760,11 @@ impl InverseSolver {
                 sol,
             };
             if !st.usable() {
-                return Ok(None);
+                return Ok(Coupled::Fallback);
             }
             if goal.reached(&st.e) {
                 self.q = Some(st.sol.quaternions.clone());
-                return Ok(Some(st));
+                return Ok(Coupled::Settled(st));
             }
             // Landed short: its equilibrium is where the iteration goes on,
             // the slide's series begun afresh from there.
@@ -722,7 +772,23 @@ impl InverseSolver {
             last_move = None;
             last_slide = None;
         }
-        Ok(None)
+        if !creeping {
+            return Ok(Coupled::Fallback);
+        }
+        // The budget ran out on a creeping slide: its equilibrium, where the
+        // descent goes on within what is left of the budget.
+        let q = self.solver.state().to_vec();
+        let sol = self.solver.solve(Some(&q))?;
+        let st = State {
+            e: goal.error(&sol),
+            x,
+            sol,
+        };
+        if !st.usable() || !goal.reached(&st.e) {
+            return Ok(Coupled::Fallback);
+        }
+        self.q = Some(st.sol.quaternions.clone());
+        Ok(Coupled::Creeping(st))
     }
 
     /// The equilibrium at a starting actuation (brought within range), or
@@ -787,8 +853,10 @@ impl InverseSolver {
         let mut near = std::mem::take(&mut self.start_on_path);
         // The last full step of the slide toward the reference (see SLIDE_ALIGNED).
         let mut last_slide: Option<DVector<f64>> = None;
-        // Its ratio, once two full steps agreed: what a step leaves to go.
+        // Its ratio, once two full steps agreed: what a step leaves to go;
+        // the ratio of the last two full steps, agreeing or not.
         let mut rate: Option<f64> = None;
+        let mut last_ratio: Option<f64> = None;
         let ended = loop {
             if self.iterations >= end {
                 break PhaseEnd::Budget;
@@ -834,10 +902,15 @@ impl InverseSolver {
                     away = false;
                 }
                 // Two aligned full steps in a row: the rest of their series.
-                let series = last_slide.take().and_then(|last| {
+                let previous = last_slide.take();
+                if previous.is_none() {
+                    last_ratio = None;
+                }
+                let series = previous.and_then(|last| {
                     let ratio = norm / last.norm();
+                    let known = series_ratio(ratio, last_ratio.replace(ratio));
                     let aligned = last.dot(&step) >= SLIDE_ALIGNED * last.norm() * norm;
-                    (aligned && ratio < SLIDE_RATIO).then(|| {
+                    (aligned && known).then(|| {
                         rate = Some(ratio);
                         &step / (1.0 - ratio)
                     })

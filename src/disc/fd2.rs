@@ -505,12 +505,32 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
 /// `dg` along tangents of the elastic law or of curvature densities (a
 /// section's rest curvature, a tension), one column of `n` each: the
 /// moment's derivative on the elements each moves, `dK (omega - omega0) -
-/// K domega0 + dW/domega`, the rest of the assembly skipped. Each element's
-/// relative rotation is formed once for all the columns (a drive's nine
-/// tensions share every element).
+/// K domega0 + dW/domega`, the rest of the assembly skipped. Where the
+/// columns overlap (a drive's tensions share most elements) each element's
+/// relative rotation is formed once for all of them; where they lie apart
+/// (the sections' curvatures) each column walks its own elements. The same
+/// numbers either way.
 fn moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vector3<f64>]) {
     let n = rod.n();
     dg.iter_mut().for_each(|x| *x = Vector3::zeros());
+    let support = |t: &Loading| t.support.unwrap_or((1, n));
+    let walked: usize = tangents
+        .iter()
+        .map(|t| 1 + support(t).1 - support(t).0)
+        .sum();
+    if walked <= 2 * n {
+        for (tangent, column) in tangents.iter().zip(dg.chunks_exact_mut(n)) {
+            add_moment_columns(rod, q, std::slice::from_ref(tangent), column);
+        }
+    } else {
+        add_moment_columns(rod, q, tangents, dg);
+    }
+}
+
+/// [`moment_columns`] added to `dg`, element after element over the
+/// tangents' supports.
+fn add_moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vector3<f64>]) {
+    let n = rod.n();
     let entry = Source::<true>::entry;
     let supports = tangents.iter().map(|t| t.support.unwrap_or((1, n)));
     let first = supports.clone().map(|s| s.0).min().unwrap_or(1);

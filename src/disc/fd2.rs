@@ -560,16 +560,12 @@ fn add_moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vec
                     })
                 })
                 .flatten();
-            let density = tangent
-                .densities
-                .iter()
-                .any(|d| d.acts_on(i))
-                .then(|| tangent.density_moment(i, middle, &omega, 1.0));
+            // None where no density acts on the element (a tendon short of it).
+            let density = tangent.density_moment(i, middle, &omega, 1.0);
             let moment = match (elastic, density) {
                 (None, None) => continue,
-                (Some(m), None | Some(None)) | (None, Some(Some(m))) => m,
-                (None, Some(None)) => Vector3::zeros(),
-                (Some(e), Some(Some(m))) => e + m,
+                (Some(m), None) | (None, Some(m)) => m,
+                (Some(e), Some(m)) => e + m,
             };
             column[i - 1] += amat.transpose() * moment;
             if i >= 2 {

@@ -47,9 +47,6 @@ pub(crate) struct Bounds {
     groups: Vec<Group>,
 }
 
-/// A constraint: row `r` of block `s` of group `g`.
-type Row = (usize, usize, usize);
-
 /// A bounded step and how many constraints hold it back.
 pub(crate) struct BoundedStep {
     pub step: DVector<f64>,
@@ -123,33 +120,19 @@ impl Bounds {
         })
     }
 
-    fn row(&self, g: usize, r: usize) -> &[f64] {
-        let group = &self.groups[g];
-        &group.rows[r * group.block..(r + 1) * group.block]
-    }
-
-    /// `a_r . x_s` for row `row` whose block starts at coordinate `at`.
-    fn dot_at(&self, row: Row, at: usize, v: &DVector<f64>) -> f64 {
-        self.row(row.0, row.2)
-            .iter()
-            .zip(&v.as_slice()[at..])
-            .map(|(a, x)| a * x)
-            .sum()
-    }
-
-    fn slack_at(&self, row: Row, at: usize, x: &DVector<f64>) -> f64 {
-        (self.groups[row.0].limits[row.2] - self.dot_at(row, at, x)).max(0.0)
-    }
-
-    /// `f(row, first)` for every row for `len` coordinates, with its
-    /// block's first coordinate (no allocation: the step walks them often).
-    fn for_each_row(&self, len: usize, mut f: impl FnMut(Row, usize)) {
+    /// Every row for `len` coordinates, group after group, block after
+    /// block, into `out`.
+    fn push_limits<'a>(&'a self, len: usize, out: &mut Vec<Limit<'a>>) {
         let mut first = 0;
         for (g, group) in self.groups.iter().enumerate() {
             let count = self.count(g, len);
             for s in 0..count {
-                for r in 0..group.limits.len() {
-                    f((g, s, r), first + s * group.block);
+                for (r, &b) in group.limits.iter().enumerate() {
+                    out.push(Limit {
+                        at: first + s * group.block,
+                        a: &group.rows[r * group.block..(r + 1) * group.block],
+                        b,
+                    });
                 }
             }
             first += count * group.block;
@@ -179,18 +162,15 @@ impl Bounds {
         let g = (j * j.transpose() + DMatrix::identity(rows, rows) * c).cholesky()?;
         // The unconstrained minimiser, in the form that stays exact as c -> 0.
         let free = r + j.tr_mul(&g.solve(&(e - j * r)));
-        let mut count = 0;
-        self.for_each_row(x.len(), |_, _| count += 1);
+        let len = x.len();
+        let count = (0..self.groups.len())
+            .map(|g| self.count(g, len) * self.groups[g].limits.len())
+            .sum();
         let mut limits = Vec::with_capacity(count);
-        self.for_each_row(x.len(), |row, at| {
-            limits.push(Limit {
-                at,
-                a: self.row(row.0, row.2),
-                room: self.slack_at(row, at, x),
-            })
-        });
+        self.push_limits(len, &mut limits);
         let mut qp = ActiveSet {
-            h_rows: vec![None; limits.len()],
+            start: x,
+            h_rows: Vec::new(),
             limits,
             tiny_scale: self.widest(),
             free,
@@ -198,19 +178,19 @@ impl Bounds {
             j,
             h_inv: None,
             work: Vec::new(),
-            x: DVector::zeros(r.len()),
+            x: DVector::zeros(len),
         };
         Some(qp.solve())
     }
 }
 
-/// A row of the range as one step sees it, `a . x[at..] <= b`, and the room
-/// `b - a . x` it leaves at the step's start (formed once a step: the
-/// active-set rounds walk the rows often).
+/// A row of the range as one step sees it, `a . x[at..] <= b` (formed once
+/// a step: the active-set rounds walk the rows often).
+#[derive(Clone, Copy)]
 struct Limit<'a> {
     at: usize,
     a: &'a [f64],
-    room: f64,
+    b: f64,
 }
 
 impl Limit<'_> {
@@ -221,10 +201,17 @@ impl Limit<'_> {
             .map(|(a, x)| a * x)
             .sum()
     }
+
+    /// The room it leaves at `x` (never negative: `x` is within range).
+    fn room(&self, x: &DVector<f64>) -> f64 {
+        (self.b - self.dot(x)).max(0.0)
+    }
 }
 
 /// The primal active-set method on one step (see the module docs).
 struct ActiveSet<'a> {
+    /// Where the step starts (within range).
+    start: &'a DVector<f64>,
     limits: Vec<Limit<'a>>,
     /// The widest row's norm: the scale of a rate at rounding level.
     tiny_scale: f64,
@@ -236,7 +223,7 @@ struct ActiveSet<'a> {
     j: &'a DMatrix<f64>,
     h_inv: Option<DMatrix<f64>>,
     /// `H^{-1} a_r` of the rows the working set has held, each computed once.
-    h_rows: Vec<Option<DVector<f64>>>,
+    h_rows: Vec<(usize, DVector<f64>)>,
     /// Working set: the rows (indices of `limits`) held with equality.
     work: Vec<usize>,
     /// Current (feasible) point.
@@ -332,7 +319,7 @@ impl ActiveSet<'_> {
         (0..self.limits.len())
             .filter(|&k| {
                 let limit = &self.limits[k];
-                limit.room <= tiny && limit.dot(&self.free) > tiny
+                limit.room(self.start) <= tiny && limit.dot(&self.free) > tiny
             })
             .collect()
     }
@@ -353,7 +340,7 @@ impl ActiveSet<'_> {
         let len = self.free.len();
         let w = self.work.len();
         for &row in &self.work {
-            if self.h_rows[row].is_none() {
+            if !self.h_rows.iter().any(|(held, _)| *held == row) {
                 let (j, g) = (self.j, self.g);
                 let h_inv = self.h_inv.get_or_insert_with(|| {
                     let mut h = -j.tr_mul(&g.solve(j));
@@ -367,18 +354,23 @@ impl ActiveSet<'_> {
                 for (c, a) in limit.a.iter().enumerate() {
                     column.axpy(*a, &h_inv.column(limit.at + c), 1.0);
                 }
-                self.h_rows[row] = Some(column);
+                self.h_rows.push((row, column));
             }
         }
         let h_a: Vec<&DVector<f64>> = self
             .work
             .iter()
-            .filter_map(|row| self.h_rows[*row].as_ref())
+            .filter_map(|row| {
+                self.h_rows
+                    .iter()
+                    .find(|(held, _)| held == row)
+                    .map(|(_, c)| c)
+            })
             .collect();
         let m = DMatrix::from_fn(w, w, |i, k| self.limits[self.work[i]].dot(h_a[k]));
         let rhs = DVector::from_fn(w, |i, _| {
             let limit = &self.limits[self.work[i]];
-            limit.room - limit.dot(&self.free)
+            limit.room(self.start) - limit.dot(&self.free)
         });
         let nu = m.lu().solve(&rhs)?;
         let mut target = self.free.clone();
@@ -388,30 +380,45 @@ impl ActiveSet<'_> {
         Some((target, nu))
     }
 
-    /// Longest move from `from` along `d` (at most 1) that stays within range,
-    /// and the row that stops it (working rows skipped if `skip_work`).
+    /// [`ratio_test`] over the rows, the working ones skipped if `skip_work`.
     fn ratio_test(
         &self,
         from: &DVector<f64>,
         d: &DVector<f64>,
         skip_work: bool,
     ) -> (f64, Option<usize>) {
-        // Rates at rounding level would add rows dependent on the working set.
-        let tiny = 1e-12 * d.norm() * self.tiny_scale;
-        let mut best = (1.0, None);
-        for (k, limit) in self.limits.iter().enumerate() {
-            let rate = limit.dot(d);
-            if rate <= tiny || (skip_work && self.work.contains(&k)) {
-                continue;
-            }
-            let room = limit.room - limit.dot(from);
-            let t = room.max(0.0) / rate;
-            if t < best.0 {
-                best = (t, Some(k));
-            }
-        }
-        best
+        let held: &[usize] = if skip_work { &self.work } else { &[] };
+        let limits = self.limits.iter().copied();
+        ratio_test(limits, self.start, from, d, self.tiny_scale, held)
     }
+}
+
+/// Longest move from `from` along `d` (at most 1) that stays within range
+/// of the step from `start`, and the row (its index in `limits`) that stops
+/// it; the rows `held` skipped.
+fn ratio_test<'a>(
+    limits: impl Iterator<Item = Limit<'a>>,
+    start: &DVector<f64>,
+    from: &DVector<f64>,
+    d: &DVector<f64>,
+    tiny_scale: f64,
+    held: &[usize],
+) -> (f64, Option<usize>) {
+    // Rates at rounding level would add rows dependent on the working set.
+    let tiny = 1e-12 * d.norm() * tiny_scale;
+    let mut best = (1.0, None);
+    for (k, limit) in limits.enumerate() {
+        let rate = limit.dot(d);
+        if rate <= tiny || held.contains(&k) {
+            continue;
+        }
+        let room = limit.room(start) - limit.dot(from);
+        let t = room.max(0.0) / rate;
+        if t < best.0 {
+            best = (t, Some(k));
+        }
+    }
+    best
 }
 
 #[cfg(test)]

@@ -452,7 +452,16 @@ impl InverseSolver {
                 self.retry(&goal, first, max_iterations)?
             };
         let ending = self.settle(&goal, &mut best, max_iterations)?;
+        // On target when the budget ran out: the slide toward the reference
+        // was still moving, so the drive is not yet the one closest to it.
+        let unsettled = ending == IkEnding::Reached && best.phase == PhaseEnd::Budget;
         let mut result = self.conclude(&goal, best.state, ending, starts);
+        if unsettled {
+            result.message.push_str(&format!(
+                "; not yet the choice closest to the reference: still moving toward it when \
+                 max_iterations ({max_iterations}) ran out"
+            ));
+        }
         result.seconds = started.elapsed().as_secs_f64();
         Ok(result)
     }
@@ -598,8 +607,12 @@ impl InverseSolver {
                 phase = self.min_norm(goal, &mut st, pull, end)?;
             }
         }
-        if pull == Pull::Free && goal.reached(&st.e) {
-            self.polish(goal, &mut st, end)?;
+        if pull == Pull::Free
+            && goal.reached(&st.e)
+            && self.polish(goal, &mut st, end)? == PhaseEnd::Budget
+        {
+            // Its slide toward the reference ran out of iterations.
+            phase = PhaseEnd::Budget;
         }
         Ok(Attempt { state: st, phase })
     }
@@ -826,7 +839,7 @@ impl InverseSolver {
         self.restore(&best.state)?;
         best.phase = self.closest_tip(goal, &mut best.state, end)?;
         if goal.reached(&best.state.e) {
-            self.polish(goal, &mut best.state, end)?;
+            best.phase = self.polish(goal, &mut best.state, end)?;
             return Ok(IkEnding::Reached);
         }
         self.classify(goal, &mut best.state, best.phase)
@@ -1303,7 +1316,7 @@ impl InverseSolver {
         }
         st.e = goal.error(&st.sol);
         if goal.reached(&st.e) {
-            self.polish(goal, &mut st, end)?;
+            phase = self.polish(goal, &mut st, end)?;
         }
         Ok(Attempt { state: st, phase })
     }
@@ -1311,7 +1324,7 @@ impl InverseSolver {
     /// A restart reached the target away from the reference: slide along the
     /// solution set toward it (the tip may stray by `POLISH_SLACK` L on the
     /// way), then settle the tip again; keep the reached state if that fails.
-    fn polish(&mut self, goal: &Goal, st: &mut State, end: usize) -> Result<()> {
+    fn polish(&mut self, goal: &Goal, st: &mut State, end: usize) -> Result<PhaseEnd> {
         let reached = st.clone();
         let slack = POLISH_SLACK * goal.length;
         let distance = |x: &DVector<f64>| (&goal.reference - x).norm();
@@ -1338,12 +1351,12 @@ impl InverseSolver {
                 break;
             }
         }
-        self.min_norm(goal, st, Pull::Reference, end)?;
+        let phase = self.min_norm(goal, st, Pull::Reference, end)?;
         if !goal.reached(&st.e) {
             *st = reached;
             self.restore(st)?;
         }
-        Ok(())
+        Ok(phase)
     }
 
     /// The answer, its state kept as the warm start of the next solve.

@@ -23,6 +23,7 @@
 
 use super::Muscles;
 use nalgebra::{DMatrix, DVector};
+use std::ops::ControlFlow;
 
 /// Rounds of the active-set method before it settles for its current
 /// (feasible, improved) point.
@@ -120,19 +121,22 @@ impl Bounds {
         })
     }
 
-    /// Every row for `len` coordinates, group after group, block after
-    /// block, into `out`.
-    fn push_limits<'a>(&'a self, len: usize, out: &mut Vec<Limit<'a>>) {
+    /// `f` of every row for `len` coordinates, group after group, block
+    /// after block, until it breaks (no allocation: a step walks them often).
+    fn each_limit<'a>(&'a self, len: usize, mut f: impl FnMut(Limit<'a>) -> ControlFlow<()>) {
         let mut first = 0;
         for (g, group) in self.groups.iter().enumerate() {
             let count = self.count(g, len);
             for s in 0..count {
                 for (r, &b) in group.limits.iter().enumerate() {
-                    out.push(Limit {
+                    let limit = Limit {
                         at: first + s * group.block,
                         a: &group.rows[r * group.block..(r + 1) * group.block],
                         b,
-                    });
+                    };
+                    if f(limit).is_break() {
+                        return;
+                    }
                 }
             }
             first += count * group.block;
@@ -162,17 +166,38 @@ impl Bounds {
         let g = (j * j.transpose() + DMatrix::identity(rows, rows) * c).cholesky()?;
         // The unconstrained minimiser, in the form that stays exact as c -> 0.
         let free = r + j.tr_mul(&g.solve(&(e - j * r)));
-        let len = x.len();
+        // The free step, where it stays within range, is the answer: one
+        // pass over the rows (the muscles' 60, mostly), no table.
+        let (len, tiny_scale) = (x.len(), self.widest());
+        let tiny = 1e-12 * free.norm() * tiny_scale;
+        let mut within = true;
+        self.each_limit(len, |limit| {
+            let rate = limit.dot(&free);
+            if rate > tiny && limit.room(x) / rate < 1.0 {
+                within = false;
+                return ControlFlow::Break(());
+            }
+            ControlFlow::Continue(())
+        });
+        if within {
+            return Some(BoundedStep {
+                step: free,
+                blocking: 0,
+            });
+        }
         let count = (0..self.groups.len())
             .map(|g| self.count(g, len) * self.groups[g].limits.len())
             .sum();
         let mut limits = Vec::with_capacity(count);
-        self.push_limits(len, &mut limits);
+        self.each_limit(len, |limit| {
+            limits.push(limit);
+            ControlFlow::Continue(())
+        });
         let mut qp = ActiveSet {
             start: x,
             h_rows: Vec::new(),
             limits,
-            tiny_scale: self.widest(),
+            tiny_scale,
             free,
             g: &g,
             j,
@@ -232,18 +257,11 @@ struct ActiveSet<'a> {
 
 impl ActiveSet<'_> {
     fn solve(&mut self) -> BoundedStep {
-        // The free step, where it stays within range, is the answer (one
-        // pass over the rows). Else the search starts at `d = 0` holding the
-        // rows `x` is on that the free step would cross: the bounds the last
-        // step ended on, usually the ones this step ends on (a tendon slack
-        // at zero), each otherwise dropped in one round.
-        let (alpha, blocking) = self.ratio_test(&self.x, &self.free, false);
-        if blocking.is_none() && alpha >= 1.0 {
-            return BoundedStep {
-                step: std::mem::replace(&mut self.free, DVector::zeros(0)),
-                blocking: 0,
-            };
-        }
+        // The free step crosses a row (see `Bounds::step`): the search starts
+        // at `d = 0` holding the rows `x` is on that the free step would
+        // cross: the bounds the last step ended on, usually the ones this
+        // step ends on (a tendon slack at zero), each otherwise dropped in
+        // one round.
         self.work = self.rows_held_at_start();
         for _ in 0..MAX_ROUNDS {
             let Some((target, nu)) = self.equality_minimiser() else {

@@ -513,10 +513,9 @@ impl<'a, const TANGENT: bool> Source<'a, TANGENT> {
 fn moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vector3<f64>]) {
     let n = rod.n();
     dg.iter_mut().for_each(|x| *x = Vector3::zeros());
-    let support = |t: &Loading| t.support.unwrap_or((1, n));
     let walked: usize = tangents
         .iter()
-        .map(|t| 1 + support(t).1 - support(t).0)
+        .map(|t| 1 + t.elements(n).1 - t.elements(n).0)
         .sum();
     if walked <= 2 * n {
         for (tangent, column) in tangents.iter().zip(dg.chunks_exact_mut(n)) {
@@ -532,7 +531,7 @@ fn moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vector3
 fn add_moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vector3<f64>]) {
     let n = rod.n();
     let entry = Source::<true>::entry;
-    let supports = tangents.iter().map(|t| t.support.unwrap_or((1, n)));
+    let supports = tangents.iter().map(|t| t.elements(n));
     let first = supports.clone().map(|s| s.0).min().unwrap_or(1);
     let last = supports.map(|s| s.1).max().unwrap_or(0);
     for i in first..=last {
@@ -542,7 +541,7 @@ fn add_moment_columns(rod: &Rod, q: &[Quat], tangents: &[Loading], dg: &mut [Vec
         let middle = 0.5 * (rod.arc(i - 1) + rod.arc(i));
         let amat = Matrix3::identity() * c.w + skew(&c.v);
         for (tangent, column) in tangents.iter().zip(dg.chunks_exact_mut(n)) {
-            let (lo, hi) = tangent.support.unwrap_or((1, n));
+            let (lo, hi) = tangent.elements(n);
             if i < lo || i > hi {
                 continue;
             }

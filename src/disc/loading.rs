@@ -211,6 +211,9 @@ impl Loading {
         }
     }
 
+    // The three sums are written out: one generic over the part asked for
+    // cost the tendon robot's IK 2 to 4 % of its instructions (measured).
+
     /// The curvature densities' values alone ([`Loading::density`]'s first).
     #[inline(always)]
     pub fn density_value(&self, i: usize, s: f64, omega: &Vector3<f64>, scale: f64) -> Option<f64> {
@@ -241,6 +244,13 @@ impl Loading {
                 .filter_map(|d| d.moment(i, s, omega, scale))
                 .reduce(|a, b| a + b),
         }
+    }
+
+    /// The elements `(first, last)` (from 1, both included) outside of which
+    /// it is zero on a rod of `n`: its `support`, else all of them.
+    #[inline(always)]
+    pub fn elements(&self, n: usize) -> (usize, usize) {
+        self.support.unwrap_or((1, n))
     }
 
     /// Whether it holds nothing at all (a tangent before a term's part).

@@ -52,9 +52,9 @@ def test_the_default_method_meets_the_tolerance_by_shooting_with_an_honest_estim
                                 residual_tol=1e-13, check=True)
     assert np.linalg.norm(reference.tip_position - exact) < 1e-8  # the table's digits
     sol = softspine.solve(cantilever(10.0), tol=tol, check=True)
-    assert sol.scheme == "rk4" and 640 % sol.n_elements == 0
+    assert sol.scheme == "rk4"
     assert np.linalg.norm(sol.tip_position - exact) <= tol
-    backbone = np.linalg.norm(sol.positions - reference.positions[::640 // sol.n_elements],
+    backbone = np.linalg.norm(sol.positions - reference.positions_at(sol.arc_length),
                               axis=1).max()
     assert sol.error_estimate == pytest.approx(backbone, rel=0.1)
 
@@ -239,14 +239,18 @@ def test_a_shot_returned_by_accuracy_on_demand_carries_its_own_estimate(scene):
     assert sol.error_estimate == pytest.approx(backbone, rel=0.03)
 
 
-@pytest.mark.parametrize(("max_elements", "n", "met"), [(100, 72, True), (64, 64, True),
+@pytest.mark.parametrize(("max_elements", "n", "met"), [(100, 100, True), (64, 64, True),
                                                       (40, 40, False)])
 def test_a_shot_at_the_element_limit_is_estimated_by_its_pair(max_elements, n, met):
     # Where no finer shot fits within max_elements, the solve at the limit
     # is estimated from the pair of solves (it came back without an estimate
     # and "tolerance not met" though it met tol: a review's finding). The
-    # pair's coarser solve is the first shot, n = 4, an element turning by
-    # 0.82 rad: the pair's estimate is then a third over the true error.
+    # prior asks for n = 72 at 1e-8; the first shot is at most half the
+    # limit (its own estimate's finer shot must fit), and the pair is it
+    # and the limit (max_elements = 100: 50 and 100), elements turning by
+    # at most 0.09 to 0.21 rad, where the pair's estimate is within 1 % (measured
+    # -0.1 % to +0.8 %; from a first shot at n = 4, turning by 0.82 rad,
+    # it was a third over).
     reference = softspine.solve(cantilever(10.0), scheme="fe4", n_elements=2560,
                                 residual_tol=1e-13)
     sol = softspine.solve(cantilever(10.0),
@@ -254,7 +258,7 @@ def test_a_shot_at_the_element_limit_is_estimated_by_its_pair(max_elements, n, m
     assert sol.scheme == "rk4" and sol.n_elements == n
     backbone = np.linalg.norm(sol.positions - reference.positions_at(sol.arc_length),
                               axis=1).max()
-    assert backbone <= sol.error_estimate <= 1.4 * backbone
+    assert sol.error_estimate == pytest.approx(backbone, rel=0.02)
     assert sol.converged == met and (backbone <= 1e-8) == met
     if not met:
         assert sol.status == "tolerance_not_met" and "reached the limit" in sol.message

@@ -187,10 +187,7 @@ pub fn starting_elements_of_order(scene: &Scene, requested: usize, order: i32) -
 
 /// [`starting_elements`] with elements turning by at most `turn` [rad] at rest.
 fn starting_elements_within(scene: &Scene, requested: usize, turn: f64) -> usize {
-    // A count no located input allows is refused by the solve's own check.
-    let m = scene
-        .node_multiple(MAX_ELEMENTS)
-        .unwrap_or_else(|_| scene.sections());
+    let m = node_step(scene);
     let rest_turn = scene
         .rest_curvature
         .iter()
@@ -199,6 +196,15 @@ fn starting_elements_within(scene: &Scene, requested: usize, turn: f64) -> usize
         * scene.length;
     let resolving = (rest_turn / turn).ceil().min(MAX_ELEMENTS as f64) as usize;
     requested.max(resolving).max(1).div_ceil(m) * m
+}
+
+/// What every n of accuracy on demand is a multiple of: the count that
+/// puts every located input on a node ([`Scene::node_multiple`]).
+fn node_step(scene: &Scene) -> usize {
+    // A count no located input allows is refused by the solve's own check.
+    scene
+        .node_multiple(MAX_ELEMENTS)
+        .unwrap_or_else(|_| scene.sections())
 }
 
 /// Solve `scene` to an accuracy of `accuracy.tol * L` over the whole
@@ -313,14 +319,40 @@ fn refine_with(
     };
     let turn = asymptotic_turn(order);
     let n0 = starting_elements_within(scene, requested, turn);
+    let shooting = settings.method.engine() == Engine::Shooting;
+    // By shooting, the first pass is at the n its prior predicts, started
+    // from a probe at n0 where that is finer (see `shot_prior_elements`),
+    // and no finer than leaves room for its own estimate's finer shot.
+    let n_first = match shooting {
+        true => {
+            let prior = shot_prior_elements(scene, n0, accuracy.tol);
+            let step = node_step(scene);
+            let room = accuracy.max_elements / 2 / step * step;
+            starting_elements_within(scene, requested.max(prior), turn)
+                .min(room)
+                .max(n0)
+        }
+        false => n0,
+    };
     let first = Settings {
-        n_elements: Some(n0),
+        n_elements: Some(n_first),
         ..settings.clone()
     };
     let (long, first_scene) = (first.has_long_passes(), scene.clone());
     let (trivial, (mut base, mut base_shot)) = crate::interrupt::on_worker_if(long, move || {
         let mut solver = Solver::new(&first_scene, first)?;
-        let base = solver.solve(None)?;
+        let mut probed = 0;
+        if n_first > n0 {
+            let model = RodModel::new(&first_scene, n0);
+            let limits = shooting::Limits {
+                tol: model.effective_tol(solver.settings.residual_tol),
+                max_iterations: solver.settings.max_iterations,
+                min_continuation_step: solver.settings.min_continuation_step,
+            };
+            (solver.warm_shot, probed) = shooting::probe(&model, &first_scene, limits);
+        }
+        let mut base = solver.solve(None)?;
+        base.iterations += probed;
         Ok((solver.model().is_trivial(), (base, solver.last_shot)))
     })?;
     if !keep_going(&base) {
@@ -349,7 +381,6 @@ fn refine_with(
     // A shot's own error is estimated from a finer shot alone (see
     // `finer_shot_at`), trusted up to a larger element turn than the finer
     // pass's estimate.
-    let shooting = settings.method.engine() == Engine::Shooting;
     let own_turn = if shooting {
         SHOT_OWN_ESTIMATE_TURN
     } else {
@@ -496,6 +527,37 @@ fn refine_with(
         }
         k = next;
     }
+}
+
+/// The prior of a shot's error: RK4 at `n` elements misses the rod's nodes
+/// by about `C L (omega L / n)^4`, `omega` the scene's turning rate
+/// ([`crate::terms::Terms::turning_rate`], a force weighing
+/// [`SHOT_FORCE_WEIGHT`]). Measured `C` (the largest node error over `L`,
+/// times `(n / (omega L))^4`, n = 4 to 32): free cantilevers alpha = 0.3 to
+/// 30 in and out of plane 0.8e-3 to 1.1e-3, tip moments and precurved or
+/// coiled rods 0.6e-3 to 1.0e-3, gravity 0.9e-3; combined, a precurved rod
+/// under a tip force 0.4e-3, the race's precurved ten sections under
+/// gravity 1.1e-3, the same under a tip force 4.5e-3.
+const SHOT_ERROR_CONSTANT: f64 = 1e-3;
+
+/// The weight of a force in the turning rate of [`SHOT_ERROR_CONSTANT`].
+const SHOT_FORCE_WEIGHT: f64 = 1.4;
+
+/// The margin of the prior: it aims at the tolerance over this factor.
+const SHOT_PRIOR_MARGIN: f64 = 1.3;
+
+/// The n whose shot the prior of [`SHOT_ERROR_CONSTANT`] expects to meet
+/// `tol` (relative to the length) with its margin, before any solve:
+/// where it is finer than the probe's `n0`, the first pass is at this n.
+/// Its first solve starts from the probe's wrench and Jacobian (a shot at
+/// `n0`, a fraction of the cost of a Jacobian at this n), and its own
+/// estimate decides as for any shot; a prior that falls short costs a
+/// finer pass, as a first pass at `n0` always did.
+fn shot_prior_elements(scene: &Scene, n0: usize, tol: f64) -> usize {
+    let terms = crate::terms::Terms::new(scene, &scene.mesh(n0));
+    let turns = terms.turning_rate(scene.length, SHOT_FORCE_WEIGHT) * scene.length;
+    let n = turns * (SHOT_PRIOR_MARGIN * SHOT_ERROR_CONSTANT / tol).powf(0.25);
+    n.ceil().min(MAX_ELEMENTS as f64) as usize
 }
 
 /// Largest element turn [rad] at which a shot's own error is estimated from

@@ -5,7 +5,7 @@
 //! rod's `E`, `G` and diameter, the rod's or a section's) and the rest
 //! curvature of each section.
 
-use super::{section_of, split_index, PerSection, Term};
+use super::{section_of, split_index, BendingLoads, PerSection, Term};
 use crate::disc::Loading;
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -114,6 +114,11 @@ impl Term for Elastic {
 
     fn moment_scale(&self, _length: f64) -> f64 {
         0.0
+    }
+
+    fn bending_loads(&self, _length: f64) -> BendingLoads {
+        // The rest curvature's turning is counted apart, as the rest turn.
+        BendingLoads::default()
     }
 
     fn vanishes(&self) -> bool {

@@ -5,7 +5,7 @@
 //! `-F(s) . T(s)` per length with `F(s)` the sum of the forces beyond `s`:
 //! a term of the internal force in the loading.
 
-use super::{component, split_index, unit, PerSection, Term};
+use super::{component, split_index, unit, BendingLoads, PerSection, Term};
 use crate::disc::Loading;
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -119,6 +119,19 @@ impl Term for DeadForces {
                 .zip(&self.point_arcs)
                 .map(|((_, p), s)| p.norm() * s)
                 .sum::<f64>()
+    }
+
+    fn bending_loads(&self, length: f64) -> BendingLoads {
+        let largest = self
+            .distributed
+            .values()
+            .iter()
+            .map(|f| f.norm())
+            .fold(0.0, f64::max);
+        BendingLoads {
+            force: length * largest + self.points.iter().map(|(_, p)| p.norm()).sum::<f64>(),
+            moment: 0.0,
+        }
     }
 
     fn vanishes(&self) -> bool {

@@ -5,7 +5,7 @@
 //! potentials in the loading. Its parameters are the field, the
 //! magnetisation and the tip magnet.
 
-use super::{component, split_index, unit, PerSection, Term};
+use super::{component, split_index, unit, BendingLoads, PerSection, Term};
 use crate::disc::{BodyLoad, Loading, NodePair};
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -80,6 +80,13 @@ impl Term for Magnets {
             .map(|m| m.norm())
             .fold(0.0, f64::max);
         self.field.norm() * (self.tip_magnet.norm() + length * largest)
+    }
+
+    fn bending_loads(&self, length: f64) -> BendingLoads {
+        BendingLoads {
+            force: 0.0,
+            moment: self.moment_scale(length),
+        }
     }
 
     fn vanishes(&self) -> bool {

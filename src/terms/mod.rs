@@ -51,6 +51,11 @@ pub trait Term: std::fmt::Debug + Send + Sync {
     /// load parameter (the curvature scale that sets the round-off floor).
     fn moment_scale(&self, length: f64) -> f64;
 
+    /// The largest resultant force and moment it can put on the rod: the
+    /// scales of how fast the loaded rod turns, from which accuracy on demand
+    /// draws its first n (`solver::adaptive`).
+    fn bending_loads(&self, length: f64) -> BendingLoads;
+
     /// Whether it puts nothing on the rod (the rest shape is then its equilibrium).
     fn vanishes(&self) -> bool;
 
@@ -64,6 +69,27 @@ pub trait Term: std::fmt::Debug + Send + Sync {
     /// across, to `out`.
     fn breaks(&self, mesh: &Mesh, out: &mut Vec<usize>) {
         let _ = (mesh, out);
+    }
+}
+
+/// The largest resultant force [N] and moment [N m] a term can put on the
+/// rod. A force `F` bends the rod over the length `sqrt(EI / F)` (the
+/// elastica's), a moment `M` at the curvature `M / EI`: the two turn the
+/// rod at different rates, so they are kept apart (the load parameter of
+/// the round-off floor sums them as moments).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BendingLoads {
+    pub force: f64,
+    pub moment: f64,
+}
+
+impl std::ops::Add for BendingLoads {
+    type Output = BendingLoads;
+    fn add(self, other: BendingLoads) -> BendingLoads {
+        BendingLoads {
+            force: self.force + other.force,
+            moment: self.moment + other.moment,
+        }
     }
 }
 
@@ -126,6 +152,39 @@ impl Terms {
     /// turning is counted apart, as the rest turn).
     pub fn moment_scale(&self, length: f64) -> f64 {
         self.all().iter().map(|t| t.moment_scale(length)).sum()
+    }
+
+    /// Their largest force and moment, summed (see [`BendingLoads`]).
+    pub fn bending_loads(&self, length: f64) -> BendingLoads {
+        self.all()
+            .iter()
+            .map(|t| t.bending_loads(length))
+            .fold(BendingLoads::default(), |a, b| a + b)
+    }
+
+    /// How fast the loaded rod can turn [1/m], from its rest curvature and
+    /// the loads' largest force and moment over the softest bending
+    /// stiffness (see [`BendingLoads`]): `omega^2 = kappa0^2 + w F / EI +
+    /// (M / EI)^2`, a force weighing `w` = `force_weight`. The scale of a
+    /// scheme's error (`solver::adaptive`).
+    pub fn turning_rate(&self, length: f64, force_weight: f64) -> f64 {
+        let bending = self
+            .elastic
+            .stiffness
+            .values()
+            .iter()
+            .map(|k| k.x.min(k.y))
+            .fold(f64::INFINITY, f64::min);
+        let rest = self
+            .elastic
+            .rest_curvature
+            .values()
+            .iter()
+            .map(|k| k.norm())
+            .fold(0.0, f64::max);
+        let loads = self.bending_loads(length);
+        let moment = loads.moment / bending;
+        (rest * rest + force_weight * loads.force / bending + moment * moment).sqrt()
     }
 
     /// Whether nothing but the elastic law acts.

@@ -6,7 +6,7 @@
 //! stability of an equilibrium is judged on its symmetric part (as for any
 //! dead moment: a sufficient condition, see `stable`).
 
-use super::{component, split_index, unit, PerSection, Term};
+use super::{component, split_index, unit, BendingLoads, PerSection, Term};
 use crate::disc::{Loading, NodeMoment};
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -90,6 +90,13 @@ impl Term for Moments {
             .map(|(m, _)| m.norm())
             .fold(0.0, f64::max);
         self.tip.norm() + self.points.iter().map(|(_, m)| m.norm()).sum::<f64>() + length * largest
+    }
+
+    fn bending_loads(&self, length: f64) -> BendingLoads {
+        BendingLoads {
+            force: 0.0,
+            moment: self.moment_scale(length),
+        }
     }
 
     fn vanishes(&self) -> bool {

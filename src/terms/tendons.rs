@@ -9,7 +9,7 @@
 //! system stays banded and `stable` keeps its meaning; the anchor's force and
 //! moment come out of the tendon ending at a node.
 
-use super::{indexed, split_index, Term};
+use super::{indexed, split_index, BendingLoads, Term};
 use crate::disc::{CurvatureDensity, Loading};
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -272,6 +272,13 @@ impl Term for Tendons {
             .iter()
             .map(|t| t.tension * t.largest_offset())
             .sum()
+    }
+
+    fn bending_loads(&self, length: f64) -> BendingLoads {
+        BendingLoads {
+            force: 0.0,
+            moment: self.moment_scale(length),
+        }
     }
 
     fn vanishes(&self) -> bool {

@@ -4,7 +4,7 @@
 //! internal force) plus the body-vector potential `-P . R(q_n) c` at the tip
 //! node, whose moment turns with the tip.
 
-use super::{component, unit, Term};
+use super::{component, unit, BendingLoads, Term};
 use crate::disc::{Loading, NodePair};
 use crate::error::Result;
 use crate::mesh::Mesh;
@@ -59,6 +59,13 @@ impl Term for TipForce {
 
     fn moment_scale(&self, length: f64) -> f64 {
         self.force.norm() * (length + self.offset.norm())
+    }
+
+    fn bending_loads(&self, _length: f64) -> BendingLoads {
+        BendingLoads {
+            force: self.force.norm(),
+            moment: self.force.norm() * self.offset.norm(),
+        }
     }
 
     fn vanishes(&self) -> bool {

@@ -1022,18 +1022,27 @@ fn held_tip_target(model: &RodModel) -> TipTarget {
 }
 
 /// How far [`probe`] shrinks the tip mismatch of the rigid estimate: far
-/// below a coarse shot's own error, whose wrench only starts a finer solve.
+/// below a coarse shot's own error, whose wrench only starts a solve.
 const PROBE_CONTRACTION: f64 = 1e-6;
 
-/// A coarse shot of `model` (few elements) for where a finer solve of the
-/// same scene starts, its base wrench and Jacobian (a cold solve at the
-/// finer n would draw that Jacobian there, at the finer n's cost): Newton
-/// directly from the rigid estimate, without the shape, stability or
-/// solution of a solve. `None` where it does not converge directly (the
-/// finer solve then starts cold and takes its own load path) or is
-/// interrupted. Its equilibrium is not judged: the finer solve judges its
-/// own. With the iterations it took.
-pub fn probe(model: &RodModel, scene: &Scene, limits: Limits) -> (Option<WarmShot>, usize) {
+/// A shot of few elements ([`probe`]): where a solve of the same scene
+/// starts, and its shape.
+pub struct Probe {
+    /// Its base wrench and Jacobian.
+    pub warm: WarmShot,
+    /// Its rotations at the nodes, `n + 1` of them.
+    pub quaternions: Vec<Quat>,
+}
+
+/// A coarse shot of `model` (few elements) for where a solve of the same
+/// scene starts, its base wrench and Jacobian (a cold solve at a finer n
+/// would draw that Jacobian at the finer n's cost), and its shape: Newton
+/// directly from the rigid estimate, without the stability or solution of a
+/// solve. `None` where it does not converge directly (the solve then starts
+/// cold and takes its own load path) or is interrupted; with the
+/// iterations it took. Its equilibrium is not judged: the solve that starts
+/// from it judges its own.
+pub fn probe(model: &RodModel, scene: &Scene, limits: Limits) -> (Option<Probe>, usize) {
     let held = !model.constraints().is_empty();
     let rod = Rod::new(model, scene, 1.0);
     let newton = Newton {
@@ -1059,12 +1068,19 @@ pub fn probe(model: &RodModel, scene: &Scene, limits: Limits) -> (Option<WarmSho
         (limits.tol, PROBE_CONTRACTION),
         None,
     );
-    let warm = ran.converged.then_some(WarmShot {
+    if !ran.converged {
+        return (None, ran.iterations);
+    }
+    let mut quaternions = vec![Quat::IDENTITY; model.n() + 1];
+    let (m0, n0) = newton.split(&x);
+    rod.integrate(m0, n0, Some(&mut quaternions), None);
+    let warm = WarmShot {
         x,
         jacobian: ran.jacobian,
         held,
-    });
-    (warm, ran.iterations)
+    };
+    let probe = Probe { warm, quaternions };
+    (Some(probe), ran.iterations)
 }
 
 /// How far [`finer_shot`] shrinks the tip mismatch the coarser wrench leaves

@@ -21,7 +21,7 @@
 
 use super::{check_tolerance, Engine, Method, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
-use crate::methods::shooting::{self, FinerShot, WarmShot};
+use crate::methods::shooting::{self, WarmShot};
 use crate::model::{element_turn, slerp, RodModel};
 use crate::quat::Quat;
 use crate::read::{as_argument, count, finite, Table};
@@ -320,19 +320,9 @@ fn refine_with(
     let turn = asymptotic_turn(order);
     let n0 = starting_elements_within(scene, requested, turn);
     let shooting = settings.method.engine() == Engine::Shooting;
-    // By shooting, the first pass is at the n its prior predicts, started
-    // from a probe at n0 where that is finer (see `shot_prior_elements`),
-    // and no finer than leaves room for its own estimate's finer shot.
-    let n_first = match shooting {
-        true => {
-            let prior = shot_prior_elements(scene, n0, accuracy.tol);
-            let step = node_step(scene);
-            let room = accuracy.max_elements / 2 / step * step;
-            starting_elements_within(scene, requested.max(prior), turn)
-                .min(room)
-                .max(n0)
-        }
-        false => n0,
+    let (n_first, warm, probed) = match shooting {
+        true => shot_first_pass(scene, &settings, accuracy, (n0, requested))?,
+        false => (n0, None, 0),
     };
     let first = Settings {
         n_elements: Some(n_first),
@@ -341,20 +331,11 @@ fn refine_with(
     let (long, first_scene) = (first.has_long_passes(), scene.clone());
     let (trivial, (mut base, mut base_shot)) = crate::interrupt::on_worker_if(long, move || {
         let mut solver = Solver::new(&first_scene, first)?;
-        let mut probed = 0;
-        if n_first > n0 {
-            let model = RodModel::new(&first_scene, n0);
-            let limits = shooting::Limits {
-                tol: model.effective_tol(solver.settings.residual_tol),
-                max_iterations: solver.settings.max_iterations,
-                min_continuation_step: solver.settings.min_continuation_step,
-            };
-            (solver.warm_shot, probed) = shooting::probe(&model, &first_scene, limits);
-        }
-        let mut base = solver.solve(None)?;
-        base.iterations += probed;
+        solver.warm_shot = warm;
+        let base = solver.solve(None)?;
         Ok((solver.model().is_trivial(), (base, solver.last_shot)))
     })?;
+    base.iterations += probed;
     if !keep_going(&base) {
         return Ok(Refined::HandedOver(base));
     }
@@ -386,18 +367,13 @@ fn refine_with(
     } else {
         turn
     };
-    let finer_shot_at =
-        |n: usize, warm: WarmShot| -> Result<std::result::Result<FinerShot, usize>> {
-            at_elements(scene, &settings, n, move |scene, settings| {
-                let model = RodModel::new(&scene, n);
-                let limits = shooting::Limits {
-                    tol: model.effective_tol(settings.residual_tol),
-                    max_iterations: settings.max_iterations,
-                    min_continuation_step: settings.min_continuation_step,
-                };
-                Ok(shooting::finer_shot(&model, &scene, limits, &warm))
-            })
-        };
+    let finer_shot_at = |n: usize, warm: WarmShot| {
+        at_elements(scene, &settings, n, move |scene, settings| {
+            let model = RodModel::new(&scene, n);
+            let limits = shot_limits(&model, &settings);
+            Ok(shooting::finer_shot(&model, &scene, limits, &warm))
+        })
+    };
     // Pre-asymptotic bases (an element turning by more than ASYMPTOTIC_TURN)
     // only lead to finer ones; a shot estimated by its own finer shot leads
     // to the n its estimate predicts.
@@ -407,7 +383,7 @@ fn refine_with(
             return Ok(Refined::Done(base));
         }
         let base_turn = if base.converged() {
-            max_turn(scene, &base)
+            max_turn(scene, base.n_elements, &base.quaternions)
         } else {
             f64::INFINITY
         };
@@ -547,17 +523,74 @@ const SHOT_FORCE_WEIGHT: f64 = 1.4;
 const SHOT_PRIOR_MARGIN: f64 = 1.3;
 
 /// The n whose shot the prior of [`SHOT_ERROR_CONSTANT`] expects to meet
-/// `tol` (relative to the length) with its margin, before any solve:
-/// where it is finer than the probe's `n0`, the first pass is at this n.
-/// Its first solve starts from the probe's wrench and Jacobian (a shot at
-/// `n0`, a fraction of the cost of a Jacobian at this n), and its own
-/// estimate decides as for any shot; a prior that falls short costs a
-/// finer pass, as a first pass at `n0` always did.
-fn shot_prior_elements(scene: &Scene, n0: usize, tol: f64) -> usize {
-    let terms = crate::terms::Terms::new(scene, &scene.mesh(n0));
-    let turns = terms.turning_rate(scene.length, SHOT_FORCE_WEIGHT) * scene.length;
+/// `tol` (relative to the length) with its margin, for a rod that turns by
+/// `turns` [rad] over its length at the prior's rate.
+fn shot_prior_elements(turns: f64, tol: f64) -> usize {
     let n = turns * (SHOT_PRIOR_MARGIN * SHOT_ERROR_CONSTANT / tol).powf(0.25);
     n.ceil().min(MAX_ELEMENTS as f64) as usize
+}
+
+/// How much faster than its largest curvature the prior's rate may turn a
+/// rod it fits: 2.5 measured (a cantilever at alpha = 0.3, where a force's
+/// rate is 2.5 times the curvature it bends the rod to; 1.1 to 1.9 at
+/// alpha = 1 to 30 and under gravity).
+const SHOT_CURVATURE_BOUND: f64 = 2.5;
+
+/// The first pass of accuracy on demand by shooting and where it starts:
+/// `(n, warm start, the probe's iterations)`. At the n the prior predicts
+/// ([`shot_prior_elements`] at the scene's turning rate,
+/// [`crate::terms::Terms::turning_rate`]) where that is finer than `n0`,
+/// at most half `max_elements` (its own estimate's finer shot must fit),
+/// from a probe at `n0` ([`shooting::probe`]: its wrench and Jacobian, a
+/// fraction of a Jacobian's cost at that n). The probe's shape bounds the
+/// rate: [`SHOT_CURVATURE_BOUND`] times its largest curvature (a load along
+/// the rod, a hanging rod, turns it not at all; a force across the stiffer
+/// axis of an unequal section less than across the softer). The pass's
+/// own estimate decides as for any shot: a prior that falls short costs a
+/// finer pass, as a first pass at `n0` always did. Where the probe does not
+/// converge directly the first pass is at `n0`, cold (its own load path).
+fn shot_first_pass(
+    scene: &Scene,
+    settings: &Settings,
+    accuracy: &Accuracy,
+    (n0, requested): (usize, usize),
+) -> Result<(usize, Option<WarmShot>, usize)> {
+    let step = node_step(scene);
+    let room = accuracy.max_elements / 2 / step * step;
+    let turn = asymptotic_turn(4);
+    let at_rate = |rate: f64| {
+        let prior = shot_prior_elements(rate * scene.length, accuracy.tol);
+        starting_elements_within(scene, requested.max(prior), turn)
+            .min(room)
+            .max(n0)
+    };
+    let terms = crate::terms::Terms::new(scene, &scene.mesh(n0));
+    let rate = terms.turning_rate(scene.length, SHOT_FORCE_WEIGHT);
+    if at_rate(rate) <= n0 {
+        return Ok((n0, None, 0));
+    }
+    let model = RodModel::new(scene, n0);
+    let (probe, iterations) = shooting::probe(&model, scene, shot_limits(&model, settings));
+    let Some(probe) = probe else {
+        return Ok((n0, None, iterations));
+    };
+    let curvature = probe
+        .quaternions
+        .windows(2)
+        .zip(model.mesh().element_lengths())
+        .map(|(q, h)| element_turn(q[0], q[1]) / h)
+        .fold(0.0, f64::max);
+    let n = at_rate(rate.min(SHOT_CURVATURE_BOUND * curvature));
+    Ok((n, Some(probe.warm), iterations))
+}
+
+/// Shooting's limits of a solve of `model` with `settings`.
+fn shot_limits(model: &RodModel, settings: &Settings) -> shooting::Limits {
+    shooting::Limits {
+        tol: model.effective_tol(settings.residual_tol),
+        max_iterations: settings.max_iterations,
+        min_continuation_step: settings.min_continuation_step,
+    }
 }
 
 /// Largest element turn [rad] at which a shot's own error is estimated from
@@ -621,9 +654,9 @@ fn node_difference(coarse: &[Vector3<f64>], fine: &[Vector3<f64>], k: usize) -> 
         .fold(0.0, f64::max)
 }
 
-/// Largest element turning of a solution [rad], rest turning included.
-fn max_turn(scene: &Scene, sol: &Solution) -> f64 {
-    let n = sol.n_elements;
+/// Largest element turning [rad] of a shape of `n` elements whose node
+/// rotations are `quaternions`, rest turning included.
+fn max_turn(scene: &Scene, n: usize, quaternions: &[Quat]) -> f64 {
     let mesh = scene.mesh(n);
     let sections = scene.rest_curvature.len().max(1);
     let rest = mesh
@@ -635,7 +668,7 @@ fn max_turn(scene: &Scene, sol: &Solution) -> f64 {
             Some(h * k[0].hypot(k[1]))
         })
         .fold(0.0, f64::max);
-    sol.quaternions
+    quaternions
         .windows(2)
         .map(|p| element_turn(p[0], p[1]))
         .fold(rest, f64::max)

@@ -315,3 +315,39 @@ pub(crate) fn jumps<T: PartialEq>(per_element: &[T], out: &mut Vec<usize>) {
 pub(crate) fn unit(c: usize) -> nalgebra::Vector3<f64> {
     nalgebra::Vector3::ith(c, 1.0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(json: &str) -> Scene {
+        Scene::from_json_str(json).unwrap()
+    }
+
+    #[test]
+    fn a_force_turns_the_rod_at_the_root_of_its_load_and_a_moment_at_its_curvature() {
+        // F = 3 EI / L^2 across the rod: omega^2 = w F / EI; a tip moment M
+        // of 2 EI / L bends it at M / EI; the softer bending axis counts
+        // (kx = 0.5), torsion not (kz = 0.1).
+        let force = scene(
+            r#"{"length": 2.0, "stiffness": {"kx": 0.5, "ky": 1.0, "kz": 0.1}, "tip_force": [0, -0.375, 0]}"#,
+        );
+        let terms = Terms::new(&force, &force.mesh(4));
+        let loads = terms.bending_loads(2.0);
+        assert_eq!((loads.force, loads.moment), (0.375, 0.0));
+        assert!((terms.turning_rate(2.0, 1.4) - (1.4 * 0.375 / 0.5f64).sqrt()).abs() < 1e-15);
+        let moment = scene(
+            r#"{"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}, "tip_moment": [2, 0, 0], "rest_curvature": [[0, 1.5]]}"#,
+        );
+        let terms = Terms::new(&moment, &moment.mesh(4));
+        assert_eq!(terms.bending_loads(1.0).moment, 2.0);
+        // With the rest curvature: omega^2 = kappa0^2 + (M / EI)^2.
+        assert!((terms.turning_rate(1.0, 1.4) - 2.5).abs() < 1e-15);
+        // Gravity: its whole weight, rho g L.
+        let hanging = scene(
+            r#"{"length": 0.5, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}, "gravity": {"linear_density": 2.0, "vector": [0, 0, -10]}}"#,
+        );
+        let terms = Terms::new(&hanging, &hanging.mesh(4));
+        assert!((terms.bending_loads(0.5).force - 10.0).abs() < 1e-12);
+    }
+}

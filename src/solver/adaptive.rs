@@ -17,7 +17,9 @@
 //! predicts is solved and estimated in turn. Where no finer shot fits within
 //! `max_elements`, or a finer shot does not converge directly, or the solve
 //! needed its load path (no warm start), the pair of solves estimates the
-//! finer one as above.
+//! finer one as above. The first shot is at the n a prior of RK4's error
+//! predicts from the scene ([`SHOT_ERROR_CONSTANT`], bounded by a probe
+//! shot's shape), from the probe's wrench and Jacobian ([`shot_first_pass`]).
 
 use super::{check_tolerance, Engine, Method, Settings, Solution, Solver, Status, MAX_ELEMENTS};
 use crate::error::{Error, Result};
@@ -506,14 +508,15 @@ fn refine_with(
 }
 
 /// The prior of a shot's error: RK4 at `n` elements misses the rod's nodes
-/// by about `C L (omega L / n)^4`, `omega` the scene's turning rate
-/// ([`crate::terms::Terms::turning_rate`], a force weighing
-/// [`SHOT_FORCE_WEIGHT`]). Measured `C` (the largest node error over `L`,
+/// by about `C L (omega L / n)^4`, `omega` the scene's turning rate,
+/// `omega^2 = kappa^2 + w F / EI` ([`crate::terms::Terms::turning`], a force
+/// weighing `w` = [`SHOT_FORCE_WEIGHT`]). Measured `C` (the largest node error over `L`,
 /// times `(n / (omega L))^4`, n = 4 to 32): free cantilevers alpha = 0.3 to
-/// 30 in and out of plane 0.8e-3 to 1.1e-3, tip moments and precurved or
-/// coiled rods 0.6e-3 to 1.0e-3, gravity 0.9e-3; combined, a precurved rod
-/// under a tip force 0.4e-3, the race's precurved ten sections under
-/// gravity 1.1e-3, the same under a tip force 4.5e-3.
+/// 30 in and out of plane 0.4e-3 (alpha = 30) to 1.3e-3 (alpha = 1), tip
+/// moments and precurved or coiled rods 0.6e-3 to 1.0e-3, gravity 0.6e-3 to
+/// 0.7e-3; combined, a precurved rod under a tip force 0.4e-3, the race's
+/// precurved ten sections under gravity 1.1e-3, the same under a tip force
+/// 4.5e-3.
 const SHOT_ERROR_CONSTANT: f64 = 1e-3;
 
 /// The weight of a force in the turning rate of [`SHOT_ERROR_CONSTANT`].
@@ -530,24 +533,28 @@ fn shot_prior_elements(turns: f64, tol: f64) -> usize {
     n.ceil().min(MAX_ELEMENTS as f64) as usize
 }
 
-/// How much faster than its largest curvature the prior's rate may turn a
-/// rod it fits: 2.5 measured (a cantilever at alpha = 0.3, where a force's
-/// rate is 2.5 times the curvature it bends the rod to; 1.1 to 1.9 at
-/// alpha = 1 to 30 and under gravity).
+/// How much faster than the largest curvature it bends the rod to the
+/// prior's rate may turn a rod it fits: 2.5 measured (a cantilever at alpha
+/// = 0.3, where a force's rate is 2.5 times the curvature it bends the rod
+/// to; 1.1 to 1.9 at alpha = 1 to 30 and under gravity). Bounding a
+/// moment's part by the curvature alone was tried and not kept: on random
+/// scenes with unequal bending stiffnesses under tip moments, whose error
+/// constant is up to three times the prior's, it put four of 64 first
+/// shots at 1e-8 short of the tolerance (a second pass: twice the time).
 const SHOT_CURVATURE_BOUND: f64 = 2.5;
 
 /// The first pass of accuracy on demand by shooting and where it starts:
 /// `(n, warm start, the probe's iterations)`. At the n the prior predicts
 /// ([`shot_prior_elements`] at the scene's turning rate,
-/// [`crate::terms::Terms::turning_rate`]) where that is finer than `n0`,
+/// [`crate::terms::Terms::turning`]) where that is finer than `n0`,
 /// at most half `max_elements` (its own estimate's finer shot must fit),
 /// from a probe at `n0` ([`shooting::probe`]: its wrench and Jacobian, a
 /// fraction of a Jacobian's cost at that n). The probe's shape bounds the
 /// rate: [`SHOT_CURVATURE_BOUND`] times its largest curvature (a load along
 /// the rod, a hanging rod, turns it not at all; a force across the stiffer
-/// axis of an unequal section less than across the softer). The pass's
-/// own estimate decides as for any shot: a prior that falls short costs a
-/// finer pass, as a first pass at `n0` always did. Where the probe does not
+/// axis of an unequal section less than across the softer). The pass's own
+/// estimate decides as for any shot: a prior that falls short costs a finer
+/// pass, as a first pass at `n0` always did. Where the probe does not
 /// converge directly the first pass is at `n0`, cold (its own load path).
 fn shot_first_pass(
     scene: &Scene,
@@ -564,9 +571,9 @@ fn shot_first_pass(
             .min(room)
             .max(n0)
     };
-    let terms = crate::terms::Terms::new(scene, &scene.mesh(n0));
-    let rate = terms.turning_rate(scene.length, SHOT_FORCE_WEIGHT);
-    if at_rate(rate) <= n0 {
+    let turning = crate::terms::Terms::new(scene, &scene.mesh(n0)).turning(scene.length);
+    let force = SHOT_FORCE_WEIGHT * turning.force;
+    if at_rate((turning.curvature_squared + force).sqrt()) <= n0 {
         return Ok((n0, None, 0));
     }
     let model = RodModel::new(scene, n0);
@@ -580,6 +587,7 @@ fn shot_first_pass(
         .zip(model.mesh().element_lengths())
         .map(|(q, h)| element_turn(q[0], q[1]) / h)
         .fold(0.0, f64::max);
+    let rate = (turning.curvature_squared + force).sqrt();
     let n = at_rate(rate.min(SHOT_CURVATURE_BOUND * curvature));
     Ok((n, Some(probe.warm), iterations))
 }

@@ -93,6 +93,18 @@ impl std::ops::Add for BendingLoads {
     }
 }
 
+/// How fast a loaded rod can turn ([`Terms::turning`]): a curvature `kappa`
+/// turns it at `kappa` (the rest curvature's, a moment's `M / EI`), a force
+/// `F` over the elastica's length `sqrt(EI / F)`, at a rate whose square is
+/// `F / EI`: both [1/m^2].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Turning {
+    /// The largest curvature's square: rest curvature and moments.
+    pub curvature_squared: f64,
+    /// The largest force over the softest bending stiffness.
+    pub force: f64,
+}
+
 /// Every term of a scene.
 #[derive(Debug, Clone)]
 pub struct Terms {
@@ -162,12 +174,11 @@ impl Terms {
             .fold(BendingLoads::default(), |a, b| a + b)
     }
 
-    /// How fast the loaded rod can turn [1/m], from its rest curvature and
-    /// the loads' largest force and moment over the softest bending
-    /// stiffness (see [`BendingLoads`]): `omega^2 = kappa0^2 + w F / EI +
-    /// (M / EI)^2`, a force weighing `w` = `force_weight`. The scale of a
-    /// scheme's error (`solver::adaptive`).
-    pub fn turning_rate(&self, length: f64, force_weight: f64) -> f64 {
+    /// How fast the loaded rod can turn, from its rest curvature and the
+    /// loads' largest force and moment over the softest bending stiffness
+    /// (see [`BendingLoads`]; torsion aside). The scale of a scheme's error
+    /// (`solver::adaptive`).
+    pub fn turning(&self, length: f64) -> Turning {
         let bending = self
             .elastic
             .stiffness
@@ -184,7 +195,10 @@ impl Terms {
             .fold(0.0, f64::max);
         let loads = self.bending_loads(length);
         let moment = loads.moment / bending;
-        (rest * rest + force_weight * loads.force / bending + moment * moment).sqrt()
+        Turning {
+            curvature_squared: rest * rest + moment * moment,
+            force: loads.force / bending,
+        }
     }
 
     /// Whether nothing but the elastic law acts.
@@ -326,23 +340,24 @@ mod tests {
 
     #[test]
     fn a_force_turns_the_rod_at_the_root_of_its_load_and_a_moment_at_its_curvature() {
-        // F = 3 EI / L^2 across the rod: omega^2 = w F / EI; a tip moment M
-        // of 2 EI / L bends it at M / EI; the softer bending axis counts
-        // (kx = 0.5), torsion not (kz = 0.1).
+        // F = 3 EI / L^2 across the rod turns it at sqrt(F / EI); a tip
+        // moment M of 2 EI / L bends it at M / EI; the softer bending axis
+        // counts (kx = 0.5), torsion not (kz = 0.1).
         let force = scene(
             r#"{"length": 2.0, "stiffness": {"kx": 0.5, "ky": 1.0, "kz": 0.1}, "tip_force": [0, -0.375, 0]}"#,
         );
         let terms = Terms::new(&force, &force.mesh(4));
         let loads = terms.bending_loads(2.0);
         assert_eq!((loads.force, loads.moment), (0.375, 0.0));
-        assert!((terms.turning_rate(2.0, 1.4) - (1.4 * 0.375 / 0.5f64).sqrt()).abs() < 1e-15);
+        let turning = terms.turning(2.0);
+        assert_eq!((turning.curvature_squared, turning.force), (0.0, 0.75));
         let moment = scene(
             r#"{"length": 1.0, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}, "tip_moment": [2, 0, 0], "rest_curvature": [[0, 1.5]]}"#,
         );
         let terms = Terms::new(&moment, &moment.mesh(4));
         assert_eq!(terms.bending_loads(1.0).moment, 2.0);
-        // With the rest curvature: omega^2 = kappa0^2 + (M / EI)^2.
-        assert!((terms.turning_rate(1.0, 1.4) - 2.5).abs() < 1e-15);
+        // With the rest curvature: kappa0^2 + (M / EI)^2.
+        assert_eq!(terms.turning(1.0).curvature_squared, 6.25);
         // Gravity: its whole weight, rho g L.
         let hanging = scene(
             r#"{"length": 0.5, "stiffness": {"kx": 1.0, "ky": 1.0, "kz": 1.0}, "gravity": {"linear_density": 2.0, "vector": [0, 0, -10]}}"#,

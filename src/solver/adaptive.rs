@@ -385,7 +385,7 @@ fn refine_with(
             return Ok(Refined::Done(base));
         }
         let base_turn = if base.converged() {
-            max_turn(scene, base.n_elements, &base.quaternions)
+            max_turn(scene, &base)
         } else {
             f64::INFINITY
         };
@@ -572,8 +572,8 @@ fn shot_first_pass(
             .max(n0)
     };
     let turning = crate::terms::Terms::new(scene, &scene.mesh(n0)).turning(scene.length);
-    let force = SHOT_FORCE_WEIGHT * turning.force;
-    if at_rate((turning.curvature_squared + force).sqrt()) <= n0 {
+    let rate = (turning.curvature_squared + SHOT_FORCE_WEIGHT * turning.force).sqrt();
+    if at_rate(rate) <= n0 {
         return Ok((n0, None, 0));
     }
     let model = RodModel::new(scene, n0);
@@ -587,7 +587,6 @@ fn shot_first_pass(
         .zip(model.mesh().element_lengths())
         .map(|(q, h)| element_turn(q[0], q[1]) / h)
         .fold(0.0, f64::max);
-    let rate = (turning.curvature_squared + force).sqrt();
     let n = at_rate(rate.min(SHOT_CURVATURE_BOUND * curvature));
     Ok((n, Some(probe.warm), iterations))
 }
@@ -662,9 +661,9 @@ fn node_difference(coarse: &[Vector3<f64>], fine: &[Vector3<f64>], k: usize) -> 
         .fold(0.0, f64::max)
 }
 
-/// Largest element turning [rad] of a shape of `n` elements whose node
-/// rotations are `quaternions`, rest turning included.
-fn max_turn(scene: &Scene, n: usize, quaternions: &[Quat]) -> f64 {
+/// Largest element turning of a solution [rad], rest turning included.
+fn max_turn(scene: &Scene, sol: &Solution) -> f64 {
+    let n = sol.n_elements;
     let mesh = scene.mesh(n);
     let sections = scene.rest_curvature.len().max(1);
     let rest = mesh
@@ -676,7 +675,7 @@ fn max_turn(scene: &Scene, n: usize, quaternions: &[Quat]) -> f64 {
             Some(h * k[0].hypot(k[1]))
         })
         .fold(0.0, f64::max);
-    quaternions
+    sol.quaternions
         .windows(2)
         .map(|p| element_turn(p[0], p[1]))
         .fold(rest, f64::max)

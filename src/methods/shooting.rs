@@ -447,7 +447,24 @@ struct Newton<'r, 'a> {
     scale: Vector6,
 }
 
-impl Newton<'_, '_> {
+impl<'r, 'a> Newton<'r, 'a> {
+    /// Newton on `rod` (the loads at full scale) toward the scene's own
+    /// tip: held where `held`, else free.
+    fn at_full_load(rod: &'r Rod<'a>, model: &RodModel, held: bool) -> Self {
+        Newton {
+            rod,
+            target: if held {
+                held_tip_target(model)
+            } else {
+                TipTarget {
+                    position: None,
+                    orientation: None,
+                }
+            },
+            held,
+            scale: unknowns_scale(model),
+        }
+    }
     fn unknowns(&self) -> usize {
         if self.held {
             6
@@ -843,13 +860,7 @@ pub fn shoot(
     let warm = warm.filter(|w| w.held == held);
     let mut x = match warm {
         Some(w) => w.x,
-        None => {
-            let mut x = Vector6::zeros();
-            x.fixed_rows_mut::<3>(0)
-                .copy_from(&start_moment(model, &full, initial));
-            x.fixed_rows_mut::<3>(3).copy_from(&full.free_base_force);
-            x
-        }
+        None => cold_start(model, &full, initial),
     };
     let Ran {
         mut converged,
@@ -1045,23 +1056,8 @@ pub struct Probe {
 pub fn probe(model: &RodModel, scene: &Scene, limits: Limits) -> (Option<Probe>, usize) {
     let held = !model.constraints().is_empty();
     let rod = Rod::new(model, scene, 1.0);
-    let newton = Newton {
-        rod: &rod,
-        target: if held {
-            held_tip_target(model)
-        } else {
-            TipTarget {
-                position: None,
-                orientation: None,
-            }
-        },
-        held,
-        scale: unknowns_scale(model),
-    };
-    let mut x = Vector6::zeros();
-    x.fixed_rows_mut::<3>(0)
-        .copy_from(&start_moment(model, &rod, None));
-    x.fixed_rows_mut::<3>(3).copy_from(&rod.free_base_force);
+    let newton = Newton::at_full_load(&rod, model, held);
+    let mut x = cold_start(model, &rod, None);
     let ran = newton.run_from(
         &mut x,
         limits.max_iterations.min(DIRECT_ITERATIONS),
@@ -1118,19 +1114,7 @@ pub fn finer_shot(
         return Err(0);
     }
     let rod = Rod::new(model, scene, 1.0);
-    let newton = Newton {
-        rod: &rod,
-        target: if held {
-            held_tip_target(model)
-        } else {
-            TipTarget {
-                position: None,
-                orientation: None,
-            }
-        },
-        held,
-        scale: unknowns_scale(model),
-    };
+    let newton = Newton::at_full_load(&rod, model, held);
     // Chord steps on the coarser Jacobian, each integration keeping the
     // nodes (the estimate needs the finer shot's nodes to a small part of
     // their difference from the coarser ones, not to the solve's
@@ -1264,6 +1248,16 @@ fn free_rod_is_stable(
         held_tip: None,
     });
     (verdict, tip)
+}
+
+/// The unknowns a cold shot starts from: the base moment of
+/// [`start_moment`] and the free rod's base force.
+fn cold_start(model: &RodModel, rod: &Rod, initial: Option<&[Quat]>) -> Vector6 {
+    let mut x = Vector6::zeros();
+    x.fixed_rows_mut::<3>(0)
+        .copy_from(&start_moment(model, rod, initial));
+    x.fixed_rows_mut::<3>(3).copy_from(&rod.free_base_force);
+    x
 }
 
 /// The base moment to start from: the loads' moment about the base on the

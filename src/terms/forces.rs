@@ -97,6 +97,17 @@ impl DeadForces {
     }
 }
 
+impl DeadForces {
+    /// The largest force per length on any section [N/m].
+    fn largest_distributed(&self) -> f64 {
+        self.distributed
+            .values()
+            .iter()
+            .map(|f| f.norm())
+            .fold(0.0, f64::max)
+    }
+}
+
 impl Term for DeadForces {
     fn apply(&self, mesh: &Mesh, loading: &mut Loading) {
         if self.vanishes() {
@@ -106,12 +117,7 @@ impl Term for DeadForces {
     }
 
     fn moment_scale(&self, length: f64) -> f64 {
-        let largest = self
-            .distributed
-            .values()
-            .iter()
-            .map(|f| f.norm())
-            .fold(0.0, f64::max);
+        let largest = self.largest_distributed();
         0.5 * length * length * largest
             + self
                 .points
@@ -122,12 +128,7 @@ impl Term for DeadForces {
     }
 
     fn bending_loads(&self, length: f64) -> BendingLoads {
-        let largest = self
-            .distributed
-            .values()
-            .iter()
-            .map(|f| f.norm())
-            .fold(0.0, f64::max);
+        let largest = self.largest_distributed();
         BendingLoads {
             force: length * largest + self.points.iter().map(|(_, p)| p.norm()).sum::<f64>(),
             moment: 0.0,

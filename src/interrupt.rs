@@ -161,7 +161,10 @@ pub fn filled<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>> {
         bytes: n.saturating_mul(std::mem::size_of::<T>()),
     })?;
     while v.len() < n {
-        check()?;
+        // The first chunk needs no poll: a small vector is filled at once.
+        if !v.is_empty() {
+            check()?;
+        }
         let chunk = (n - v.len()).min(FILL_CHUNK);
         v.extend(std::iter::repeat_n(value.clone(), chunk));
     }

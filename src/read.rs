@@ -49,6 +49,14 @@ impl<'a> Table<'a> {
         }
     }
 
+    /// The positive number at `k` (its key formatted for an error only).
+    pub(crate) fn positive(&self, k: &str) -> Result<f64> {
+        match self.require(k)? {
+            Value::Number(x) if x.is_finite() && *x > 0.0 => Ok(*x),
+            v => positive(v, &self.key(k)),
+        }
+    }
+
     pub(crate) fn get(&self, k: &str) -> Option<&'a Value> {
         self.entries
             .iter()
@@ -115,7 +123,11 @@ pub(crate) fn numbers<const N: usize>(v: &Value, key: &str) -> Result<[f64; N]> 
     }
     let mut out = [0.0; N];
     for (i, item) in items.iter().enumerate() {
-        out[i] = finite(item, &format!("{key}[{i}]"))?;
+        // The entry's key is formatted for an error only.
+        out[i] = match item {
+            Value::Number(x) if x.is_finite() => *x,
+            _ => finite(item, &format!("{key}[{i}]"))?,
+        };
     }
     Ok(out)
 }

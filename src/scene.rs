@@ -1360,7 +1360,7 @@ const HELD_INSIDE: f64 = 1e-9;
 pub(crate) fn read_stiffness(v: &Value) -> Result<Stiffness> {
     let t = Table::new(v, "stiffness")?;
     t.only(&["kx", "ky", "kz", "E", "G", "diameter"])?;
-    let p = |k: &str| -> Result<f64> { positive(t.require(k)?, &t.key(k)) };
+    let p = |k: &str| t.positive(k);
     let diagonal = ["kx", "ky", "kz"].iter().any(|k| t.get(k).is_some());
     let round = ["E", "G", "diameter"].iter().any(|k| t.get(k).is_some());
     match (diagonal, round) {

@@ -1360,14 +1360,13 @@ const HELD_INSIDE: f64 = 1e-9;
 pub(crate) fn read_stiffness(v: &Value) -> Result<Stiffness> {
     let t = Table::new(v, "stiffness")?;
     t.only(&["kx", "ky", "kz", "E", "G", "diameter"])?;
-    let p = |k: &str| t.positive(k);
     let diagonal = ["kx", "ky", "kz"].iter().any(|k| t.get(k).is_some());
     let round = ["E", "G", "diameter"].iter().any(|k| t.get(k).is_some());
     match (diagonal, round) {
         (true, false) => Ok(Stiffness::Diagonal {
-            kx: p("kx")?,
-            ky: p("ky")?,
-            kz: p("kz")?,
+            kx: t.positive("kx")?,
+            ky: t.positive("ky")?,
+            kz: t.positive("kz")?,
         }),
         (false, true) => {
             if t.get("G").is_none() {
@@ -1380,9 +1379,9 @@ pub(crate) fn read_stiffness(v: &Value) -> Result<Stiffness> {
                 ));
             }
             Ok(Stiffness::RoundRod {
-                e: p("E")?,
-                g: p("G")?,
-                diameter: p("diameter")?,
+                e: t.positive("E")?,
+                g: t.positive("G")?,
+                diameter: t.positive("diameter")?,
             })
         }
         (true, true) => Err(Error::scene(
